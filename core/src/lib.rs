@@ -1,0 +1,47 @@
+//! # antumbra-core
+//!
+//! The algorithms of Antumbra: physically-based visibility and lighting kernels for
+//! engines. This crate is always `#![no_std]` + `alloc`, so it builds for
+//! microcontrollers (`thumbv7em-none-eabihf`) as well as for desktop engines.
+//!
+//! What is here today:
+//!
+//! - [`geom`]: validated triangle-mesh views ([`MeshView`]) over caller-owned,
+//!   possibly strided vertex data, and the receiver frame ([`Frame`]) every
+//!   hemispherical algorithm uses.
+//! - [`raycast`]: the [`RayCaster`] trait (any-hit occlusion on a segment and closest
+//!   hit), a watertight ray–triangle test, a brute-force caster that is the obviously
+//!   right reference, and, behind the `bvh` feature, a compressed wide BVH ([`raycast::BvhScene`],
+//!   built with obvhs).
+//!
+//! ## Features
+//!
+//! - `std` (default): error trait interop and what the backends below need.
+//! - `bvh`: the obvhs (CWBVH) ray caster.
+//! - `parallel`: rayon-parallel batch entry points. Features are additive and never
+//!   change numeric results.
+//!
+//! ## Conventions
+//!
+//! Right-handed coordinates, `f32` everywhere, angles in radians. A ray hits a
+//! triangle at parameter `t` when `t_min < t < t_max`, with `t` measured in units
+//! of the ray direction's length (directions need not be normalised).
+#![no_std]
+#![deny(unsafe_code)]
+#![warn(missing_docs)]
+
+// Owned structures (BVH, tables, wedge trees) allocate; kernels never do.
+#[allow(unused_extern_crates)]
+extern crate alloc;
+#[cfg(feature = "std")]
+extern crate std;
+
+pub mod geom;
+pub mod raycast;
+
+pub use geom::{Frame, MeshError, MeshView};
+pub use raycast::{BruteForceCaster, Hit, Ray, RayCaster};
+
+/// Re-export of the math library used in every public signature, so callers use
+/// exactly the same `glam` version.
+pub use glam;

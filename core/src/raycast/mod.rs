@@ -1,0 +1,259 @@
+//! Ray casting: the [`RayCaster`] trait every algorithm that needs rays goes through,
+//! the watertight ray–triangle test, and the brute-force caster that is the
+//! obviously-right reference for every accelerated caster.
+//!
+//! Semantics, shared by every implementation and by the C API: a ray
+//! `origin + t * direction` hits a triangle when `t_min < t < t_max`, with `t` in
+//! units of the direction's length (directions need not be normalised). Triangles
+//! are two-sided. A ray with a zero or non-finite component hits nothing.
+//!
+//! The triangle test is the watertight algorithm of Woop, Benthin and Wald,
+//! "Watertight Ray/Triangle Intersection" (JCGT 2013): a ray through a shared edge
+//! or vertex hits at least one of the triangles that share it, so closed meshes
+//! have no pinholes. Edge functions that round to exactly zero are recomputed in
+//! `f64`, as the paper prescribes.
+
+#[cfg(feature = "bvh")]
+mod bvh;
+
+#[cfg(feature = "bvh")]
+pub use bvh::BvhScene;
+
+use glam::Vec3;
+
+use crate::geom::MeshView;
+
+/// A ray segment: the points `origin + t * direction` with `t_min < t < t_max`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Start of the ray.
+    pub origin: Vec3,
+    /// Direction; any non-zero length, `t` is measured in units of it.
+    pub direction: Vec3,
+    /// Hits at or before this parameter are ignored.
+    pub t_min: f32,
+    /// Hits at or beyond this parameter are ignored (may be `f32::INFINITY`).
+    pub t_max: f32,
+}
+
+impl Ray {
+    /// A ray over the open segment `(0, t_max)`, the C API's convention.
+    #[inline]
+    pub fn new(origin: Vec3, direction: Vec3, t_max: f32) -> Self {
+        Ray {
+            origin,
+            direction,
+            t_min: 0.0,
+            t_max,
+        }
+    }
+
+    /// Whether origin and direction are finite, the direction is not zero, and the
+    /// interval is not NaN. Rays that fail this hit nothing.
+    #[inline]
+    pub fn is_valid(&self) -> bool {
+        self.origin.is_finite()
+            && self.direction.is_finite()
+            && self.direction != Vec3::ZERO
+            && !self.t_min.is_nan()
+            && !self.t_max.is_nan()
+    }
+}
+
+/// The closest intersection of a ray with a mesh.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter of the hit, in units of the direction's length.
+    pub t: f32,
+    /// Index of the triangle hit, in the mesh's order.
+    pub triangle: u32,
+    /// Barycentric weight of the triangle's second corner.
+    pub u: f32,
+    /// Barycentric weight of the triangle's third corner; the hit point is
+    /// `(1 - u - v) * a + u * b + v * c` (Embree's convention).
+    pub v: f32,
+}
+
+/// Something that answers visibility queries against a fixed set of triangles.
+///
+/// Implement it to plug an engine's own tracer into Antumbra; the `bvh` feature
+/// ships [`BvhScene`]. Implementations must follow the module's semantics, and
+/// queries through `&self` must be safe to run from many threads when the type is
+/// `Sync`.
+pub trait RayCaster {
+    /// Whether any triangle is hit with `t_min < t < t_max`.
+    fn occluded(&self, ray: &Ray) -> bool;
+
+    /// The hit with the smallest `t` in `(t_min, t_max)`, if any. Ties between
+    /// triangles at the same `t` may resolve to either.
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit>;
+}
+
+/// A ray prepared for many watertight triangle tests: the axis permutation and
+/// shear of Woop et al. that make the ray the +z axis.
+#[derive(Clone, Copy, Debug)]
+pub struct PreparedRay {
+    origin: Vec3,
+    axes: [usize; 3],
+    shear: Vec3,
+    t_min: f32,
+    t_max: f32,
+}
+
+/// Where a ray crosses one triangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleHit {
+    /// Ray parameter.
+    pub t: f32,
+    /// Barycentric weight of the second corner.
+    pub u: f32,
+    /// Barycentric weight of the third corner.
+    pub v: f32,
+}
+
+impl PreparedRay {
+    /// Prepares `ray`; `None` when the ray is not [`Ray::is_valid`].
+    #[inline]
+    pub fn new(ray: &Ray) -> Option<Self> {
+        if !ray.is_valid() {
+            return None;
+        }
+        let d = ray.direction;
+        let abs = d.abs();
+        let kz = if abs.x > abs.y {
+            if abs.x > abs.z { 0 } else { 2 }
+        } else if abs.y > abs.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding of the permuted axes when looking down -z.
+        if d[kz] < 0.0 {
+            core::mem::swap(&mut kx, &mut ky);
+        }
+        let shear = Vec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        Some(PreparedRay {
+            origin: ray.origin,
+            axes: [kx, ky, kz],
+            shear,
+            t_min: ray.t_min,
+            t_max: ray.t_max,
+        })
+    }
+
+    /// Upper end of the ray interval.
+    #[inline]
+    pub fn t_max(&self) -> f32 {
+        self.t_max
+    }
+
+    /// Shortens the interval to `(t_min, t_max)`; used for closest-hit search.
+    #[inline]
+    pub fn set_t_max(&mut self, t_max: f32) {
+        self.t_max = t_max;
+    }
+
+    /// The watertight test against triangle `(a, b, c)`, two-sided.
+    #[inline]
+    pub fn intersect(&self, a: Vec3, b: Vec3, c: Vec3) -> Option<TriangleHit> {
+        let [kx, ky, kz] = self.axes;
+        let s = self.shear;
+        let a = a - self.origin;
+        let b = b - self.origin;
+        let c = c - self.origin;
+        let ax = a[kx] - s.x * a[kz];
+        let ay = a[ky] - s.y * a[kz];
+        let bx = b[kx] - s.x * b[kz];
+        let by = b[ky] - s.y * b[kz];
+        let cx = c[kx] - s.x * c[kz];
+        let cy = c[ky] - s.y * c[kz];
+
+        let mut eu = cx * by - cy * bx;
+        let mut ev = ax * cy - ay * cx;
+        let mut ew = bx * ay - by * ax;
+        if eu == 0.0 || ev == 0.0 || ew == 0.0 {
+            // Exactly-zero edge functions decide edge ownership: redo them in f64.
+            let (ax, ay, bx, by, cx, cy) = (
+                f64::from(ax),
+                f64::from(ay),
+                f64::from(bx),
+                f64::from(by),
+                f64::from(cx),
+                f64::from(cy),
+            );
+            eu = (cx * by - cy * bx) as f32;
+            ev = (ax * cy - ay * cx) as f32;
+            ew = (bx * ay - by * ax) as f32;
+        }
+        if (eu < 0.0 || ev < 0.0 || ew < 0.0) && (eu > 0.0 || ev > 0.0 || ew > 0.0) {
+            return None;
+        }
+        let det = eu + ev + ew;
+        if det == 0.0 {
+            return None;
+        }
+        let az = s.z * a[kz];
+        let bz = s.z * b[kz];
+        let cz = s.z * c[kz];
+        let inv_det = 1.0 / det;
+        let t = (eu * az + ev * bz + ew * cz) * inv_det;
+        if t > self.t_min && t < self.t_max {
+            Some(TriangleHit {
+                t,
+                u: ev * inv_det,
+                v: ew * inv_det,
+            })
+        } else {
+            None
+        }
+    }
+}
+
+/// The reference caster: tests every triangle of a mesh for every ray.
+///
+/// `O(triangles)` per ray and allocation-free; use it to check faster casters and
+/// for tiny scenes.
+#[derive(Clone, Copy, Debug)]
+pub struct BruteForceCaster<'a> {
+    mesh: MeshView<'a>,
+}
+
+impl<'a> BruteForceCaster<'a> {
+    /// A caster over `mesh`.
+    pub fn new(mesh: MeshView<'a>) -> Self {
+        BruteForceCaster { mesh }
+    }
+}
+
+impl RayCaster for BruteForceCaster<'_> {
+    fn occluded(&self, ray: &Ray) -> bool {
+        let Some(prepared) = PreparedRay::new(ray) else {
+            return false;
+        };
+        self.mesh
+            .triangles()
+            .any(|[a, b, c]| prepared.intersect(a, b, c).is_some())
+    }
+
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        let mut prepared = PreparedRay::new(ray)?;
+        let mut best = None;
+        for (triangle, [a, b, c]) in self.mesh.triangles().enumerate() {
+            if let Some(hit) = prepared.intersect(a, b, c) {
+                prepared.set_t_max(hit.t);
+                best = Some(Hit {
+                    t: hit.t,
+                    triangle: triangle as u32,
+                    u: hit.u,
+                    v: hit.v,
+                });
+            }
+        }
+        best
+    }
+}
+
+#[cfg(test)]
+mod tests;

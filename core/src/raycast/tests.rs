@@ -1,0 +1,322 @@
+//! Tests of the triangle test against an independent f64 Möller–Trumbore, of
+//! watertightness on closed meshes, and of the BVH against brute force.
+
+use alloc::vec::Vec;
+
+use glam::Vec3;
+use proptest::prelude::*;
+use rand::{Rng, SeedableRng, rngs::SmallRng};
+
+use super::*;
+
+/// Möller–Trumbore in f64: the independent twin of the watertight f32 test.
+/// Returns `(t, u, v)` and the smallest barycentric, so callers can tell
+/// edge-grazing rays apart from clear hits.
+fn moller_trumbore_f64(ray: &Ray, [a, b, c]: [Vec3; 3]) -> Option<(f64, f64, f64, f64)> {
+    let (o, d) = (ray.origin.as_dvec3(), ray.direction.as_dvec3());
+    let (a, b, c) = (a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
+    let e1 = b - a;
+    let e2 = c - a;
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 {
+        return None;
+    }
+    let s = o - a;
+    let u = s.dot(p) / det;
+    let q = s.cross(e1);
+    let v = d.dot(q) / det;
+    let t = e2.dot(q) / det;
+    let w = 1.0 - u - v;
+    Some((t, u, v, u.min(v).min(w)))
+}
+
+fn random_triangle(rng: &mut SmallRng) -> [Vec3; 3] {
+    let mut p = || {
+        Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+    };
+    [p(), p(), p()]
+}
+
+fn random_ray(rng: &mut SmallRng, spread: f32) -> Ray {
+    let origin = Vec3::new(
+        rng.random_range(-spread..spread),
+        rng.random_range(-spread..spread),
+        rng.random_range(-spread..spread),
+    );
+    let target = Vec3::new(
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+    );
+    // Unnormalised on purpose: t is in units of the direction's length.
+    let t_max = if rng.random_bool(0.5) {
+        f32::INFINITY
+    } else {
+        rng.random_range(0.1..2.0)
+    };
+    Ray::new(
+        origin,
+        (target - origin) * rng.random_range(0.25..4.0),
+        t_max,
+    )
+}
+
+#[test]
+fn watertight_test_agrees_with_f64_moller_trumbore_off_the_edges() {
+    let mut rng = SmallRng::seed_from_u64(1);
+    let mut hits = 0;
+    for _ in 0..200_000 {
+        let tri = random_triangle(&mut rng);
+        let ray = random_ray(&mut rng, 3.0);
+        let ours = PreparedRay::new(&ray)
+            .unwrap()
+            .intersect(tri[0], tri[1], tri[2]);
+        let reference = moller_trumbore_f64(&ray, tri);
+        // Away from edges (smallest barycentric > 1e-4) and interval ends the
+        // answers must agree exactly; grazing cases may go either way.
+        let Some((t, u, v, min_bary)) = reference else {
+            assert!(ours.is_none());
+            continue;
+        };
+        let inside = min_bary > 1e-4;
+        let outside = min_bary < -1e-4;
+        let t_clear = t > 1e-4 * t.abs().max(1.0) && t < f64::from(ray.t_max) * (1.0 - 1e-4);
+        let t_out = t < -1e-4 || t > f64::from(ray.t_max) * (1.0 + 1e-4);
+        if inside && t_clear {
+            let hit = ours.expect("clear hit missed");
+            hits += 1;
+            assert!((f64::from(hit.t) - t).abs() <= 1e-4 * t.abs().max(1.0));
+            assert!((f64::from(hit.u) - u).abs() < 1e-3);
+            assert!((f64::from(hit.v) - v).abs() < 1e-3);
+        } else if outside || t_out {
+            assert!(ours.is_none(), "clear miss hit: {ray:?} {tri:?}");
+        }
+    }
+    assert!(hits > 5_000, "too few hits to mean anything: {hits}");
+}
+
+#[test]
+fn hit_requires_t_strictly_inside_the_interval() {
+    let tri = [
+        Vec3::new(-1.0, -1.0, 1.0),
+        Vec3::new(1.0, -1.0, 1.0),
+        Vec3::new(0.0, 1.0, 1.0),
+    ];
+    let hit = |t_min: f32, t_max: f32, scale: f32| {
+        let ray = Ray {
+            origin: Vec3::ZERO,
+            direction: Vec3::Z * scale,
+            t_min,
+            t_max,
+        };
+        PreparedRay::new(&ray)
+            .unwrap()
+            .intersect(tri[0], tri[1], tri[2])
+            .map(|h| h.t)
+    };
+    assert_eq!(hit(0.0, f32::INFINITY, 1.0), Some(1.0));
+    assert_eq!(hit(0.0, 1.0, 1.0), None, "t == t_max is not a hit");
+    assert_eq!(hit(1.0, 2.0, 1.0), None, "t == t_min is not a hit");
+    assert_eq!(
+        hit(0.0, f32::INFINITY, 2.0),
+        Some(0.5),
+        "t in direction lengths"
+    );
+    assert_eq!(hit(0.0, f32::INFINITY, -1.0), None, "behind the origin");
+}
+
+#[test]
+fn invalid_rays_hit_nothing() {
+    for ray in [
+        Ray::new(Vec3::ZERO, Vec3::ZERO, 1.0),
+        Ray::new(Vec3::NAN, Vec3::Z, 1.0),
+        Ray::new(Vec3::ZERO, Vec3::new(0.0, f32::INFINITY, 1.0), 1.0),
+        Ray::new(Vec3::ZERO, Vec3::Z, f32::NAN),
+    ] {
+        assert!(PreparedRay::new(&ray).is_none(), "{ray:?}");
+    }
+}
+
+/// A closed octahedron-subdivided sphere: rays from inside must always hit.
+fn closed_sphere(subdivisions: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let mut positions: Vec<[f32; 3]> = Vec::new();
+    let mut indices = Vec::new();
+    // Each octant face of an octahedron as an n×n triangulated grid, vertices
+    // shared along octant boundaries through exact, order-independent keys.
+    let n = subdivisions;
+    let mut lookup = alloc::collections::BTreeMap::new();
+    let mut vertex = |p: [i32; 3]| -> u32 {
+        *lookup.entry(p).or_insert_with(|| {
+            let v = Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32).normalize();
+            positions.push(v.to_array());
+            (positions.len() - 1) as u32
+        })
+    };
+    for sx in [-1i32, 1] {
+        for sy in [-1i32, 1] {
+            for sz in [-1i32, 1] {
+                let grid = |i: u32, j: u32| {
+                    let (i, j) = (i as i32, j as i32);
+                    [sx * i, sy * j, sz * (n as i32 - i - j)]
+                };
+                for i in 0..n {
+                    for j in 0..n - i {
+                        let a = vertex(grid(i, j));
+                        let b = vertex(grid(i + 1, j));
+                        let c = vertex(grid(i, j + 1));
+                        indices.extend_from_slice(&[a, b, c]);
+                        if i + j + 1 < n {
+                            let d = vertex(grid(i + 1, j + 1));
+                            indices.extend_from_slice(&[b, d, c]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    (positions, indices)
+}
+
+#[test]
+fn closed_mesh_has_no_pinholes_even_through_vertices_and_edges() {
+    let (positions, indices) = closed_sphere(6);
+    let mesh = MeshView::new(&positions, &indices).unwrap();
+    let caster = BruteForceCaster::new(mesh);
+    let mut rng = SmallRng::seed_from_u64(2);
+    // Aim straight at vertices and edge midpoints, the classic pinhole spots.
+    let mut targets: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
+    for t in 0..mesh.triangle_count() {
+        let [a, b, c] = mesh.triangle(t);
+        targets.extend([(a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5]);
+    }
+    for target in targets {
+        for origin in [Vec3::ZERO, Vec3::new(0.1, -0.2, 0.05)] {
+            let origin = origin + Vec3::splat(rng.random_range(-1e-3..1e-3));
+            let ray = Ray::new(origin, target - origin, f32::INFINITY);
+            assert!(caster.occluded(&ray), "pinhole at {target:?}");
+        }
+    }
+}
+
+#[cfg(feature = "bvh")]
+mod bvh_against_brute_force {
+    use super::*;
+
+    fn soup(rng: &mut SmallRng, triangles: usize) -> (Vec<[f32; 3]>, Vec<u32>) {
+        let mut positions = Vec::new();
+        for _ in 0..triangles {
+            let center = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            for _ in 0..3 {
+                let offset = Vec3::new(
+                    rng.random_range(-0.2..0.2),
+                    rng.random_range(-0.2..0.2),
+                    rng.random_range(-0.2..0.2),
+                );
+                positions.push((center + offset).to_array());
+            }
+        }
+        let indices = (0..positions.len() as u32).collect();
+        (positions, indices)
+    }
+
+    /// Compares every ray; returns the number of hits so callers can check coverage.
+    fn compare(positions: &[[f32; 3]], indices: &[u32], rays: usize, rng: &mut SmallRng) -> usize {
+        let mesh = MeshView::new(positions, indices).unwrap();
+        let brute = BruteForceCaster::new(mesh);
+        let bvh = BvhScene::new(&mesh);
+        assert_eq!(bvh.triangle_count(), mesh.triangle_count());
+        let mut hits = 0;
+        for _ in 0..rays {
+            let ray = random_ray(rng, 2.0);
+            let expected = brute.closest_hit(&ray);
+            let got = bvh.closest_hit(&ray);
+            assert_eq!(bvh.occluded(&ray), expected.is_some(), "{ray:?}");
+            match (expected, got) {
+                (None, None) => {}
+                (Some(e), Some(g)) => {
+                    hits += 1;
+                    // Same watertight test on the same data: the same t exactly.
+                    // The triangle may differ only on an exact tie in t.
+                    assert_eq!(e.t, g.t, "{ray:?}");
+                    if e.triangle != g.triangle {
+                        let [a, b, c] = mesh.triangle(g.triangle as usize);
+                        let again = PreparedRay::new(&ray).unwrap().intersect(a, b, c);
+                        assert_eq!(again.map(|h| h.t), Some(e.t));
+                    } else {
+                        assert_eq!((e.u, e.v), (g.u, g.v));
+                    }
+                }
+                _ => panic!("{ray:?}: brute {expected:?} bvh {got:?}"),
+            }
+        }
+        hits
+    }
+
+    #[test]
+    fn random_soups_match_brute_force() {
+        let mut rng = SmallRng::seed_from_u64(3);
+        let mut hits = 0;
+        for triangles in [1, 2, 7, 100, 3000] {
+            let (positions, indices) = soup(&mut rng, triangles);
+            hits += compare(&positions, &indices, 4000, &mut rng);
+        }
+        assert!(hits > 2000, "too few hits to mean anything: {hits}");
+    }
+
+    #[test]
+    fn closed_sphere_matches_brute_force() {
+        let mut rng = SmallRng::seed_from_u64(4);
+        let (positions, indices) = closed_sphere(12);
+        let hits = compare(&positions, &indices, 20_000, &mut rng);
+        assert!(hits > 5000, "too few hits to mean anything: {hits}");
+    }
+
+    #[test]
+    fn empty_scene_hits_nothing() {
+        let mesh = MeshView::new(&[], &[]).unwrap();
+        let bvh = BvhScene::new(&mesh);
+        let ray = Ray::new(Vec3::ZERO, Vec3::Z, f32::INFINITY);
+        assert!(!bvh.occluded(&ray));
+        assert!(bvh.closest_hit(&ray).is_none());
+    }
+
+    #[test]
+    fn bvh_scene_is_send_and_sync() {
+        fn assert_send_sync<T: Send + Sync>() {}
+        assert_send_sync::<BvhScene>();
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn any_soup_and_ray_agree(seed in any::<u64>(), triangles in 1usize..200) {
+            let mut rng = SmallRng::seed_from_u64(seed);
+            let (positions, indices) = soup(&mut rng, triangles);
+            let mesh = MeshView::new(&positions, &indices).unwrap();
+            let brute = BruteForceCaster::new(mesh);
+            let bvh = BvhScene::new(&mesh);
+            for _ in 0..64 {
+                let ray = random_ray(&mut rng, 2.0);
+                prop_assert_eq!(bvh.occluded(&ray), brute.occluded(&ray));
+                prop_assert_eq!(bvh.closest_hit(&ray).map(|h| h.t), brute.closest_hit(&ray).map(|h| h.t));
+            }
+        }
+    }
+}
+
+#[test]
+fn f64_reference_is_exact_on_a_simple_case() {
+    // Keeps the reference itself honest on a case with exact answers.
+    let ray = Ray::new(Vec3::new(0.25, 0.25, -1.0), Vec3::Z, f32::INFINITY);
+    let (t, u, v, _) = moller_trumbore_f64(&ray, [Vec3::ZERO, Vec3::X, Vec3::Y]).unwrap();
+    assert_eq!((t, u, v), (1.0, 0.25, 0.25));
+}
