@@ -6,4 +6,4 @@ mod frame;
 mod mesh;
 
 pub use frame::Frame;
-pub use mesh::{MeshError, MeshView};
+pub use mesh::{MeshError, MeshView, POSITION_BYTES};

@@ -5,6 +5,7 @@
 //! Triangles are copied into BVH leaf order at build time so a leaf's triangles are
 //! contiguous in memory; each keeps its original index for hits.
 
+use alloc::collections::TryReserveError;
 use alloc::vec::Vec;
 use core::time::Duration;
 
@@ -34,35 +35,48 @@ pub struct BvhScene {
 
 impl BvhScene {
     /// Builds the hierarchy over every triangle of `mesh` (which may be empty).
+    ///
+    /// Aborts like any Rust allocation if memory runs out; [`BvhScene::try_new`]
+    /// reports that instead.
     pub fn new(mesh: &MeshView<'_>) -> Self {
-        if mesh.triangle_count() == 0 {
-            return BvhScene {
-                bvh: CwBvh::default(),
-                corners: Vec::new(),
-                original: Vec::new(),
-            };
+        match Self::try_new(mesh) {
+            Ok(scene) => scene,
+            Err(_) => alloc::alloc::handle_alloc_error(core::alloc::Layout::new::<[Vec3; 3]>()),
         }
-        let triangles: Vec<Triangle> = mesh
-            .triangles()
-            .map(|[a, b, c]| Triangle {
-                v0: a.into(),
-                v1: b.into(),
-                v2: c.into(),
-            })
-            .collect();
+    }
+
+    /// Builds the hierarchy, reporting failure to reserve the per-triangle arrays
+    /// (the bulk of the scene's memory) instead of aborting. The builder's own
+    /// temporary allocations, of the same order, are not covered.
+    pub fn try_new(mesh: &MeshView<'_>) -> Result<Self, TryReserveError> {
+        let count = mesh.triangle_count();
+        let mut triangles: Vec<Triangle> = Vec::new();
+        let mut corners: Vec<[Vec3; 3]> = Vec::new();
+        triangles.try_reserve_exact(count)?;
+        corners.try_reserve_exact(count)?;
+        if count == 0 {
+            return Ok(BvhScene {
+                bvh: CwBvh::default(),
+                corners,
+                original: Vec::new(),
+            });
+        }
+        triangles.extend(mesh.triangles().map(|[a, b, c]| Triangle {
+            v0: a.into(),
+            v1: b.into(),
+            v2: c.into(),
+        }));
         let mut build_time = Duration::ZERO;
         let bvh =
             build_cwbvh_from_tris(&triangles, BvhBuildParams::medium_build(), &mut build_time);
+        drop(triangles);
         let original = bvh.primitive_indices.clone();
-        let corners = original
-            .iter()
-            .map(|&t| mesh.triangle(t as usize))
-            .collect();
-        BvhScene {
+        corners.extend(original.iter().map(|&t| mesh.triangle(t as usize)));
+        Ok(BvhScene {
             bvh,
             corners,
             original,
-        }
+        })
     }
 
     /// Number of triangles in the scene.

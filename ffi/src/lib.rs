@@ -1,0 +1,65 @@
+//! # The Antumbra C ABI
+//!
+//! `libantumbra.a` / `libantumbra.so` and the generated `include/antumbra.h`.
+//! Every export follows the same rules (see `CONVENTIONS.md` in the design notes):
+//!
+//! - fallible functions return an [`antumbra_result`]; [`ANTUMBRA_RESULT_OK`] is 0;
+//! - every argument is validated before any work: pointers, counts, strides,
+//!   indices, finite values; each class of bad input has its own code and a
+//!   message (see [`antumbra_last_error_message`]) naming the argument;
+//! - outputs are written only on success;
+//! - no panic crosses the boundary: it becomes [`ANTUMBRA_RESULT_PANIC`] and the
+//!   handle involved is poisoned;
+//! - queries on a const handle may run on many threads at once.
+//!
+//! Items carry exactly their C names so grep works across languages.
+#![allow(non_camel_case_types)]
+#![warn(missing_docs)]
+
+mod boundary;
+mod error;
+mod frame;
+mod mesh;
+mod raw;
+mod result;
+mod scene;
+mod version;
+
+pub use error::{
+    antumbra_error_callback, antumbra_last_error_message, antumbra_last_error_message_copy,
+    antumbra_set_error_callback,
+};
+pub use frame::antumbra_frame_from_normal;
+pub use mesh::antumbra_mesh_view;
+pub use result::*;
+pub use scene::{
+    ANTUMBRA_INVALID_INDEX, antumbra_hit, antumbra_scene, antumbra_scene_create,
+    antumbra_scene_destroy, antumbra_scene_intersect, antumbra_scene_occluded,
+};
+pub use version::{antumbra_version, antumbra_version_string};
+
+/// The crate version's parts, parsed at compile time from `Cargo.toml`; the header's
+/// `ANTUMBRA_VERSION_*` macros are generated from the same values.
+pub(crate) mod crate_version {
+    /// Major version.
+    pub(crate) const MAJOR: u32 = parse(env!("CARGO_PKG_VERSION_MAJOR"));
+    /// Minor version.
+    pub(crate) const MINOR: u32 = parse(env!("CARGO_PKG_VERSION_MINOR"));
+    /// Patch version.
+    pub(crate) const PATCH: u32 = parse(env!("CARGO_PKG_VERSION_PATCH"));
+    /// `MAJOR << 16 | MINOR << 8 | PATCH`, what `antumbra_version()` returns.
+    pub(crate) const PACKED: u32 = (MAJOR << 16) | (MINOR << 8) | PATCH;
+
+    const fn parse(digits: &str) -> u32 {
+        let bytes = digits.as_bytes();
+        let mut value = 0u32;
+        let mut i = 0;
+        while i < bytes.len() {
+            assert!(bytes[i].is_ascii_digit(), "version part is not a number");
+            value = value * 10 + (bytes[i] - b'0') as u32;
+            i += 1;
+        }
+        assert!(value < 256, "version part does not fit in 8 bits");
+        value
+    }
+}

@@ -1,0 +1,92 @@
+//! The one place raw pointers become slices. Every export goes through these, so
+//! the rules are checked the same way everywhere:
+//! `(NULL, 0)` is an empty slice, `(NULL, n > 0)` is `ANTUMBRA_RESULT_NULL_ARGUMENT`,
+//! a pointer not aligned for its element type or a byte size over `isize::MAX` is
+//! `ANTUMBRA_RESULT_INVALID_ARGUMENT`.
+
+use crate::error::Error;
+
+/// Number of elements for `count` items of `per_item` elements each, or an error
+/// naming `argument` when it overflows.
+pub(crate) fn element_count(count: usize, per_item: usize, argument: &str) -> Result<usize, Error> {
+    count.checked_mul(per_item).ok_or_else(|| {
+        Error::invalid(format!(
+            "{argument}: {count} items of {per_item} elements overflow size_t"
+        ))
+    })
+}
+
+fn check_raw<T>(pointer: *const T, len: usize, argument: &str) -> Result<(), Error> {
+    if pointer.is_null() {
+        return Err(Error::new(
+            crate::result::ANTUMBRA_RESULT_NULL_ARGUMENT,
+            format!("{argument} is NULL but {len} elements were expected"),
+        ));
+    }
+    let align = core::mem::align_of::<T>();
+    if (pointer as usize) % align != 0 {
+        return Err(Error::invalid(format!(
+            "{argument} ({pointer:p}) is not aligned to {align} bytes"
+        )));
+    }
+    let bytes = len.checked_mul(core::mem::size_of::<T>());
+    if bytes.is_none_or(|bytes| bytes > isize::MAX as usize) {
+        return Err(Error::invalid(format!(
+            "{argument}: {len} elements exceed the address space"
+        )));
+    }
+    Ok(())
+}
+
+/// `len` elements at `pointer`, read-only.
+///
+/// # Safety
+/// When `pointer` is not NULL and `len > 0`, it must point to `len` initialised
+/// elements that stay valid and unmodified for `'a`.
+pub(crate) unsafe fn slice<'a, T>(
+    pointer: *const T,
+    len: usize,
+    argument: &str,
+) -> Result<&'a [T], Error> {
+    if len == 0 {
+        return Ok(&[]);
+    }
+    check_raw(pointer, len, argument)?;
+    // SAFETY: non-NULL, aligned, size checked above; validity is the caller's
+    // contract.
+    Ok(unsafe { core::slice::from_raw_parts(pointer, len) })
+}
+
+/// `len` elements at `pointer`, writable.
+///
+/// # Safety
+/// When `pointer` is not NULL and `len > 0`, it must point to `len` elements valid
+/// for writes and not aliased by any other live reference for `'a`.
+pub(crate) unsafe fn slice_mut<'a, T>(
+    pointer: *mut T,
+    len: usize,
+    argument: &str,
+) -> Result<&'a mut [T], Error> {
+    if len == 0 {
+        return Ok(&mut []);
+    }
+    check_raw(pointer.cast_const(), len, argument)?;
+    // SAFETY: as in `slice`, plus exclusivity by the caller's contract.
+    Ok(unsafe { core::slice::from_raw_parts_mut(pointer, len) })
+}
+
+/// A required pointer to one value.
+///
+/// # Safety
+/// A non-NULL `pointer` must point to a valid, aligned `T` for `'a`.
+pub(crate) unsafe fn reference<'a, T>(pointer: *const T, argument: &str) -> Result<&'a T, Error> {
+    // SAFETY: forwarded contract; a one-element slice applies the same checks.
+    let one = unsafe { slice(pointer, 1, argument) }.map_err(|e| {
+        if pointer.is_null() {
+            Error::null(argument)
+        } else {
+            e
+        }
+    })?;
+    Ok(&one[0])
+}

@@ -1,0 +1,313 @@
+//! `antumbra_scene`: a BVH over a mesh, the ray caster C users and later Antumbra
+//! entry points share.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use antumbra_core::raycast::BvhScene;
+use antumbra_core::{Ray, RayCaster};
+use glam::Vec3;
+
+use crate::boundary::guard;
+use crate::error::Error;
+use crate::mesh::{antumbra_mesh_view, mesh_from_c};
+use crate::raw;
+use crate::result::*;
+
+/// Triangle index reported by a ray that hits nothing.
+pub const ANTUMBRA_INVALID_INDEX: u32 = 0xFFFF_FFFF;
+
+/// An immutable ray-casting scene: a compressed wide BVH over a copy of a mesh's
+/// triangles. Opaque; create with `antumbra_scene_create`, free with
+/// `antumbra_scene_destroy`.
+pub struct antumbra_scene {
+    bvh: BvhScene,
+    poisoned: AtomicBool,
+}
+
+// Queries take `&antumbra_scene` from many threads; keep that true by construction.
+const _: () = {
+    const fn assert_send_sync<T: Send + Sync>() {}
+    assert_send_sync::<antumbra_scene>();
+};
+
+/// The closest hit of one ray.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct antumbra_hit {
+    /// Ray parameter of the hit in units of the direction's length; +INFINITY on a miss.
+    pub distance: f32,
+    /// Index of the triangle hit; ANTUMBRA_INVALID_INDEX on a miss.
+    pub triangle: u32,
+    /// Barycentric weight of the triangle's second corner (0 on a miss).
+    pub u: f32,
+    /// Barycentric weight of the third corner; hit = (1-u-v)*v0 + u*v1 + v*v2.
+    pub v: f32,
+}
+
+const MISS: antumbra_hit = antumbra_hit {
+    distance: f32::INFINITY,
+    triangle: ANTUMBRA_INVALID_INDEX,
+    u: 0.0,
+    v: 0.0,
+};
+
+/// Builds a scene over `mesh`, copying its triangles (the mesh may be freed
+/// afterwards).
+///
+/// @param mesh the triangles; at least one. Every index < vertex_count, every
+///        coordinate finite, position_stride 0 (packed) or >= 12.
+/// @param out receives the new scene on success; untouched on failure.
+/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, out, or a NULL array with a
+///         non-zero count); INVALID_ARGUMENT (no triangles, stride below 12,
+///         misaligned indices, size overflow); INDEX_OUT_OF_RANGE; NON_FINITE;
+///         OUT_OF_MEMORY; PANIC.
+///
+/// Ownership: the caller owns `*out` and frees it with `antumbra_scene_destroy`.
+/// Thread safety: safe from any thread; the new scene is independent of others.
+///
+/// # Safety
+/// `mesh` and `out` must be NULL or valid; the arrays in `mesh` must be valid for
+/// the counts and stride it gives.
+#[must_use]
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn antumbra_scene_create(
+    mesh: *const antumbra_mesh_view,
+    out: *mut *mut antumbra_scene,
+) -> antumbra_result {
+    guard("antumbra_scene_create", || {
+        if out.is_null() {
+            return Err(Error::null("out"));
+        }
+        // SAFETY: caller contract on `mesh`.
+        let view = unsafe { raw::reference(mesh, "mesh") }?;
+        // SAFETY: caller contract on the arrays inside `mesh`.
+        let mesh = unsafe { mesh_from_c(view, "mesh") }?;
+        if mesh.triangle_count() == 0 {
+            return Err(Error::invalid(
+                "mesh->triangle_count is 0: a scene needs at least one triangle",
+            ));
+        }
+        let bvh = BvhScene::try_new(&mesh).map_err(|e| {
+            Error::new(
+                ANTUMBRA_RESULT_OUT_OF_MEMORY,
+                format!("no memory for {} triangles: {e}", mesh.triangle_count()),
+            )
+        })?;
+        let scene = Box::new(antumbra_scene {
+            bvh,
+            poisoned: AtomicBool::new(false),
+        });
+        // SAFETY: `out` is non-NULL and, by contract, valid for a pointer write.
+        unsafe { *out = Box::into_raw(scene) };
+        Ok(())
+    })
+}
+
+/// Frees a scene. NULL is a no-op.
+///
+/// Ownership: takes back a scene from `antumbra_scene_create`; it must not be used
+/// afterwards. Thread safety: needs exclusive access: no query on this scene may
+/// be running.
+///
+/// # Safety
+/// `scene` must be NULL or a live scene from `antumbra_scene_create`, destroyed at
+/// most once.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn antumbra_scene_destroy(scene: *mut antumbra_scene) {
+    if scene.is_null() {
+        return;
+    }
+    let _ = guard("antumbra_scene_destroy", || {
+        // SAFETY: by contract, a live scene created by `Box::into_raw`.
+        drop(unsafe { Box::from_raw(scene) });
+        Ok(())
+    });
+}
+
+/// Rays described by three parallel arrays, validated once.
+struct RayBatch<'a> {
+    origins: &'a [f32],
+    directions: &'a [f32],
+    t_max: &'a [f32],
+}
+
+impl<'a> RayBatch<'a> {
+    /// # Safety
+    /// The pointers must be valid for `ray_count` rays as documented on the exports.
+    unsafe fn new(
+        origins: *const f32,
+        directions: *const f32,
+        t_max: *const f32,
+        ray_count: usize,
+    ) -> Result<Self, Error> {
+        let xyz = raw::element_count(ray_count, 3, "ray_count")?;
+        // SAFETY: caller contract forwarded.
+        let origins = unsafe { raw::slice(origins, xyz, "origins") }?;
+        // SAFETY: caller contract forwarded.
+        let directions = unsafe { raw::slice(directions, xyz, "directions") }?;
+        // SAFETY: caller contract forwarded.
+        let t_max = unsafe { raw::slice(t_max, ray_count, "t_max") }?;
+        for i in 0..ray_count {
+            let o = &origins[3 * i..3 * i + 3];
+            if !o.iter().all(|c| c.is_finite()) {
+                return Err(non_finite("origins", i, o));
+            }
+            let d = &directions[3 * i..3 * i + 3];
+            if !d.iter().all(|c| c.is_finite()) {
+                return Err(non_finite("directions", i, d));
+            }
+            if d.iter().all(|&c| c == 0.0) {
+                return Err(Error::invalid(format!(
+                    "directions[{i}] is the zero vector"
+                )));
+            }
+            let t = t_max[i];
+            if t.is_nan() {
+                return Err(Error::new(
+                    ANTUMBRA_RESULT_NON_FINITE,
+                    format!("t_max[{i}] is NaN"),
+                ));
+            }
+            if t < 0.0 {
+                return Err(Error::invalid(format!(
+                    "t_max[{i}] is {t}; it must be >= 0 (+INFINITY for an unbounded ray)"
+                )));
+            }
+        }
+        Ok(RayBatch {
+            origins,
+            directions,
+            t_max,
+        })
+    }
+
+    fn ray(&self, i: usize) -> Ray {
+        let o = &self.origins[3 * i..3 * i + 3];
+        let d = &self.directions[3 * i..3 * i + 3];
+        Ray::new(
+            Vec3::new(o[0], o[1], o[2]),
+            Vec3::new(d[0], d[1], d[2]),
+            self.t_max[i],
+        )
+    }
+}
+
+fn non_finite(argument: &str, ray: usize, xyz: &[f32]) -> Error {
+    Error::new(
+        ANTUMBRA_RESULT_NON_FINITE,
+        format!(
+            "{argument}[{ray}] ({}, {}, {}) is not finite",
+            xyz[0], xyz[1], xyz[2]
+        ),
+    )
+}
+
+/// Runs a query on a scene: rejects NULL and poisoned scenes, and poisons the
+/// scene when the query panics.
+fn with_scene(
+    function: &'static str,
+    scene: *const antumbra_scene,
+    query: impl FnOnce(&antumbra_scene) -> Result<(), Error>,
+) -> antumbra_result {
+    let mut poison: Option<&AtomicBool> = None;
+    let result = guard(function, || {
+        // SAFETY: by contract `scene` is NULL or a live scene.
+        let scene = unsafe { raw::reference(scene, "scene") }?;
+        if scene.poisoned.load(Ordering::Acquire) {
+            return Err(Error::new(
+                ANTUMBRA_RESULT_POISONED,
+                "scene was poisoned by an earlier internal error; destroy it",
+            ));
+        }
+        poison = Some(&scene.poisoned);
+        query(scene)
+    });
+    if result == ANTUMBRA_RESULT_PANIC {
+        if let Some(flag) = poison {
+            flag.store(true, Ordering::Release);
+        }
+    }
+    result
+}
+
+/// Any-hit occlusion for a batch of rays: `occluded[i] = 1` when ray i hits a
+/// triangle at some 0 < t < t_max[i] (t in units of |directions[i]|), else 0.
+/// Triangles are two-sided; the triangle test is watertight.
+///
+/// @param scene the scene.
+/// @param origins 3 floats per ray, finite.
+/// @param directions 3 floats per ray, finite, not all zero; need not be unit.
+/// @param t_max one per ray, >= 0; +INFINITY for unbounded rays.
+/// @param ray_count number of rays; 0 is a valid empty batch (arrays may be NULL).
+/// @param occluded receives one byte per ray; untouched on failure.
+/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (zero direction,
+///         negative t_max, misaligned array); NON_FINITE; POISONED; PANIC.
+///
+/// Thread safety: any number of threads may query the same scene at once.
+///
+/// # Safety
+/// Each non-NULL array must be valid for `ray_count` rays; `occluded` must not
+/// overlap the inputs.
+#[must_use]
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn antumbra_scene_occluded(
+    scene: *const antumbra_scene,
+    origins: *const f32,
+    directions: *const f32,
+    t_max: *const f32,
+    ray_count: usize,
+    occluded: *mut u8,
+) -> antumbra_result {
+    with_scene("antumbra_scene_occluded", scene, |scene| {
+        // SAFETY: caller contract forwarded.
+        let rays = unsafe { RayBatch::new(origins, directions, t_max, ray_count) }?;
+        // SAFETY: caller contract forwarded.
+        let out = unsafe { raw::slice_mut(occluded, ray_count, "occluded") }?;
+        for (i, flag) in out.iter_mut().enumerate() {
+            *flag = u8::from(scene.bvh.occluded(&rays.ray(i)));
+        }
+        Ok(())
+    })
+}
+
+/// Closest hit for a batch of rays, with the same ray semantics as
+/// `antumbra_scene_occluded`. A miss reports distance +INFINITY, triangle
+/// ANTUMBRA_INVALID_INDEX and u = v = 0. Equal-distance ties may report either
+/// triangle.
+///
+/// @param hits receives one antumbra_hit per ray; untouched on failure.
+/// @return as `antumbra_scene_occluded`.
+///
+/// Thread safety: any number of threads may query the same scene at once.
+///
+/// # Safety
+/// As `antumbra_scene_occluded`, with `hits` valid for `ray_count` hits.
+#[must_use]
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn antumbra_scene_intersect(
+    scene: *const antumbra_scene,
+    origins: *const f32,
+    directions: *const f32,
+    t_max: *const f32,
+    ray_count: usize,
+    hits: *mut antumbra_hit,
+) -> antumbra_result {
+    with_scene("antumbra_scene_intersect", scene, |scene| {
+        // SAFETY: caller contract forwarded.
+        let rays = unsafe { RayBatch::new(origins, directions, t_max, ray_count) }?;
+        // SAFETY: caller contract forwarded.
+        let out = unsafe { raw::slice_mut(hits, ray_count, "hits") }?;
+        for (i, slot) in out.iter_mut().enumerate() {
+            *slot = scene
+                .bvh
+                .closest_hit(&rays.ray(i))
+                .map_or(MISS, |hit| antumbra_hit {
+                    distance: hit.t,
+                    triangle: hit.triangle,
+                    u: hit.u,
+                    v: hit.v,
+                });
+        }
+        Ok(())
+    })
+}
