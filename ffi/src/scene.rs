@@ -311,3 +311,44 @@ pub unsafe extern "C" fn antumbra_scene_intersect(
         Ok(())
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panicking_query_poisons_the_scene() {
+        let positions = [0.0f32, 0.0, 1.0, 1.0, 0.0, 1.0, 0.0, 1.0, 1.0];
+        let indices = [0u32, 1, 2];
+        let view = antumbra_mesh_view {
+            positions: positions.as_ptr(),
+            vertex_count: 3,
+            position_stride: 0,
+            indices: indices.as_ptr(),
+            triangle_count: 1,
+        };
+        let mut scene = std::ptr::null_mut();
+        // SAFETY: live arrays, valid out pointer.
+        let created = unsafe { antumbra_scene_create(&view, &mut scene) };
+        assert_eq!(created, ANTUMBRA_RESULT_OK);
+        let result = with_scene("test_query", scene, |_| panic!("deliberate"));
+        assert_eq!(result, ANTUMBRA_RESULT_PANIC);
+        // SAFETY: the library's message pointer is valid until the next call.
+        let message = unsafe { std::ffi::CStr::from_ptr(crate::antumbra_last_error_message()) };
+        assert!(message.to_str().unwrap().contains("deliberate"));
+        // SAFETY: an empty batch; only the poison check runs.
+        let later = unsafe {
+            antumbra_scene_occluded(
+                scene,
+                std::ptr::null(),
+                std::ptr::null(),
+                std::ptr::null(),
+                0,
+                std::ptr::null_mut(),
+            )
+        };
+        assert_eq!(later, ANTUMBRA_RESULT_POISONED);
+        // SAFETY: from create, destroyed once.
+        unsafe { antumbra_scene_destroy(scene) };
+    }
+}
