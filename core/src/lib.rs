@@ -14,6 +14,26 @@
 //!   right reference, and, behind the `bvh` feature, a compressed wide BVH ([`raycast::BvhScene`],
 //!   built with obvhs).
 //!
+//! ## Example
+//!
+//! ```
+//! use antumbra_core::{BruteForceCaster, MeshView, Ray, RayCaster};
+//! use antumbra_core::glam::Vec3;
+//!
+//! // A quad in the z = 1 plane, as two triangles.
+//! let positions = [[-1.0, -1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]];
+//! let indices = [0, 1, 2, 0, 2, 3];
+//! let mesh = MeshView::new(&positions, &indices)?;
+//! let caster = BruteForceCaster::new(mesh); // or raycast::BvhScene::new(&mesh) with `bvh`
+//!
+//! let up = Ray::new(Vec3::ZERO, Vec3::Z, f32::INFINITY);
+//! assert!(caster.occluded(&up));
+//! assert_eq!(caster.closest_hit(&up).map(|hit| hit.t), Some(1.0));
+//! // Segments end before t_max: this one stops short of the quad.
+//! assert!(!caster.occluded(&Ray::new(Vec3::ZERO, Vec3::Z, 0.5)));
+//! # Ok::<(), antumbra_core::MeshError>(())
+//! ```
+//!
 //! ## Features
 //!
 //! - `std` (default): error trait interop and what the backends below need.

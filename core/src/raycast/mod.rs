@@ -255,5 +255,51 @@ impl RayCaster for BruteForceCaster<'_> {
     }
 }
 
+/// Occlusion for many rays: `out[i] = caster.occluded(&rays[i])`.
+///
+/// With the `parallel` feature the rays are split across rayon's thread pool;
+/// results are identical either way. Panics if `out` and `rays` differ in length.
+pub fn occluded_batch<C: RayCaster + Sync + ?Sized>(caster: &C, rays: &[Ray], out: &mut [bool]) {
+    assert_eq!(rays.len(), out.len(), "one output per ray");
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        out.par_iter_mut()
+            .zip(rays.par_iter())
+            .with_min_len(BATCH_GRAIN)
+            .for_each(|(o, r)| *o = caster.occluded(r));
+    }
+    #[cfg(not(feature = "parallel"))]
+    for (o, r) in out.iter_mut().zip(rays) {
+        *o = caster.occluded(r);
+    }
+}
+
+/// Closest hits for many rays: `out[i] = caster.closest_hit(&rays[i])`, in
+/// parallel with the `parallel` feature. Panics if the lengths differ.
+pub fn closest_hit_batch<C: RayCaster + Sync + ?Sized>(
+    caster: &C,
+    rays: &[Ray],
+    out: &mut [Option<Hit>],
+) {
+    assert_eq!(rays.len(), out.len(), "one output per ray");
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        out.par_iter_mut()
+            .zip(rays.par_iter())
+            .with_min_len(BATCH_GRAIN)
+            .for_each(|(o, r)| *o = caster.closest_hit(r));
+    }
+    #[cfg(not(feature = "parallel"))]
+    for (o, r) in out.iter_mut().zip(rays) {
+        *o = caster.closest_hit(r);
+    }
+}
+
+/// Rays per rayon task: enough that scheduling costs little against the casts.
+#[cfg(feature = "parallel")]
+const BATCH_GRAIN: usize = 256;
+
 #[cfg(test)]
 mod tests;

@@ -4,7 +4,6 @@
 use alloc::vec::Vec;
 
 use glam::Vec3;
-use proptest::prelude::*;
 use rand::{Rng, SeedableRng, rngs::SmallRng};
 
 use super::*;
@@ -13,20 +12,31 @@ use super::*;
 /// Returns `(t, u, v)` and the smallest barycentric, so callers can tell
 /// edge-grazing rays apart from clear hits.
 fn moller_trumbore_f64(ray: &Ray, [a, b, c]: [Vec3; 3]) -> Option<(f64, f64, f64, f64)> {
-    let (o, d) = (ray.origin.as_dvec3(), ray.direction.as_dvec3());
-    let (a, b, c) = (a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
-    let e1 = b - a;
-    let e2 = c - a;
-    let p = d.cross(e2);
-    let det = e1.dot(p);
+    type V = [f64; 3];
+    let wide = |v: Vec3| -> V { [v.x.into(), v.y.into(), v.z.into()] };
+    let sub = |p: V, q: V| -> V { [p[0] - q[0], p[1] - q[1], p[2] - q[2]] };
+    let dot = |p: V, q: V| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
+    let cross = |p: V, q: V| -> V {
+        [
+            p[1] * q[2] - p[2] * q[1],
+            p[2] * q[0] - p[0] * q[2],
+            p[0] * q[1] - p[1] * q[0],
+        ]
+    };
+    let (o, d) = (wide(ray.origin), wide(ray.direction));
+    let (a, b, c) = (wide(a), wide(b), wide(c));
+    let e1 = sub(b, a);
+    let e2 = sub(c, a);
+    let p = cross(d, e2);
+    let det = dot(e1, p);
     if det == 0.0 {
         return None;
     }
-    let s = o - a;
-    let u = s.dot(p) / det;
-    let q = s.cross(e1);
-    let v = d.dot(q) / det;
-    let t = e2.dot(q) / det;
+    let s = sub(o, a);
+    let u = dot(s, p) / det;
+    let q = cross(s, e1);
+    let v = dot(d, q) / det;
+    let t = dot(e2, q) / det;
     let w = 1.0 - u - v;
     Some((t, u, v, u.min(v).min(w)))
 }
@@ -206,6 +216,7 @@ fn closed_mesh_has_no_pinholes_even_through_vertices_and_edges() {
 #[cfg(feature = "bvh")]
 mod bvh_against_brute_force {
     use super::*;
+    use proptest::prelude::*;
 
     fn soup(rng: &mut SmallRng, triangles: usize) -> (Vec<[f32; 3]>, Vec<u32>) {
         let mut positions = Vec::new();
@@ -293,6 +304,24 @@ mod bvh_against_brute_force {
     fn bvh_scene_is_send_and_sync() {
         fn assert_send_sync<T: Send + Sync>() {}
         assert_send_sync::<BvhScene>();
+    }
+
+    #[test]
+    fn batches_equal_one_ray_at_a_time() {
+        let mut rng = SmallRng::seed_from_u64(5);
+        let (positions, indices) = soup(&mut rng, 500);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let bvh = BvhScene::new(&mesh);
+        let rays: Vec<Ray> = (0..5000).map(|_| random_ray(&mut rng, 2.0)).collect();
+        let mut occluded = alloc::vec![false; rays.len()];
+        let mut hits = alloc::vec![None; rays.len()];
+        occluded_batch(&bvh, &rays, &mut occluded);
+        closest_hit_batch(&bvh, &rays, &mut hits);
+        for (i, ray) in rays.iter().enumerate() {
+            assert_eq!(occluded[i], bvh.occluded(ray));
+            assert_eq!(hits[i], bvh.closest_hit(ray));
+        }
+        assert!(occluded.iter().any(|&o| o) && occluded.iter().any(|&o| !o));
     }
 
     proptest! {
