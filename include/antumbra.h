@@ -31,7 +31,8 @@
 #define ANTUMBRA_VERSION \
     ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR, ANTUMBRA_VERSION_PATCH)
 
-/** Marks functions whose antumbra_result must be checked. */
+/** Marks functions whose antumbra_result must be checked. In C, GCC still warns
+ *  on `(void)f()`; write `(void)!f()` to discard a result on purpose. */
 #if defined(__cplusplus) && __cplusplus >= 201703L
 #define ANTUMBRA_NODISCARD [[nodiscard]]
 #elif defined(__GNUC__) || defined(__clang__)
@@ -44,7 +45,7 @@
 /**
  * Triangle index reported by a ray that hits nothing.
  */
-#define ANTUMBRA_INVALID_INDEX 4294967295
+#define ANTUMBRA_INVALID_INDEX UINT32_MAX
 
 /**
  * An immutable ray-casting scene: a compressed wide BVH over a copy of a mesh's

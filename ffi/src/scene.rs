@@ -14,7 +14,7 @@ use crate::raw;
 use crate::result::*;
 
 /// Triangle index reported by a ray that hits nothing.
-pub const ANTUMBRA_INVALID_INDEX: u32 = 0xFFFF_FFFF;
+pub const ANTUMBRA_INVALID_INDEX: u32 = u32::MAX;
 
 /// An immutable ray-casting scene: a compressed wide BVH over a copy of a mesh's
 /// triangles. Opaque; create with `antumbra_scene_create`, free with
@@ -114,12 +114,11 @@ pub unsafe extern "C" fn antumbra_scene_create(
 /// most once.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn antumbra_scene_destroy(scene: *mut antumbra_scene) {
-    if scene.is_null() {
-        return;
-    }
     let _ = guard("antumbra_scene_destroy", || {
-        // SAFETY: by contract, a live scene created by `Box::into_raw`.
-        drop(unsafe { Box::from_raw(scene) });
+        if !scene.is_null() {
+            // SAFETY: by contract, a live scene created by `Box::into_raw`.
+            drop(unsafe { Box::from_raw(scene) });
+        }
         Ok(())
     });
 }

@@ -28,7 +28,8 @@ fn after_includes() -> String {
 #define ANTUMBRA_VERSION \
     ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR, ANTUMBRA_VERSION_PATCH)
 
-/** Marks functions whose antumbra_result must be checked. */
+/** Marks functions whose antumbra_result must be checked. In C, GCC still warns
+ *  on `(void)f()`; write `(void)!f()` to discard a result on purpose. */
 #if defined(__cplusplus) && __cplusplus >= 201703L
 #define ANTUMBRA_NODISCARD [[nodiscard]]
 #elif defined(__GNUC__) || defined(__clang__)

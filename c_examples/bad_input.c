@@ -1,0 +1,730 @@
+/*
+ * bad_input.c: the C ABI's validation, exercised exactly as a foreign caller
+ * would see it.
+ *
+ * For each bad input this checks the exact result code, that
+ * antumbra_last_error_message() is "<function>: ..." and names the offending
+ * argument, and that every output was left byte-for-byte untouched (outputs are
+ * pre-filled with a sentinel and compared afterwards). It also covers the error
+ * plumbing: message copying, the error callback, per-thread messages, result
+ * names, and antumbra_frame_from_normal.
+ *
+ * Every check runs even after one fails; the exit status is 1 if any failed.
+ */
+#define _POSIX_C_SOURCE 200809L /* pthreads, for the per-thread message check */
+
+#include "antumbra.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define SENTINEL 0xA5
+
+static int checks_run;
+static int checks_failed;
+
+static void expect(int ok, const char *format, ...)
+{
+    ++checks_run;
+    if (!ok) {
+        va_list args;
+        ++checks_failed;
+        va_start(args, format);
+        fputs("bad_input: FAILED: ", stderr);
+        vfprintf(stderr, format, args);
+        fputc('\n', stderr);
+        va_end(args);
+    }
+}
+
+/* Holds for a failed call: the code is the expected one, and the message starts
+ * with the function's name and mentions every fragment (NULL-terminated list),
+ * e.g. the argument and the offending index. */
+static void expect_failure(const char *what, antumbra_result got, antumbra_result want, const char *function,
+                           const char *fragment, ...)
+{
+    const char *message = antumbra_last_error_message();
+    size_t prefix = strlen(function);
+    va_list fragments;
+    expect(got == want, "%s: got %s (%d), want %s", what, antumbra_result_str(got), (int)got,
+           antumbra_result_str(want));
+    expect(message != NULL && message[0] != '\0', "%s: empty last error message", what);
+    if (message == NULL) {
+        return;
+    }
+    expect(strncmp(message, function, prefix) == 0 && message[prefix] == ':',
+           "%s: message \"%s\" does not start with \"%s:\"", what, message, function);
+    va_start(fragments, fragment);
+    for (; fragment != NULL; fragment = va_arg(fragments, const char *)) {
+        expect(strstr(message, fragment) != NULL, "%s: message \"%s\" does not mention \"%s\"", what, message,
+               fragment);
+    }
+    va_end(fragments);
+}
+
+static void expect_success(const char *what, antumbra_result got)
+{
+    const char *message = antumbra_last_error_message();
+    expect(got == ANTUMBRA_RESULT_OK, "%s: got %s (%d): %s", what, antumbra_result_str(got), (int)got, message);
+    expect(message != NULL && message[0] == '\0', "%s: succeeded but the last error message is \"%s\"", what,
+           message ? message : "(NULL)");
+}
+
+static void expect_untouched(const char *what, const void *memory, size_t size)
+{
+    const unsigned char *bytes = memory;
+    size_t i;
+    for (i = 0; i < size; ++i) {
+        if (bytes[i] != SENTINEL) {
+            expect(0, "%s: output byte %lu was written on failure (0x%02x)", what, (unsigned long)i, bytes[i]);
+            return;
+        }
+    }
+    ++checks_run;
+}
+
+/* A pointer `offset` bytes past `base`, built through uintptr_t: converting an
+ * integer to a misaligned pointer is implementation-defined (GCC and Clang keep
+ * the bits), whereas casting a misaligned char * to float * would be undefined. */
+static const void *offset_pointer(const void *base, size_t offset)
+{
+    return (const void *)((uintptr_t)base + offset);
+}
+
+/* ------------------------------------------------------------------------- */
+/* A known-good mesh: the unit square as two triangles, with each position     */
+/* followed by a fourth float so the stride (16) is not the packed 12.          */
+/* ------------------------------------------------------------------------- */
+
+static float square_positions[4 * 4] = {
+    0.0f, 0.0f, 0.0f, -1.0f, /* the 4th float of each vertex is padding */
+    1.0f, 0.0f, 0.0f, -1.0f, /*                                          */
+    1.0f, 1.0f, 0.0f, -1.0f, /*                                          */
+    0.0f, 1.0f, 0.0f, -1.0f,
+};
+static uint32_t square_indices[6] = {0, 1, 2, 0, 2, 3};
+
+static antumbra_mesh_view square_mesh(void)
+{
+    antumbra_mesh_view view;
+    view.positions = square_positions;
+    view.vertex_count = 4;
+    view.position_stride = 4 * sizeof(float);
+    view.indices = square_indices;
+    view.triangle_count = 2;
+    return view;
+}
+
+/* scene_create on a bad mesh: the exact code, the message, and *out untouched. */
+static void expect_create_fails(const char *what, const antumbra_mesh_view *mesh, antumbra_result want,
+                                const char *fragment, const char *fragment2)
+{
+    antumbra_scene *out;
+    memset(&out, SENTINEL, sizeof out);
+    expect_failure(what, antumbra_scene_create(mesh, &out), want, "antumbra_scene_create", fragment, fragment2,
+                   (const char *)NULL);
+    expect_untouched(what, &out, sizeof out);
+}
+
+static void test_scene_create(void)
+{
+    antumbra_mesh_view mesh;
+    antumbra_scene *scene;
+    float positions[4 * 4];
+    uint32_t indices[6];
+    unsigned char shifted[4 * 4 * sizeof(float) + 8];
+    uint32_t shifted_indices[6 + 1];
+
+    mesh = square_mesh();
+    /* NULL-argument messages all read "<argument> is NULL...", from one helper. */
+    expect_create_fails("NULL mesh", NULL, ANTUMBRA_RESULT_NULL_ARGUMENT, ": mesh is NULL", NULL);
+    expect_failure("NULL out", antumbra_scene_create(&mesh, NULL), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_scene_create", ": out is NULL", (const char *)NULL);
+
+    mesh = square_mesh();
+    mesh.positions = NULL;
+    expect_create_fails("NULL positions", &mesh, ANTUMBRA_RESULT_NULL_ARGUMENT, "mesh->positions is NULL", NULL);
+
+    mesh = square_mesh();
+    mesh.indices = NULL;
+    expect_create_fails("NULL indices", &mesh, ANTUMBRA_RESULT_NULL_ARGUMENT, "mesh->indices is NULL", NULL);
+
+    /* A scene needs a triangle, whether the empty index array is NULL or not. */
+    mesh = square_mesh();
+    mesh.indices = NULL;
+    mesh.triangle_count = 0;
+    expect_create_fails("zero triangles, NULL indices", &mesh, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                        "mesh->triangle_count", NULL);
+    mesh = square_mesh();
+    mesh.triangle_count = 0;
+    expect_create_fails("zero triangles", &mesh, ANTUMBRA_RESULT_INVALID_ARGUMENT, "mesh->triangle_count", NULL);
+
+    mesh = square_mesh();
+    mesh.position_stride = 8;
+    expect_create_fails("stride 8", &mesh, ANTUMBRA_RESULT_INVALID_ARGUMENT, "position_stride", NULL);
+
+    /* indices[5] is the third corner of triangle 1; vertex_count is a valid
+     * index's exclusive bound, so it is the smallest bad one. */
+    mesh = square_mesh();
+    memcpy(indices, square_indices, sizeof indices);
+    indices[5] = 4;
+    mesh.indices = indices;
+    expect_create_fails("index == vertex_count", &mesh, ANTUMBRA_RESULT_INDEX_OUT_OF_RANGE, "mesh->indices[5]",
+                        "vertex_count");
+
+    mesh = square_mesh();
+    memcpy(positions, square_positions, sizeof positions);
+    positions[2 * 4 + 1] = NAN;
+    mesh.positions = positions;
+    expect_create_fails("NaN coordinate", &mesh, ANTUMBRA_RESULT_NON_FINITE, "mesh->positions", "vertex 2");
+    positions[2 * 4 + 1] = 1.0f;
+    positions[3 * 4 + 0] = -INFINITY;
+    expect_create_fails("-Inf coordinate", &mesh, ANTUMBRA_RESULT_NON_FINITE, "mesh->positions", "vertex 3");
+
+    /* The padding float is not a coordinate: a NaN there is none of our business. */
+    memcpy(positions, square_positions, sizeof positions);
+    positions[1 * 4 + 3] = NAN;
+    mesh = square_mesh();
+    mesh.positions = positions;
+    scene = NULL;
+    expect_success("NaN in the stride padding", antumbra_scene_create(&mesh, &scene));
+    antumbra_scene_destroy(scene);
+
+    /* Sizes that overflow are rejected before any memory is read. */
+    mesh = square_mesh();
+    mesh.vertex_count = SIZE_MAX;
+    expect_create_fails("vertex_count * stride overflows", &mesh, ANTUMBRA_RESULT_INVALID_ARGUMENT, "overflow",
+                        NULL);
+
+    /* Indices must be 4-byte aligned... */
+    memcpy(shifted_indices, square_indices, sizeof square_indices);
+    mesh = square_mesh();
+    mesh.indices = offset_pointer(shifted_indices, 2);
+    expect_create_fails("misaligned indices", &mesh, ANTUMBRA_RESULT_INVALID_ARGUMENT, "mesh->indices", "aligned");
+
+    /* ...positions need not be: the header promises any alignment works. */
+    memcpy(shifted + 1, square_positions, sizeof square_positions);
+    mesh = square_mesh();
+    mesh.positions = offset_pointer(shifted, 1);
+    scene = NULL;
+    expect_success("unaligned positions", antumbra_scene_create(&mesh, &scene));
+    expect(scene != NULL, "unaligned positions: OK but NULL scene");
+    antumbra_scene_destroy(scene);
+
+    /* Stride 0 means packed. */
+    {
+        const float packed[] = {0.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f};
+        const uint32_t triangle[] = {0, 1, 2};
+        mesh.positions = packed;
+        mesh.vertex_count = 3;
+        mesh.position_stride = 0;
+        mesh.indices = triangle;
+        mesh.triangle_count = 1;
+        scene = NULL;
+        expect_success("stride 0 (packed)", antumbra_scene_create(&mesh, &scene));
+        antumbra_scene_destroy(scene);
+    }
+
+    /* Destroying nothing is allowed. */
+    antumbra_scene_destroy(NULL);
+    ++checks_run;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Ray queries                                                                 */
+/* ------------------------------------------------------------------------- */
+
+/* Three rays straight down onto the square (z = 0), from z = 1. */
+typedef struct rays {
+    float origins[9], directions[9], t_max[3];
+} rays;
+
+static rays good_rays(void)
+{
+    rays r;
+    int i;
+    for (i = 0; i < 3; ++i) {
+        r.origins[3 * i + 0] = 0.25f + 0.25f * (float)i;
+        r.origins[3 * i + 1] = 0.5f;
+        r.origins[3 * i + 2] = 1.0f;
+        r.directions[3 * i + 0] = 0.0f;
+        r.directions[3 * i + 1] = 0.0f;
+        r.directions[3 * i + 2] = -1.0f;
+        r.t_max[i] = INFINITY;
+    }
+    return r;
+}
+
+/* Both queries on the same bad batch fail the same way and write nothing. */
+static void expect_queries_fail(const char *what, const antumbra_scene *scene, const rays *r, size_t count,
+                                antumbra_result want, const char *fragment)
+{
+    uint8_t occluded[3];
+    antumbra_hit hits[3];
+    char label[128];
+
+    memset(occluded, SENTINEL, sizeof occluded);
+    sprintf(label, "occluded: %s", what);
+    expect_failure(label, antumbra_scene_occluded(scene, r->origins, r->directions, r->t_max, count, occluded),
+                   want, "antumbra_scene_occluded", fragment, (const char *)NULL);
+    expect_untouched(label, occluded, sizeof occluded);
+
+    memset(hits, SENTINEL, sizeof hits);
+    sprintf(label, "intersect: %s", what);
+    expect_failure(label, antumbra_scene_intersect(scene, r->origins, r->directions, r->t_max, count, hits), want,
+                   "antumbra_scene_intersect", fragment, (const char *)NULL);
+    expect_untouched(label, hits, sizeof hits);
+}
+
+static void test_queries(void)
+{
+    antumbra_mesh_view mesh = square_mesh();
+    antumbra_scene *scene = NULL;
+    rays r;
+    uint8_t occluded[3];
+    antumbra_hit hits[3];
+    unsigned char unaligned[64];
+
+    expect_success("create the square", antumbra_scene_create(&mesh, &scene));
+    if (scene == NULL) {
+        return;
+    }
+
+    /* The good path first, so the failures below are failures of validation. */
+    r = good_rays();
+    memset(occluded, SENTINEL, sizeof occluded);
+    expect_success("occluded, good rays", antumbra_scene_occluded(scene, r.origins, r.directions, r.t_max, 3,
+                                                                   occluded));
+    expect(occluded[0] == 1 && occluded[1] == 1 && occluded[2] == 1, "good rays: occluded %u %u %u", occluded[0],
+           occluded[1], occluded[2]);
+    expect_success("intersect, good rays", antumbra_scene_intersect(scene, r.origins, r.directions, r.t_max, 3,
+                                                                     hits));
+    expect(hits[0].distance == 1.0f && hits[0].triangle == 1 && fabsf(hits[0].u - 0.25f) < 1e-6f &&
+               fabsf(hits[0].v - 0.25f) < 1e-6f,
+           "ray 0 should hit triangle 1 at t = 1, (u, v) = (0.25, 0.25); got t = %g, %u, (%g, %g)",
+           (double)hits[0].distance, hits[0].triangle, (double)hits[0].u, (double)hits[0].v);
+
+    /* t counts lengths of the direction, and the segment is open at t_max. */
+    r.directions[0 * 3 + 2] = r.directions[1 * 3 + 2] = r.directions[2 * 3 + 2] = -2.0f;
+    r.t_max[0] = 0.5f;
+    r.t_max[1] = 0.5001f;
+    r.t_max[2] = -0.0f; /* >= 0 holds for -0.0: a valid, empty segment */
+    expect_success("occluded, t_max edge cases", antumbra_scene_occluded(scene, r.origins, r.directions, r.t_max,
+                                                                          3, occluded));
+    expect(occluded[0] == 0 && occluded[1] == 1 && occluded[2] == 0,
+           "t_max 0.5 (hit at exactly 0.5), 0.5001, -0.0: occluded %u %u %u, want 0 1 0", occluded[0],
+           occluded[1], occluded[2]);
+    expect_success("intersect, t_max edge cases", antumbra_scene_intersect(scene, r.origins, r.directions,
+                                                                            r.t_max, 3, hits));
+    expect(hits[0].triangle == ANTUMBRA_INVALID_INDEX && isinf(hits[0].distance) && hits[0].distance > 0.0f &&
+               hits[0].u == 0.0f && hits[0].v == 0.0f,
+           "a miss is (+inf, INVALID_INDEX, 0, 0); got (%g, %u, %g, %g)", (double)hits[0].distance,
+           hits[0].triangle, (double)hits[0].u, (double)hits[0].v);
+    expect(hits[1].distance == 0.5f, "direction of length 2: hit at t = %g, want 0.5", (double)hits[1].distance);
+
+    r = good_rays();
+    expect_queries_fail("NULL scene", NULL, &r, 3, ANTUMBRA_RESULT_NULL_ARGUMENT, ": scene is NULL");
+    expect_queries_fail("NULL scene, no rays", NULL, &r, 0, ANTUMBRA_RESULT_NULL_ARGUMENT, ": scene is NULL");
+
+    r = good_rays();
+    r.origins[2 * 3 + 1] = NAN;
+    expect_queries_fail("NaN origin", scene, &r, 3, ANTUMBRA_RESULT_NON_FINITE, "origins[2]");
+
+    r = good_rays();
+    r.directions[1 * 3 + 0] = INFINITY;
+    expect_queries_fail("Inf direction", scene, &r, 3, ANTUMBRA_RESULT_NON_FINITE, "directions[1]");
+
+    r = good_rays();
+    r.directions[0] = r.directions[1] = r.directions[2] = 0.0f;
+    expect_queries_fail("zero direction", scene, &r, 3, ANTUMBRA_RESULT_INVALID_ARGUMENT, "directions[0]");
+
+    r = good_rays();
+    r.directions[1 * 3 + 2] = -0.0f;
+    r.directions[1 * 3 + 0] = -0.0f;
+    r.directions[1 * 3 + 1] = 0.0f;
+    expect_queries_fail("negative-zero direction", scene, &r, 3, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                        "directions[1]");
+
+    r = good_rays();
+    r.t_max[1] = NAN;
+    expect_queries_fail("NaN t_max", scene, &r, 3, ANTUMBRA_RESULT_NON_FINITE, "t_max[1]");
+
+    r = good_rays();
+    r.t_max[2] = -1.0f;
+    expect_queries_fail("negative t_max", scene, &r, 3, ANTUMBRA_RESULT_INVALID_ARGUMENT, "t_max[2]");
+    r.t_max[2] = -INFINITY;
+    expect_queries_fail("-Inf t_max", scene, &r, 3, ANTUMBRA_RESULT_INVALID_ARGUMENT, "t_max[2]");
+
+    /* NULL arrays with rays to cast. */
+    r = good_rays();
+    memset(occluded, SENTINEL, sizeof occluded);
+    expect_failure("NULL origins", antumbra_scene_occluded(scene, NULL, r.directions, r.t_max, 3, occluded),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_scene_occluded", ": origins is NULL", (const char *)NULL);
+    expect_failure("NULL directions", antumbra_scene_occluded(scene, r.origins, NULL, r.t_max, 3, occluded),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_scene_occluded", ": directions is NULL", (const char *)NULL);
+    expect_failure("NULL t_max", antumbra_scene_occluded(scene, r.origins, r.directions, NULL, 3, occluded),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_scene_occluded", ": t_max is NULL", (const char *)NULL);
+    expect_untouched("NULL input arrays", occluded, sizeof occluded);
+    expect_failure("NULL occluded", antumbra_scene_occluded(scene, r.origins, r.directions, r.t_max, 3, NULL),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_scene_occluded", ": occluded is NULL", (const char *)NULL);
+    expect_failure("NULL hits", antumbra_scene_intersect(scene, r.origins, r.directions, r.t_max, 3, NULL),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_scene_intersect", ": hits is NULL", (const char *)NULL);
+
+    /* An empty batch is fine with NULL everywhere. */
+    expect_success("occluded, 0 rays, NULL arrays", antumbra_scene_occluded(scene, NULL, NULL, NULL, 0, NULL));
+    expect_success("intersect, 0 rays, NULL arrays", antumbra_scene_intersect(scene, NULL, NULL, NULL, 0, NULL));
+
+    /* Arrays of floats must be float-aligned. */
+    r = good_rays();
+    memcpy(unaligned + 1, r.origins, sizeof r.origins);
+    memset(occluded, SENTINEL, sizeof occluded);
+    expect_failure("misaligned origins",
+                   antumbra_scene_occluded(scene, offset_pointer(unaligned, 1), r.directions, r.t_max, 3, occluded),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_scene_occluded", "origins", "aligned",
+                   (const char *)NULL);
+    expect_untouched("misaligned origins", occluded, sizeof occluded);
+    expect_failure("misaligned hits",
+                   antumbra_scene_intersect(scene, r.origins, r.directions, r.t_max, 3,
+                                            (antumbra_hit *)(uintptr_t)offset_pointer(unaligned, 2)),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_scene_intersect", "hits", "aligned",
+                   (const char *)NULL);
+
+    /* A ray count whose array sizes overflow is rejected before any memory is
+     * read (the arrays here are far too short, and must not be touched). */
+    memset(occluded, SENTINEL, sizeof occluded);
+    expect_failure("ray_count overflows",
+                   antumbra_scene_occluded(scene, r.origins, r.directions, r.t_max, SIZE_MAX, occluded),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_scene_occluded", "ray_count", (const char *)NULL);
+    expect_untouched("ray_count overflows", occluded, sizeof occluded);
+
+    antumbra_scene_destroy(scene);
+}
+
+/* ------------------------------------------------------------------------- */
+/* The last error message                                                      */
+/* ------------------------------------------------------------------------- */
+
+static void test_last_error(void)
+{
+    const char *message;
+    size_t length, required;
+    char buffer[256];
+    antumbra_scene *out = NULL;
+    antumbra_result result;
+
+    /* Make a known failure. */
+    result = antumbra_scene_create(NULL, &out);
+    message = antumbra_last_error_message();
+    length = strlen(message);
+    expect(result == ANTUMBRA_RESULT_NULL_ARGUMENT && length > 0 && length + 1 < sizeof buffer,
+           "setup: NULL mesh gave %s, \"%s\"", antumbra_result_str(result), message);
+
+    /* Too small by one (no room for the NUL): nothing written, size reported. */
+    memset(buffer, SENTINEL, sizeof buffer);
+    required = 0;
+    expect(antumbra_last_error_message_copy(buffer, length, &required) == ANTUMBRA_RESULT_BUFFER_TOO_SMALL,
+           "copy into %lu bytes is not BUFFER_TOO_SMALL", (unsigned long)length);
+    expect(required == length + 1, "required size %lu, want %lu", (unsigned long)required,
+           (unsigned long)(length + 1));
+    expect_untouched("copy into too small a buffer", buffer, sizeof buffer);
+
+    /* Sizing with (NULL, 0) is the usual first call. */
+    required = 0;
+    expect(antumbra_last_error_message_copy(NULL, 0, &required) == ANTUMBRA_RESULT_BUFFER_TOO_SMALL &&
+               required == length + 1,
+           "sizing call (NULL, 0): required %lu", (unsigned long)required);
+    expect(antumbra_last_error_message_copy(NULL, 8, &required) == ANTUMBRA_RESULT_NULL_ARGUMENT,
+           "copy into (NULL, 8) is not NULL_ARGUMENT");
+    expect(antumbra_last_error_message_copy(buffer, 0, NULL) == ANTUMBRA_RESULT_BUFFER_TOO_SMALL,
+           "copy with no required_size out-parameter");
+
+    /* Exactly big enough, then with room to spare. */
+    memset(buffer, SENTINEL, sizeof buffer);
+    required = 0;
+    expect(antumbra_last_error_message_copy(buffer, length + 1, &required) == ANTUMBRA_RESULT_OK,
+           "copy into exactly %lu bytes failed", (unsigned long)(length + 1));
+    expect(required == length + 1 && strcmp(buffer, antumbra_last_error_message()) == 0 &&
+               (unsigned char)buffer[length + 1] == SENTINEL,
+           "exact copy: \"%s\" (required %lu) vs \"%s\"", buffer, (unsigned long)required,
+           antumbra_last_error_message());
+    expect(antumbra_last_error_message_copy(buffer, sizeof buffer, NULL) == ANTUMBRA_RESULT_OK &&
+               strcmp(buffer, antumbra_last_error_message()) == 0,
+           "roomy copy differs");
+
+    /* Copying does not replace the message it copies, even when copying fails. */
+    expect(strlen(antumbra_last_error_message()) == length && strstr(antumbra_last_error_message(), "mesh"),
+           "the message changed while being copied: \"%s\"", antumbra_last_error_message());
+}
+
+static void test_success_clears_message(void)
+{
+    antumbra_mesh_view mesh = square_mesh();
+    antumbra_scene *scene = NULL;
+    size_t required = 0;
+    char buffer[4];
+
+    expect(antumbra_scene_create(NULL, &scene) != ANTUMBRA_RESULT_OK && antumbra_last_error_message()[0] != '\0',
+           "setup: NULL mesh did not fail with a message");
+    expect_success("create after a failure", antumbra_scene_create(&mesh, &scene));
+    required = 0;
+    memset(buffer, SENTINEL, sizeof buffer);
+    expect(antumbra_last_error_message_copy(buffer, sizeof buffer, &required) == ANTUMBRA_RESULT_OK &&
+               required == 1 && buffer[0] == '\0',
+           "copy of the empty message: required %lu", (unsigned long)required);
+
+    expect(antumbra_scene_occluded(NULL, NULL, NULL, NULL, 0, NULL) == ANTUMBRA_RESULT_NULL_ARGUMENT,
+           "setup: NULL scene did not fail");
+    expect_success("empty batch after a failure", antumbra_scene_occluded(scene, NULL, NULL, NULL, 0, NULL));
+    antumbra_scene_destroy(scene);
+}
+
+/* ------------------------------------------------------------------------- */
+/* Result names                                                                */
+/* ------------------------------------------------------------------------- */
+
+static void test_result_str(void)
+{
+    static const struct {
+        antumbra_result code;
+        const char *name;
+    } names[] = {
+        {ANTUMBRA_RESULT_OK, "ANTUMBRA_RESULT_OK"},
+        {ANTUMBRA_RESULT_NULL_ARGUMENT, "ANTUMBRA_RESULT_NULL_ARGUMENT"},
+        {ANTUMBRA_RESULT_INVALID_ARGUMENT, "ANTUMBRA_RESULT_INVALID_ARGUMENT"},
+        {ANTUMBRA_RESULT_NON_FINITE, "ANTUMBRA_RESULT_NON_FINITE"},
+        {ANTUMBRA_RESULT_INDEX_OUT_OF_RANGE, "ANTUMBRA_RESULT_INDEX_OUT_OF_RANGE"},
+        {ANTUMBRA_RESULT_BUFFER_TOO_SMALL, "ANTUMBRA_RESULT_BUFFER_TOO_SMALL"},
+        {ANTUMBRA_RESULT_OUT_OF_MEMORY, "ANTUMBRA_RESULT_OUT_OF_MEMORY"},
+        {ANTUMBRA_RESULT_UNSUPPORTED, "ANTUMBRA_RESULT_UNSUPPORTED"},
+        {ANTUMBRA_RESULT_PANIC, "ANTUMBRA_RESULT_PANIC"},
+        {ANTUMBRA_RESULT_POISONED, "ANTUMBRA_RESULT_POISONED"},
+        {10, "ANTUMBRA_RESULT_UNKNOWN"},
+        {-1, "ANTUMBRA_RESULT_UNKNOWN"},
+        {INT32_MAX, "ANTUMBRA_RESULT_UNKNOWN"},
+        {INT32_MIN, "ANTUMBRA_RESULT_UNKNOWN"},
+    };
+    size_t i;
+    for (i = 0; i < sizeof names / sizeof names[0]; ++i) {
+        const char *name = antumbra_result_str(names[i].code);
+        expect(name != NULL && strcmp(name, names[i].name) == 0, "antumbra_result_str(%ld) is \"%s\", want \"%s\"",
+               (long)names[i].code, name ? name : "(NULL)", names[i].name);
+    }
+}
+
+/* ------------------------------------------------------------------------- */
+/* The error callback                                                          */
+/* ------------------------------------------------------------------------- */
+
+typedef struct callback_log {
+    int calls;
+    antumbra_result code;
+    char message[256];
+} callback_log;
+
+/* Must not call into Antumbra: it only records what it was given. */
+static void record_error(antumbra_result code, const char *message, void *user_data)
+{
+    callback_log *log = user_data;
+    log->calls++;
+    log->code = code;
+    strncpy(log->message, message ? message : "(NULL)", sizeof log->message - 1);
+    log->message[sizeof log->message - 1] = '\0';
+}
+
+static void test_error_callback(void)
+{
+    static callback_log log; /* static: its address is the user_data we expect back */
+    callback_log other;
+    antumbra_scene *out = NULL;
+    antumbra_result result;
+    float tangent[3], bitangent[3];
+    const float normal[3] = {0.0f, 0.0f, 1.0f};
+
+    memset(&log, 0, sizeof log);
+    memset(&other, 0, sizeof other);
+    antumbra_set_error_callback(record_error, &log);
+
+    result = antumbra_scene_create(NULL, &out);
+    expect(log.calls == 1, "callback called %d times for one failure", log.calls);
+    expect(log.code == result && result == ANTUMBRA_RESULT_NULL_ARGUMENT, "callback got code %d, call returned %d",
+           (int)log.code, (int)result);
+    expect(strcmp(log.message, antumbra_last_error_message()) == 0,
+           "callback message \"%s\" differs from the last error \"%s\"", log.message, antumbra_last_error_message());
+
+    /* Successes do not call it. */
+    antumbra_frame_from_normal(normal, tangent, bitangent);
+    expect(log.calls == 1, "callback called on a success");
+
+    /* Replacing the callback's user_data routes reports to the new one. */
+    antumbra_set_error_callback(record_error, &other);
+    result = antumbra_scene_occluded(NULL, NULL, NULL, NULL, 0, NULL);
+    expect(log.calls == 1 && other.calls == 1 && other.code == ANTUMBRA_RESULT_NULL_ARGUMENT,
+           "after switching user_data: old log %d calls, new log %d calls", log.calls, other.calls);
+
+    /* Removed: failures still fail, silently. */
+    antumbra_set_error_callback(NULL, NULL);
+    result = antumbra_scene_create(NULL, &out);
+    expect(result == ANTUMBRA_RESULT_NULL_ARGUMENT && log.calls == 1 && other.calls == 1,
+           "callback called after removal (%d, %d calls)", log.calls, other.calls);
+}
+
+/* ------------------------------------------------------------------------- */
+/* antumbra_frame_from_normal                                                  */
+/* ------------------------------------------------------------------------- */
+
+/* Calls the void function with a callback installed, to learn its result code. */
+static antumbra_result frame_result(const float *normal, float *tangent, float *bitangent)
+{
+    callback_log log;
+    memset(&log, 0, sizeof log);
+    log.code = ANTUMBRA_RESULT_OK;
+    antumbra_set_error_callback(record_error, &log);
+    antumbra_frame_from_normal(normal, tangent, bitangent);
+    antumbra_set_error_callback(NULL, NULL);
+    return log.code;
+}
+
+static void expect_frame_fails(const char *what, const float *normal, antumbra_result want, const char *fragment)
+{
+    float tangent[3], bitangent[3];
+    memset(tangent, SENTINEL, sizeof tangent);
+    memset(bitangent, SENTINEL, sizeof bitangent);
+    expect_failure(what, frame_result(normal, tangent, bitangent), want, "antumbra_frame_from_normal", fragment,
+                   (const char *)NULL);
+    expect_untouched(what, tangent, sizeof tangent);
+    expect_untouched(what, bitangent, sizeof bitangent);
+}
+
+static float dot3(const float *a, const float *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+static void test_frame(void)
+{
+    static const float normals[][3] = {
+        {0.0f, 0.0f, 1.0f},   {0.0f, 0.0f, -1.0f},        {1.0f, 0.0f, 0.0f},   {0.0f, -1.0f, 0.0f},
+        {0.6f, 0.0f, 0.8f},   {0.48f, -0.64f, -0.6f},     {0.0f, 0.6f, -0.8f},  {0.267261f, 0.534522f, 0.801784f},
+        {0.0f, 0.0f, -0.0f},  /* not unit: rejected below, skipped here */
+    };
+    const float nan_normal[3] = {NAN, 0.0f, 1.0f};
+    const float long_normal[3] = {0.0f, 0.0f, 2.0f};
+    const float short_normal[3] = {0.0f, 0.0f, 0.998f};
+    const float up[3] = {0.0f, 0.0f, 1.0f};
+    float tangent[3], bitangent[3];
+    size_t i;
+
+    expect_frame_fails("NULL normal", NULL, ANTUMBRA_RESULT_NULL_ARGUMENT, ": normal is NULL");
+    expect_frame_fails("NaN normal", nan_normal, ANTUMBRA_RESULT_NON_FINITE, ": normal");
+    expect_frame_fails("normal of length 2", long_normal, ANTUMBRA_RESULT_INVALID_ARGUMENT, ": normal");
+    expect_frame_fails("normal of length 0.998", short_normal, ANTUMBRA_RESULT_INVALID_ARGUMENT, ": normal");
+    expect_frame_fails("zero normal", normals[8], ANTUMBRA_RESULT_INVALID_ARGUMENT, ": normal");
+    memset(bitangent, SENTINEL, sizeof bitangent);
+    expect_failure("NULL tangent", frame_result(up, NULL, bitangent), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_frame_from_normal", ": tangent is NULL", (const char *)NULL);
+    expect_untouched("NULL tangent", bitangent, sizeof bitangent);
+    memset(tangent, SENTINEL, sizeof tangent);
+    expect_failure("NULL bitangent", frame_result(up, tangent, NULL), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_frame_from_normal", ": bitangent is NULL", (const char *)NULL);
+    expect_untouched("NULL bitangent", tangent, sizeof tangent);
+
+    /* The +z normal gives exactly the x and y axes. */
+    expect(frame_result(up, tangent, bitangent) == ANTUMBRA_RESULT_OK, "frame of +z failed");
+    expect(antumbra_last_error_message()[0] == '\0', "frame of +z left message \"%s\"", antumbra_last_error_message());
+    expect(tangent[0] == 1.0f && tangent[1] == 0.0f && tangent[2] == 0.0f && bitangent[0] == 0.0f &&
+               bitangent[1] == 1.0f && bitangent[2] == 0.0f,
+           "frame of +z: tangent (%g, %g, %g), bitangent (%g, %g, %g)", (double)tangent[0], (double)tangent[1],
+           (double)tangent[2], (double)bitangent[0], (double)bitangent[1], (double)bitangent[2]);
+
+    for (i = 0; i < 8; ++i) {
+        const float *n = normals[i];
+        /* The documented formula, evaluated here in the same order. */
+        const float s = n[2] >= 0.0f ? 1.0f : -1.0f, a = -1.0f / (s + n[2]), c = n[0] * n[1] * a;
+        const float want_t[3] = {1.0f + s * n[0] * n[0] * a, s * c, -s * n[0]};
+        const float want_b[3] = {c, s + n[1] * n[1] * a, -n[1]};
+        float cross_tb[3];
+        int k;
+        expect(frame_result(n, tangent, bitangent) == ANTUMBRA_RESULT_OK, "frame of normal %lu failed",
+               (unsigned long)i);
+        cross_tb[0] = tangent[1] * bitangent[2] - tangent[2] * bitangent[1];
+        cross_tb[1] = tangent[2] * bitangent[0] - tangent[0] * bitangent[2];
+        cross_tb[2] = tangent[0] * bitangent[1] - tangent[1] * bitangent[0];
+        expect(fabsf(dot3(tangent, tangent) - 1.0f) < 1e-5f && fabsf(dot3(bitangent, bitangent) - 1.0f) < 1e-5f &&
+                   fabsf(dot3(tangent, bitangent)) < 1e-5f && fabsf(dot3(tangent, n)) < 1e-5f &&
+                   fabsf(dot3(bitangent, n)) < 1e-5f,
+               "frame of normal %lu is not orthonormal", (unsigned long)i);
+        for (k = 0; k < 3; ++k) {
+            expect(fabsf(cross_tb[k] - n[k]) < 1e-5f, "normal %lu: tangent x bitangent is not the normal",
+                   (unsigned long)i);
+            expect(fabsf(tangent[k] - want_t[k]) < 1e-6f && fabsf(bitangent[k] - want_b[k]) < 1e-6f,
+                   "normal %lu: frame differs from the documented formula", (unsigned long)i);
+        }
+    }
+}
+
+/* ------------------------------------------------------------------------- */
+/* Per-thread messages                                                         */
+/* ------------------------------------------------------------------------- */
+
+static void *fail_on_another_thread(void *argument)
+{
+    antumbra_scene *out = NULL;
+    int *ok = argument;
+    antumbra_result result;
+    /* A new thread starts with no error, whatever other threads did. */
+    const int starts_empty = antumbra_last_error_message()[0] == '\0';
+    result = antumbra_scene_create(NULL, &out);
+    *ok = starts_empty && result == ANTUMBRA_RESULT_NULL_ARGUMENT &&
+          strstr(antumbra_last_error_message(), "mesh") != NULL;
+    return NULL;
+}
+
+static void test_thread_local_message(void)
+{
+    pthread_t thread;
+    int other_ok = 0;
+    char before[256];
+
+    expect(antumbra_scene_occluded(NULL, NULL, NULL, NULL, 0, NULL) == ANTUMBRA_RESULT_NULL_ARGUMENT,
+           "setup: NULL scene did not fail");
+    strncpy(before, antumbra_last_error_message(), sizeof before - 1);
+    before[sizeof before - 1] = '\0';
+
+    if (pthread_create(&thread, NULL, fail_on_another_thread, &other_ok) != 0 || pthread_join(thread, NULL) != 0) {
+        expect(0, "could not run the second thread");
+        return;
+    }
+    expect(other_ok, "the second thread did not see its own, fresh error message");
+    expect(strcmp(before, antumbra_last_error_message()) == 0,
+           "another thread's failure changed this thread's message to \"%s\"", antumbra_last_error_message());
+}
+
+int main(void)
+{
+    if (antumbra_version() != ANTUMBRA_VERSION ||
+        strcmp(antumbra_version_string(), ANTUMBRA_VERSION_STRING) != 0) {
+        fprintf(stderr, "bad_input: library %s (0x%06lx) does not match header %s\n", antumbra_version_string(),
+                (unsigned long)antumbra_version(), ANTUMBRA_VERSION_STRING);
+        return EXIT_FAILURE;
+    }
+    /* A fresh thread has no error yet. */
+    expect(antumbra_last_error_message()[0] == '\0', "initial message is \"%s\"", antumbra_last_error_message());
+
+    test_scene_create();
+    test_queries();
+    test_last_error();
+    test_success_clears_message();
+    test_result_str();
+    test_error_callback();
+    test_frame();
+    test_thread_local_message();
+
+    if (checks_failed != 0) {
+        fprintf(stderr, "bad_input: %d of %d checks failed\n", checks_failed, checks_run);
+        return EXIT_FAILURE;
+    }
+    printf("bad_input: all %d checks passed\n", checks_run);
+    return EXIT_SUCCESS;
+}

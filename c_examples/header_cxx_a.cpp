@@ -1,0 +1,73 @@
+/*
+ * header_cxx_a.cpp: first C++11 translation unit of the header test. Checks, at
+ * compile time, that every declaration has the exact type the ABI promises as
+ * seen from C++, and at run time that the library's version matches the header.
+ */
+#include "antumbra.h"
+#include "header_cxx.hpp"
+
+#include <cstdio>
+#include <cstring>
+#include <type_traits>
+
+namespace {
+
+template <typename Expected, typename Actual>
+constexpr bool same() { return std::is_same<Expected, Actual>::value; }
+
+// Language linkage is not part of the function type for GCC and Clang, so these
+// plain function-pointer types match the extern "C" declarations exactly.
+static_assert(same<const char *(*)(), decltype(&antumbra_last_error_message)>(), "last_error_message");
+static_assert(same<antumbra_result (*)(char *, size_t, size_t *), decltype(&antumbra_last_error_message_copy)>(),
+              "last_error_message_copy");
+static_assert(same<void (*)(antumbra_error_callback, void *), decltype(&antumbra_set_error_callback)>(),
+              "set_error_callback");
+static_assert(same<void (*)(const float *, float *, float *), decltype(&antumbra_frame_from_normal)>(),
+              "frame_from_normal");
+static_assert(same<const char *(*)(antumbra_result), decltype(&antumbra_result_str)>(), "result_str");
+static_assert(same<antumbra_result (*)(const antumbra_mesh_view *, antumbra_scene **),
+                   decltype(&antumbra_scene_create)>(),
+              "scene_create");
+static_assert(same<void (*)(antumbra_scene *), decltype(&antumbra_scene_destroy)>(), "scene_destroy");
+static_assert(same<antumbra_result (*)(const antumbra_scene *, const float *, const float *, const float *,
+                                       size_t, uint8_t *),
+                   decltype(&antumbra_scene_occluded)>(),
+              "scene_occluded");
+static_assert(same<antumbra_result (*)(const antumbra_scene *, const float *, const float *, const float *,
+                                       size_t, antumbra_hit *),
+                   decltype(&antumbra_scene_intersect)>(),
+              "scene_intersect");
+static_assert(same<uint32_t (*)(), decltype(&antumbra_version)>(), "version");
+static_assert(same<const char *(*)(), decltype(&antumbra_version_string)>(), "version_string");
+static_assert(same<int32_t, antumbra_result>(), "antumbra_result is int32_t");
+
+// Plain data a C++ caller may memcpy and aggregate-initialise.
+static_assert(std::is_standard_layout<antumbra_mesh_view>::value, "mesh_view is standard layout");
+static_assert(std::is_trivially_copyable<antumbra_mesh_view>::value, "mesh_view is trivially copyable");
+static_assert(std::is_standard_layout<antumbra_hit>::value, "hit is standard layout");
+static_assert(std::is_trivially_copyable<antumbra_hit>::value, "hit is trivially copyable");
+static_assert(sizeof(antumbra_hit) == 16, "hit size as seen from C++");
+static_assert(sizeof(antumbra_mesh_view) == 5 * sizeof(void *), "mesh_view size as seen from C++");
+
+}  // namespace
+
+int header_cxx_a_checks()
+{
+    int failures = 0;
+    if (antumbra_version() != ANTUMBRA_VERSION) {
+        std::fprintf(stderr, "header_cxx_a: library version 0x%06x, header 0x%06x\n",
+                     static_cast<unsigned>(antumbra_version()), static_cast<unsigned>(ANTUMBRA_VERSION));
+        ++failures;
+    }
+    if (std::strcmp(antumbra_version_string(), ANTUMBRA_VERSION_STRING) != 0) {
+        std::fprintf(stderr, "header_cxx_a: library version \"%s\", header \"%s\"\n", antumbra_version_string(),
+                     ANTUMBRA_VERSION_STRING);
+        ++failures;
+    }
+    if (std::strcmp(antumbra_result_str(ANTUMBRA_RESULT_OK), "ANTUMBRA_RESULT_OK") != 0) {
+        std::fprintf(stderr, "header_cxx_a: antumbra_result_str(OK) is \"%s\"\n",
+                     antumbra_result_str(ANTUMBRA_RESULT_OK));
+        ++failures;
+    }
+    return failures;
+}

@@ -1,0 +1,103 @@
+/*
+ * layout_asserts.c: compile-time checks (C11) that the header's types have the
+ * layout the Rust side was built with, and that its constants have the values
+ * the ABI publishes. Nothing here runs; compiling it is the test.
+ *
+ * Offsets are checked twice: once in terms of sizeof(void *) and sizeof(size_t),
+ * which holds on every ABI, and once as literal numbers for the ABI this check
+ * runs on (LP64, LLP64 or ILP32), chosen by pointer width so the numbers are
+ * never asserted on an ABI they were not written for.
+ */
+#include "antumbra.h"
+
+#include <stdalign.h>
+#include <stddef.h>
+#include <stdint.h>
+
+/* A field's type, checked without evaluating anything. */
+#define FIELD_TYPE_IS(type, field, expected) \
+    _Generic(((type *)0)->field, expected: 1, default: 0)
+
+/* ---- antumbra_mesh_view: five pointer-sized fields, no padding ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_mesh_view, positions, const float *), "positions type");
+_Static_assert(FIELD_TYPE_IS(antumbra_mesh_view, vertex_count, size_t), "vertex_count type");
+_Static_assert(FIELD_TYPE_IS(antumbra_mesh_view, position_stride, size_t), "position_stride type");
+_Static_assert(FIELD_TYPE_IS(antumbra_mesh_view, indices, const uint32_t *), "indices type");
+_Static_assert(FIELD_TYPE_IS(antumbra_mesh_view, triangle_count, size_t), "triangle_count type");
+
+_Static_assert(sizeof(void *) == sizeof(size_t), "Rust's usize is size_t only where it is pointer-sized");
+_Static_assert(offsetof(antumbra_mesh_view, positions) == 0, "mesh_view.positions offset");
+_Static_assert(offsetof(antumbra_mesh_view, vertex_count) == 1 * sizeof(void *), "mesh_view.vertex_count offset");
+_Static_assert(offsetof(antumbra_mesh_view, position_stride) == 2 * sizeof(void *), "mesh_view.position_stride offset");
+_Static_assert(offsetof(antumbra_mesh_view, indices) == 3 * sizeof(void *), "mesh_view.indices offset");
+_Static_assert(offsetof(antumbra_mesh_view, triangle_count) == 4 * sizeof(void *), "mesh_view.triangle_count offset");
+_Static_assert(sizeof(antumbra_mesh_view) == 5 * sizeof(void *), "mesh_view size");
+_Static_assert(alignof(antumbra_mesh_view) == alignof(void *), "mesh_view alignment");
+
+/* ---- antumbra_hit: four 4-byte fields on every ABI ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_hit, distance, float), "distance type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hit, triangle, uint32_t), "triangle type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hit, u, float), "u type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hit, v, float), "v type");
+_Static_assert(sizeof(float) == 4, "f32 is a 4-byte float");
+_Static_assert(offsetof(antumbra_hit, distance) == 0, "hit.distance offset");
+_Static_assert(offsetof(antumbra_hit, triangle) == 4, "hit.triangle offset");
+_Static_assert(offsetof(antumbra_hit, u) == 8, "hit.u offset");
+_Static_assert(offsetof(antumbra_hit, v) == 12, "hit.v offset");
+_Static_assert(sizeof(antumbra_hit) == 16, "hit size");
+_Static_assert(alignof(antumbra_hit) == 4, "hit alignment");
+/* Callers allocate hit arrays with malloc(n * sizeof(antumbra_hit)); no tail padding. */
+_Static_assert(sizeof(antumbra_hit[3]) == 48, "hit array stride");
+
+/* ---- Literal numbers for the ABI at hand ---- */
+#if UINTPTR_MAX == UINT64_MAX
+/* LP64 (and LLP64, where the layout of these structs is the same). */
+_Static_assert(sizeof(void *) == 8 && sizeof(size_t) == 8, "64-bit guard is honest");
+_Static_assert(offsetof(antumbra_mesh_view, positions) == 0, "LP64 mesh_view.positions");
+_Static_assert(offsetof(antumbra_mesh_view, vertex_count) == 8, "LP64 mesh_view.vertex_count");
+_Static_assert(offsetof(antumbra_mesh_view, position_stride) == 16, "LP64 mesh_view.position_stride");
+_Static_assert(offsetof(antumbra_mesh_view, indices) == 24, "LP64 mesh_view.indices");
+_Static_assert(offsetof(antumbra_mesh_view, triangle_count) == 32, "LP64 mesh_view.triangle_count");
+_Static_assert(sizeof(antumbra_mesh_view) == 40, "LP64 mesh_view size");
+_Static_assert(alignof(antumbra_mesh_view) == 8, "LP64 mesh_view alignment");
+#elif UINTPTR_MAX == UINT32_MAX
+_Static_assert(sizeof(void *) == 4 && sizeof(size_t) == 4, "32-bit guard is honest");
+_Static_assert(offsetof(antumbra_mesh_view, vertex_count) == 4, "ILP32 mesh_view.vertex_count");
+_Static_assert(offsetof(antumbra_mesh_view, position_stride) == 8, "ILP32 mesh_view.position_stride");
+_Static_assert(offsetof(antumbra_mesh_view, indices) == 12, "ILP32 mesh_view.indices");
+_Static_assert(offsetof(antumbra_mesh_view, triangle_count) == 16, "ILP32 mesh_view.triangle_count");
+_Static_assert(sizeof(antumbra_mesh_view) == 20, "ILP32 mesh_view size");
+_Static_assert(alignof(antumbra_mesh_view) == 4, "ILP32 mesh_view alignment");
+#else
+#error "no literal layout written for this pointer width; add one"
+#endif
+
+/* ---- Scalar and function-pointer types ---- */
+_Static_assert(FIELD_TYPE_IS(struct { antumbra_result r; }, r, int32_t), "antumbra_result is int32_t");
+_Static_assert(sizeof(antumbra_error_callback) == sizeof(void (*)(void)), "callback is one function pointer");
+
+/* ---- Result codes: append-only, so every published value is pinned ---- */
+_Static_assert(ANTUMBRA_RESULT_OK == 0, "OK");
+_Static_assert(ANTUMBRA_RESULT_NULL_ARGUMENT == 1, "NULL_ARGUMENT");
+_Static_assert(ANTUMBRA_RESULT_INVALID_ARGUMENT == 2, "INVALID_ARGUMENT");
+_Static_assert(ANTUMBRA_RESULT_NON_FINITE == 3, "NON_FINITE");
+_Static_assert(ANTUMBRA_RESULT_INDEX_OUT_OF_RANGE == 4, "INDEX_OUT_OF_RANGE");
+_Static_assert(ANTUMBRA_RESULT_BUFFER_TOO_SMALL == 5, "BUFFER_TOO_SMALL");
+_Static_assert(ANTUMBRA_RESULT_OUT_OF_MEMORY == 6, "OUT_OF_MEMORY");
+_Static_assert(ANTUMBRA_RESULT_UNSUPPORTED == 7, "UNSUPPORTED");
+_Static_assert(ANTUMBRA_RESULT_PANIC == 8, "PANIC");
+_Static_assert(ANTUMBRA_RESULT_POISONED == 9, "POISONED");
+
+/* ---- Other constants ---- */
+_Static_assert(ANTUMBRA_INVALID_INDEX == UINT32_MAX, "INVALID_INDEX is UINT32_MAX");
+_Static_assert(_Generic(ANTUMBRA_VERSION, uint32_t: 1, default: 0), "ANTUMBRA_VERSION is a uint32_t");
+_Static_assert(ANTUMBRA_VERSION ==
+                   ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR,
+                                         ANTUMBRA_VERSION_PATCH),
+               "ANTUMBRA_VERSION packs the MAJOR/MINOR/PATCH macros");
+_Static_assert(ANTUMBRA_MAKE_VERSION(1, 2, 3) == 0x010203u, "MAKE_VERSION packs major<<16|minor<<8|patch");
+/* ANTUMBRA_VERSION_STRING cannot be compared in a constant expression; the example
+ * programs check it against the numeric macros and the library at run time. */
+
+/* ISO C forbids an empty translation unit. */
+typedef int antumbra_layout_asserts_translation_unit_is_not_empty;
