@@ -4,16 +4,24 @@
 //!
 //! Triangles are copied into BVH leaf order at build time so a leaf's triangles are
 //! contiguous in memory; each keeps its original index for hits.
+//!
+//! obvhs's own box test is tuned for rendering, not exact answers: it ignores boxes
+//! that end before t = 1e-4, clamps 1/d to ±8.4e6 (with the wrong sign for -0.0),
+//! and compares box entry with the current hit without allowing for rounding, so
+//! near hits and exact closest hits can be lost. Traversal here uses obvhs's
+//! `traverse!` with a conservative box test of our own ([`TraversalRay`]): child
+//! boxes padded against decoding rounding, exit distances rounded up as in Ize 2013,
+//! no epsilon. Exactness then rests on the watertight triangle test alone, shared
+//! with [`super::BruteForceCaster`], so the two agree bit for bit.
 
 use alloc::collections::TryReserveError;
 use alloc::vec::Vec;
 use core::time::Duration;
 
-use glam::{Vec3, Vec3A};
+use glam::{UVec2, Vec3, Vec3A, Vec4};
 use obvhs::{
     BvhBuildParams,
-    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
-    ray::{Ray as ObvhsRay, RayHit},
+    cwbvh::{CwBvh, builder::build_cwbvh_from_tris, node::CwBvhNode},
     triangle::Triangle,
 };
 
@@ -83,16 +91,105 @@ impl BvhScene {
     pub fn triangle_count(&self) -> usize {
         self.corners.len()
     }
+}
 
-    fn obvhs_ray(ray: &Ray) -> ObvhsRay {
-        // The node test only culls; clamping t_min to 0 keeps its interval valid for
-        // negative t_min while the triangle test still applies the exact interval.
-        ObvhsRay::new(
-            Vec3A::from(ray.origin),
-            Vec3A::from(ray.direction),
-            ray.t_min.max(0.0),
-            ray.t_max,
-        )
+/// Relative rounding bound of one slab distance `(plane - origin) * (1 / d)`:
+/// three roundings, `2 * gamma(3)` as in Ize, "Robust BVH Ray Traversal" (JCGT 2013).
+const SLAB_ROUNDING: f32 = 2.0 * (3.0 * f32::EPSILON / 2.0) / (1.0 - 3.0 * f32::EPSILON / 2.0);
+/// Relative padding of decoded child boxes, which absorbs the rounding of
+/// `p + q * extent` (the quantised planes are exact, the sum is not).
+const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
+/// Magnitude of 1/d for direction components below 1/HUGE_INVERSE: finite, so slab
+/// products never become NaN, and far beyond any real box distance.
+const HUGE_INVERSE: f32 = 1e30;
+
+/// Per-ray constants of the conservative box test, in units of the unit direction.
+struct TraversalRay {
+    origin: Vec3A,
+    inverse: Vec3A,
+    /// Query `t` to unit-direction distance.
+    length: f32,
+    /// Never cull a box that could hold a hit before this distance.
+    t_max: f32,
+}
+
+impl TraversalRay {
+    /// `ray` must be valid (finite, non-zero direction).
+    fn new(ray: &Ray) -> Self {
+        // Scale first so squaring cannot overflow for huge directions.
+        let largest = ray.direction.abs().max_element();
+        let scaled = ray.direction / largest;
+        let length = largest * scaled.length();
+        let unit = scaled.normalize();
+        let inverse = unit.to_array().map(|c| {
+            if c.abs() * HUGE_INVERSE > 1.0 {
+                1.0 / c
+            } else if c.is_sign_negative() {
+                -HUGE_INVERSE
+            } else {
+                HUGE_INVERSE
+            }
+        });
+        let mut traversal = TraversalRay {
+            origin: ray.origin.into(),
+            inverse: Vec3A::from_array(inverse),
+            length,
+            t_max: 0.0,
+        };
+        traversal.shorten(ray.t_max);
+        traversal
+    }
+
+    /// Culls boxes beyond query parameter `t`, rounded up (the product `t * length`
+    /// rounds once more).
+    #[inline]
+    fn shorten(&mut self, t: f32) {
+        let distance = t * self.length;
+        self.t_max = distance + distance * (4.0 * f32::EPSILON);
+    }
+
+    /// The children of `node` the ray may enter at a distance in `[0, t_max]`, as
+    /// the hit mask obvhs's `traverse!` expects. Conservative: boxes are padded and
+    /// the exit distance is rounded up, so no child holding a hit is ever culled.
+    /// Four children at a time in `Vec4` lanes (SSE2 on x86-64).
+    #[inline(always)]
+    fn child_hits(&self, node: &CwBvhNode, oct_inv4: u32) -> u32 {
+        let extent = node.compute_extent();
+        let base = Vec3A::from(node.p);
+        let padding = (base.abs() + extent * 255.0) * BOX_PADDING;
+        let lo_base = base - padding;
+        let hi_base = base + padding;
+        let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+        let mut hits = 0;
+        for half in 0..2 {
+            let lanes = |planes: &[u8; 8]| {
+                let q = &planes[4 * half..4 * half + 4];
+                Vec4::new(q[0].into(), q[1].into(), q[2].into(), q[3].into())
+            };
+            // (plane - origin) / d per axis; planes are exact in the node's grid.
+            let slab = |q_lo: Vec4, q_hi: Vec4, axis: usize| {
+                let o = self.origin[axis];
+                let inv = self.inverse[axis];
+                let t_lo = (q_lo * extent[axis] + lo_base[axis] - o) * inv;
+                let t_hi = (q_hi * extent[axis] + hi_base[axis] - o) * inv;
+                (t_lo.min(t_hi), t_lo.max(t_hi))
+            };
+            let (near_x, far_x) = slab(lanes(&node.child_min_x), lanes(&node.child_max_x), 0);
+            let (near_y, far_y) = slab(lanes(&node.child_min_y), lanes(&node.child_max_y), 1);
+            let (near_z, far_z) = slab(lanes(&node.child_min_z), lanes(&node.child_max_z), 2);
+            let near = near_x.max(near_y).max(near_z).max(Vec4::ZERO);
+            let far = far_x.min(far_y).min(far_z);
+            let far = (far + far.abs() * SLAB_ROUNDING).min(Vec4::splat(self.t_max));
+            let entered = near.cmple(far).bitmask() as usize;
+            for lane in 0..4 {
+                let child = 4 * half + lane;
+                if entered & (1 << lane) != 0 && node.child_meta[child] != 0 {
+                    let shift = (bit_index8 >> (8 * child)) & 0xff;
+                    hits |= (((child_bits8 >> (8 * child)) & 0xff) as u32) << shift;
+                }
+            }
+        }
+        hits
     }
 }
 
@@ -104,15 +201,27 @@ impl RayCaster for BvhScene {
         let Some(prepared) = PreparedRay::new(ray) else {
             return false;
         };
-        !self
-            .bvh
-            .ray_traverse_miss(Self::obvhs_ray(ray), |_, primitive| {
-                let [a, b, c] = self.corners[primitive];
-                match prepared.intersect(a, b, c) {
-                    Some(hit) => hit.t,
-                    None => f32::INFINITY,
+        let traversal = TraversalRay::new(ray);
+        let mut state = self.bvh.new_traversal(traversal.inverse);
+        let mut node;
+        let mut occluded = false;
+        // A bare `break` would only leave the macro's inner primitive loop.
+        'search: {
+            obvhs::traverse!(
+                self.bvh,
+                node,
+                state,
+                traversal.child_hits(node, state.oct_inv4),
+                {
+                    let [a, b, c] = self.corners[state.primitive_id as usize];
+                    if prepared.intersect(a, b, c).is_some() {
+                        occluded = true;
+                        break 'search;
+                    }
                 }
-            })
+            );
+        }
+        occluded
     }
 
     fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
@@ -120,25 +229,30 @@ impl RayCaster for BvhScene {
             return None;
         }
         let mut prepared = PreparedRay::new(ray)?;
+        let mut traversal = TraversalRay::new(ray);
         let mut best: Option<Hit> = None;
-        let mut record = RayHit::none();
-        self.bvh
-            .ray_traverse(Self::obvhs_ray(ray), &mut record, |_, primitive| {
+        let mut state = self.bvh.new_traversal(traversal.inverse);
+        let mut node;
+        obvhs::traverse!(
+            self.bvh,
+            node,
+            state,
+            traversal.child_hits(node, state.oct_inv4),
+            {
+                let primitive = state.primitive_id as usize;
                 let [a, b, c] = self.corners[primitive];
-                match prepared.intersect(a, b, c) {
-                    Some(hit) => {
-                        prepared.set_t_max(hit.t);
-                        best = Some(Hit {
-                            t: hit.t,
-                            triangle: self.original[primitive],
-                            u: hit.u,
-                            v: hit.v,
-                        });
-                        hit.t
-                    }
-                    None => f32::INFINITY,
+                if let Some(hit) = prepared.intersect(a, b, c) {
+                    prepared.set_t_max(hit.t);
+                    traversal.shorten(hit.t);
+                    best = Some(Hit {
+                        t: hit.t,
+                        triangle: self.original[primitive],
+                        u: hit.u,
+                        v: hit.v,
+                    });
                 }
-            });
+            }
+        );
         best
     }
 }

@@ -306,6 +306,80 @@ mod bvh_against_brute_force {
         assert_send_sync::<BvhScene>();
     }
 
+    /// Rays whose parameters stress the traversal rather than the triangle test:
+    /// direction lengths from 1e-6 to 1e6, and axis-aligned directions with +0.0
+    /// and -0.0 components.
+    fn extreme_ray(rng: &mut SmallRng) -> Ray {
+        let mut ray = random_ray(rng, 2.0);
+        let scale = 10f32.powf(rng.random_range(-6.0..6.0));
+        ray.direction *= scale;
+        ray.t_max /= scale;
+        if rng.random_bool(0.25) {
+            let axis = rng.random_range(0..3);
+            let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            let mut d = [if rng.random_bool(0.5) { 0.0 } else { -0.0 }; 3];
+            d[axis] = sign * scale;
+            ray.direction = Vec3::from_array(d);
+        }
+        ray
+    }
+
+    #[test]
+    fn extreme_direction_lengths_and_signed_zeros_match_brute_force() {
+        let mut rng = SmallRng::seed_from_u64(6);
+        let (positions, indices) = soup(&mut rng, 2000);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let brute = BruteForceCaster::new(mesh);
+        let bvh = BvhScene::new(&mesh);
+        let mut hits = 0;
+        for _ in 0..20_000 {
+            let ray = extreme_ray(&mut rng);
+            let expected = brute.closest_hit(&ray);
+            assert_eq!(
+                bvh.closest_hit(&ray).map(|h| h.t),
+                expected.map(|h| h.t),
+                "{ray:?}"
+            );
+            assert_eq!(bvh.occluded(&ray), expected.is_some(), "{ray:?}");
+            hits += usize::from(expected.is_some());
+        }
+        assert!(hits > 2000, "too few hits to mean anything: {hits}");
+    }
+
+    #[test]
+    fn tiny_and_far_scenes_match_brute_force() {
+        // Scenes far below and above unit scale, and far from the origin: obvhs's
+        // fixed 1e-4 box epsilon would cull whole scenes at 1e-5 scale.
+        for (scale, offset) in [(1e-5f32, 0.0f32), (1e-3, 0.0), (1e4, 0.0), (1.0, 1e4)] {
+            let mut rng = SmallRng::seed_from_u64(7);
+            let (mut positions, indices) = soup(&mut rng, 500);
+            for p in &mut positions {
+                *p = (Vec3::from(*p) * scale + offset).to_array();
+            }
+            let mesh = MeshView::new(&positions, &indices).unwrap();
+            let brute = BruteForceCaster::new(mesh);
+            let bvh = BvhScene::new(&mesh);
+            let mut hits = 0;
+            for _ in 0..4000 {
+                let mut ray = random_ray(&mut rng, 2.0);
+                ray.origin = ray.origin * scale + offset;
+                let expected = brute.closest_hit(&ray);
+                assert_eq!(
+                    bvh.closest_hit(&ray).map(|h| h.t),
+                    expected.map(|h| h.t),
+                    "scale {scale}: {ray:?}"
+                );
+                assert_eq!(
+                    bvh.occluded(&ray),
+                    expected.is_some(),
+                    "scale {scale}: {ray:?}"
+                );
+                hits += usize::from(expected.is_some());
+            }
+            assert!(hits > 400, "scale {scale}: too few hits: {hits}");
+        }
+    }
+
     #[test]
     fn batches_equal_one_ray_at_a_time() {
         let mut rng = SmallRng::seed_from_u64(5);
