@@ -1,0 +1,172 @@
+//! `antumbra bake`: per-vertex ambient occlusion written as text or CSV.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use antumbra_core::raycast::BvhScene;
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{absolute, format_duration};
+use crate::cli::BakeArgs;
+use crate::error::{Context, Error, Result};
+use crate::mesh::TriangleMesh;
+use crate::progress;
+use crate::render::ambient_ray_escapes;
+use crate::sampling::{R2Sequence, SampleRng, hash_seed};
+
+/// Offset of ray origins along the vertex normal, relative to the bounding-box
+/// diagonal: keeps rays from hitting the vertex's own triangles at t ≈ 0.
+const ORIGIN_OFFSET: f32 = 1e-4;
+
+/// Seed of the bake's random numbers.
+const SEED: u64 = 0xBA;
+
+/// Bakes and writes the file.
+pub fn run(args: &BakeArgs) -> Result<()> {
+    if let Some(d) = args.max_distance.filter(|d| d.is_nan() || *d <= 0.0) {
+        return Err(Error::msg(format!(
+            "--max-distance must be positive, not {d}"
+        )));
+    }
+    let started = Instant::now();
+    let mesh = TriangleMesh::load_obj(&args.mesh)?;
+    let max_distance = args.max_distance.unwrap_or(f32::INFINITY);
+    let visibility = bake_visibility(&mesh, args.rays, max_distance);
+    let normals = mesh.vertex_normals();
+    let csv = args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+    let text = if csv {
+        format_csv(&mesh, &normals, &visibility)
+    } else {
+        format_text(&mesh, args.rays, max_distance, &visibility)
+    };
+    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("cannot create folder {}", parent.display()))?;
+    }
+    std::fs::write(&args.out, text)
+        .with_context(|| format!("cannot write {}", args.out.display()))?;
+
+    let mean =
+        visibility.iter().map(|&v| f64::from(v)).sum::<f64>() / visibility.len().max(1) as f64;
+    println!(
+        "baked ambient occlusion of {} ({} vertices, {} rays each) in {}",
+        mesh.name(),
+        mesh.vertex_count(),
+        args.rays,
+        format_duration(started.elapsed())
+    );
+    println!("  mean visibility {mean:.3} (1 = unoccluded)");
+    println!(
+        "  wrote {} ({})",
+        absolute(&args.out).display(),
+        if csv { "CSV" } else { "text" }
+    );
+    Ok(())
+}
+
+/// Fraction of `rays` cosine-weighted rays per vertex that escape within
+/// `max_distance`. Vertices with no defined normal (only degenerate triangles
+/// around them) get 1.
+pub fn bake_visibility(mesh: &TriangleMesh, rays: u32, max_distance: f32) -> Vec<f32> {
+    let bvh = BvhScene::new(&mesh.view());
+    let normals = mesh.vertex_normals();
+    let offset = ORIGIN_OFFSET * mesh.bounds().diagonal();
+    let bar = progress::bar(mesh.vertex_count() as u64, "baking", "vertices");
+    let visibility = mesh
+        .positions()
+        .par_iter()
+        .zip(normals.par_iter())
+        .enumerate()
+        .map(|(vertex, (&position, &normal))| {
+            bar.inc(1);
+            if normal == Vec3::ZERO {
+                return 1.0;
+            }
+            let mut rng = SampleRng::new(hash_seed(&[SEED, vertex as u64]));
+            let directions = R2Sequence::new(rng.next_vec2());
+            let origin = Vec3::from(position) + offset * normal;
+            let open = (0..rays)
+                .filter(|&i| {
+                    ambient_ray_escapes(&bvh, origin, normal, directions.point(i), max_distance)
+                })
+                .count();
+            open as f32 / rays as f32
+        })
+        .collect();
+    bar.finish_and_clear();
+    visibility
+}
+
+/// The text format: a `#` header line, then one value per vertex.
+fn format_text(mesh: &TriangleMesh, rays: u32, max_distance: f32, visibility: &[f32]) -> String {
+    let mut out = format!(
+        "# antumbra ambient occlusion v1: {} lines follow, line i+2 = visibility of vertex i \
+         in [0,1] (1 = unoccluded, cosine-weighted); mesh {}, {} rays per vertex, max distance {}\n",
+        visibility.len(),
+        mesh.name(),
+        rays,
+        if max_distance.is_finite() {
+            max_distance.to_string()
+        } else {
+            "unlimited".to_string()
+        }
+    );
+    for v in visibility {
+        let _ = writeln!(out, "{v:.6}");
+    }
+    out
+}
+
+/// The CSV format: a header row, then `vertex,x,y,z,nx,ny,nz,visibility` per vertex.
+fn format_csv(mesh: &TriangleMesh, normals: &[Vec3], visibility: &[f32]) -> String {
+    let mut out = String::from("vertex,x,y,z,nx,ny,nz,visibility\n");
+    for (i, ((p, n), v)) in mesh
+        .positions()
+        .iter()
+        .zip(normals)
+        .zip(visibility)
+        .enumerate()
+    {
+        let _ = writeln!(
+            out,
+            "{i},{},{},{},{:.6},{:.6},{:.6},{v:.6}",
+            p[0], p[1], p[2], n.x, n.y, n.z
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn convex_mesh_is_fully_visible_and_formats_have_one_header_line() {
+        let tetra = TriangleMesh::parse_obj_str(
+            "tetra",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+        )
+        .unwrap();
+        let visibility = bake_visibility(&tetra, 64, f32::INFINITY);
+        assert!(visibility.iter().all(|&v| v == 1.0), "{visibility:?}");
+        let text = format_text(&tetra, 64, f32::INFINITY, &visibility);
+        assert_eq!(text.lines().count(), 5);
+        assert!(text.starts_with('#'));
+        let csv = format_csv(&tetra, &tetra.vertex_normals(), &visibility);
+        assert_eq!(csv.lines().count(), 5);
+    }
+
+    #[test]
+    fn concave_vertices_are_darker() {
+        // The bunny's mean visibility is well below 1 and every value is in range.
+        let bunny = crate::builtin::bunny().unwrap();
+        let visibility = bake_visibility(&bunny, 32, f32::INFINITY);
+        assert!(visibility.iter().all(|v| (0.0..=1.0).contains(v)));
+        let mean = visibility.iter().sum::<f32>() / visibility.len() as f32;
+        assert!(mean > 0.5 && mean < 0.98, "{mean}");
+    }
+}

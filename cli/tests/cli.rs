@@ -1,0 +1,241 @@
+//! End-to-end tests of the `antumbra` binary: every command runs, writes real
+//! output, and fails cleanly on bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Runs the built binary with `args`.
+fn antumbra(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_antumbra"))
+        .args(args)
+        .output()
+        .expect("the antumbra binary runs")
+}
+
+fn stdout(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stdout).into_owned()
+}
+
+fn stderr(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
+/// Asserts success and shows the command's output otherwise.
+fn assert_success(output: &Output) {
+    assert!(
+        output.status.success(),
+        "exit {:?}\nstdout:\n{}\nstderr:\n{}",
+        output.status,
+        stdout(output),
+        stderr(output)
+    );
+}
+
+/// A fresh, empty folder for one test's files.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("antumbra-cli")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A committed test file (`tests/data/` at the workspace root).
+fn data(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/data")
+        .join(name)
+        .to_string_lossy()
+        .into_owned()
+}
+
+#[test]
+fn help_lists_every_command_and_each_has_its_own_help() {
+    let output = antumbra(&["--help"]);
+    assert_success(&output);
+    let text = stdout(&output);
+    for command in ["demo", "render", "bake", "bench", "verify"] {
+        assert!(
+            text.contains(command),
+            "--help does not mention {command}:\n{text}"
+        );
+    }
+    for args in [
+        &["demo", "--help"][..],
+        &["render", "--help"],
+        &["bake", "--help"],
+        &["bench", "--help"],
+        &["bench", "raycast", "--help"],
+        &["verify", "--help"],
+    ] {
+        let output = antumbra(args);
+        assert_success(&output);
+        assert!(stdout(&output).contains("Usage: antumbra"), "{args:?}");
+    }
+}
+
+#[test]
+fn demo_writes_decodable_pictures_with_content() {
+    let dir = scratch("demo");
+    let output = antumbra(&["demo", "--size", "32", "--out", dir.to_str().unwrap()]);
+    assert_success(&output);
+    let summary = stdout(&output);
+    for name in [
+        "bunny-ambient-occlusion.png",
+        "bunny-sunrise.png",
+        "sunrise-environment.png",
+    ] {
+        let path = dir.join(name);
+        assert!(
+            summary.contains(&path.display().to_string()),
+            "summary lacks {name}:\n{summary}"
+        );
+        let picture = image::open(&path)
+            .unwrap_or_else(|e| panic!("{} does not decode: {e}", path.display()))
+            .into_rgb8();
+        assert_eq!(picture.width(), 32, "{name}");
+        let first = picture.get_pixel(0, 0);
+        assert!(
+            picture.pixels().any(|p| p != first),
+            "{name} is all one colour"
+        );
+    }
+}
+
+#[test]
+fn render_writes_ambient_occlusion_and_environment_lighting() {
+    let dir = scratch("render");
+    for (env, name) in [(None, "ao.png"), (Some(data("sunrise.exr")), "env.png")] {
+        let out = dir.join(name);
+        let teapot = data("teapot.obj");
+        let mut args = vec![
+            "render",
+            "--mesh",
+            &teapot,
+            "--size",
+            "24",
+            "--samples",
+            "2",
+        ];
+        let out_str = out.to_str().unwrap();
+        args.extend(["--out", out_str]);
+        if let Some(env) = &env {
+            args.extend(["--env", env.as_str()]);
+        }
+        let output = antumbra(&args);
+        assert_success(&output);
+        let picture = image::open(&out).unwrap().into_rgb8();
+        assert_eq!((picture.width(), picture.height()), (24, 18));
+    }
+}
+
+#[test]
+fn verify_reports_agreement_and_its_exit_status_follows_it() {
+    let output = antumbra(&["verify", "--rays", "2000"]);
+    let text = stdout(&output);
+    for heading in [
+        "built-in bunny",
+        "built-in teapot",
+        "at vertex",
+        "long direction",
+    ] {
+        assert!(text.contains(heading), "{heading} missing:\n{text}");
+    }
+    let all_agree = text.contains("agreement: 4000/4000");
+    assert!(text.contains("agreement: "), "{text}");
+    assert_eq!(
+        output.status.success(),
+        all_agree,
+        "{text}\n{}",
+        stderr(&output)
+    );
+    assert!(all_agree || stderr(&output).contains("disagree"));
+    assert!(!stderr(&output).contains("panicked"));
+}
+
+/// The BVH must agree exactly with brute force: both use the same watertight test.
+#[test]
+fn verify_agrees_exactly_on_the_built_in_meshes() {
+    let output = antumbra(&["verify"]);
+    assert_success(&output);
+}
+
+#[test]
+fn bake_writes_one_line_per_vertex_plus_a_header() {
+    let dir = scratch("bake");
+    let teapot = data("teapot.obj");
+    for name in ["teapot.ao", "teapot.csv"] {
+        let out = dir.join(name);
+        let output = antumbra(&[
+            "bake",
+            "--mesh",
+            &teapot,
+            "--out",
+            out.to_str().unwrap(),
+            "--rays",
+            "16",
+        ]);
+        assert_success(&output);
+        let text = std::fs::read_to_string(&out).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 792 + 1, "{name}");
+        for line in &lines[1..] {
+            let value: f32 = line.rsplit(',').next().unwrap().parse().unwrap();
+            assert!((0.0..=1.0).contains(&value), "{name}: {line}");
+        }
+    }
+}
+
+#[test]
+fn bench_prints_both_casters_and_the_ratio() {
+    let output = antumbra(&["bench", "raycast", "--rays", "300", "--min-time", "10"]);
+    assert_success(&output);
+    let text = stdout(&output);
+    assert!(
+        text.contains("brute force") && text.contains("BVH") && text.contains('x'),
+        "{text}"
+    );
+}
+
+#[test]
+fn missing_and_bad_files_fail_with_a_message_naming_them() {
+    let dir = scratch("errors");
+    let missing = dir.join("no-such-mesh.obj");
+    let output = antumbra(&["bake", "--mesh", missing.to_str().unwrap(), "--out", "x.ao"]);
+    assert!(!output.status.success());
+    let message = stderr(&output);
+    assert!(message.contains("no-such-mesh.obj"), "{message}");
+    assert!(!message.contains("panicked"), "{message}");
+
+    // An OBJ given as an environment map is neither EXR nor PNG.
+    let teapot = data("teapot.obj");
+    let out = dir.join("never.png");
+    let output = antumbra(&[
+        "render",
+        "--mesh",
+        &teapot,
+        "--env",
+        &teapot,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!output.status.success());
+    let message = stderr(&output);
+    assert!(
+        message.contains("teapot.obj") && message.contains("OpenEXR"),
+        "{message}"
+    );
+    assert!(!out.exists());
+
+    // A file that is not an OBJ at all.
+    let garbage = dir.join("garbage.obj");
+    std::fs::write(&garbage, [0xff, 0xfe, 0x00, 0x12]).unwrap();
+    let output = antumbra(&["verify", "--mesh", garbage.to_str().unwrap()]);
+    assert!(!output.status.success());
+    let message = stderr(&output);
+    assert!(
+        message.contains("garbage.obj") && !message.contains("panicked"),
+        "{message}"
+    );
+}
