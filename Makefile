@@ -1,0 +1,90 @@
+# Antumbra: the two commands of the README.
+#   make demo   the main job: render the demo pictures with built-in data
+#   make test   every check: fmt, clippy, cargo tests, no_std build, header,
+#               C examples (static, shared, valgrind, sanitizers), Embree cross-checks,
+#               the C ABI from Python (ctypes) against Embree
+# Each `test` step is also a target of its own (make clippy, make c-examples, ...).
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+CARGO ?= cargo
+NO_STD_TARGET := thumbv7em-none-eabihf
+PYENV := $(CURDIR)/target/pyenv
+export ANTUMBRA_ORACLE_PYTHON := $(PYENV)/bin/python
+# Root installs system packages directly; anyone else goes through sudo.
+SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
+
+TEST_STEPS := fmt clippy no-std cargo-test header oracle-selfcheck embree c-examples python-abi
+
+.PHONY: demo test deps toolchain system-packages pyenv $(TEST_STEPS) clean
+
+demo:
+	$(CARGO) run --release -p antumbra-cli -- demo
+
+test: deps
+	@start=$$(date +%s); \
+	for step in $(TEST_STEPS); do \
+	  echo "==> make $$step"; t0=$$(date +%s); \
+	  $(MAKE) --no-print-directory $$step || { echo "make test: step '$$step' FAILED"; exit 1; }; \
+	  echo "<== $$step: ok ($$(( $$(date +%s) - t0 )) s)"; \
+	done; \
+	echo "make test: every step passed in $$(( $$(date +%s) - start )) s"; \
+	echo "$(words $(TEST_STEPS)) passed, 0 failed"
+
+# --- dependencies: everything the checks need, installed by the project itself ---
+deps: toolchain system-packages pyenv
+
+toolchain:
+	rustup component add rustfmt clippy >/dev/null
+	rustup target list --installed | grep -qx $(NO_STD_TARGET) || rustup target add $(NO_STD_TARGET)
+
+system-packages:
+	@missing=""; \
+	for tool in valgrind gcc g++ python3; do command -v $$tool >/dev/null || missing="$$missing $$tool"; done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing:$$missing"; \
+	  $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq $$(echo $$missing | sed 's/python3/python3 python3-venv/'); \
+	fi
+
+pyenv:
+	tests/oracle/setup_venv.sh $(PYENV)
+
+# --- the checks ---
+fmt:
+	$(CARGO) fmt --all -- --check
+
+clippy:
+	$(CARGO) clippy --workspace --all-targets -- -D warnings
+	$(CARGO) clippy -p antumbra-core --no-default-features -- -D warnings
+	$(CARGO) clippy -p antumbra-core --all-features --all-targets -- -D warnings
+
+no-std:
+	$(CARGO) build -p antumbra-core --no-default-features --target $(NO_STD_TARGET)
+
+# Everything but the Embree comparison, which `embree` runs with its figures shown.
+cargo-test:
+	$(CARGO) test --workspace --exclude antumbra-tests
+	$(CARGO) test -p antumbra-core --no-default-features
+	$(CARGO) test -p antumbra-core --all-features
+
+header:
+	$(CARGO) test -p antumbra-ffi --test header
+
+oracle-selfcheck:
+	$(ANTUMBRA_ORACLE_PYTHON) tests/oracle/test_oracle_selfcheck.py
+
+embree:
+	$(CARGO) test -p antumbra-tests -- --nocapture --test-threads=1
+
+c-examples:
+	$(CARGO) build --release -p antumbra-ffi
+	$(MAKE) -C c_examples check
+
+# libantumbra.so through ctypes, against Embree directly: the ABI as a foreign caller sees it.
+python-abi:
+	$(CARGO) build --release -p antumbra-ffi
+	$(ANTUMBRA_ORACLE_PYTHON) tests/oracle/test_ctypes_abi.py target/release/libantumbra.so
+
+clean:
+	$(CARGO) clean
+	$(MAKE) -C c_examples clean
