@@ -60,6 +60,9 @@ clippy:
 
 no-std:
 	$(CARGO) build -p antumbra-core --no-default-features --target $(NO_STD_TARGET)
+	@# One glam in the tree: obvhs and core must share it (architecture.md).
+	@if $(CARGO) tree --workspace -d -e normal,build --prefix depth | grep -q '^0glam '; then \
+	  $(CARGO) tree --workspace -d -i glam; echo "more than one glam in the tree"; exit 1; fi
 
 # Everything but the Embree comparison, which `embree` runs with its figures shown.
 cargo-test:

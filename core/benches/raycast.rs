@@ -1,5 +1,7 @@
-//! Ray casting throughput on a procedural scene: the obvhs CWBVH against the
-//! brute-force reference (the baseline), on the same rays in the same run.
+//! Ray casting throughput on a procedural scene, on the same rays in the same run:
+//! `BvhScene` against the brute-force reference (the baseline), and against obvhs's
+//! own traversal with its Möller–Trumbore test (`obvhs_native_*`), which is what
+//! the exact, conservative box test and the watertight triangle test cost.
 //!
 //! Run: `cargo bench -p antumbra-core --features bvh --bench raycast`.
 
@@ -90,4 +92,39 @@ fn bvh_occluded(bencher: divan::Bencher<'_, '_>, rings: u32) {
     bencher
         .counter(divan::counter::ItemsCount::new(RAYS))
         .bench_local(|| rays.iter().filter(|r| scene.occluded(r)).count());
+}
+
+#[divan::bench(args = [8, 32])]
+fn obvhs_native_closest_hit(bencher: divan::Bencher<'_, '_>, rings: u32) {
+    use obvhs::{BvhBuildParams, cwbvh::builder::build_cwbvh_from_tris, ray::RayHit};
+    let (positions, indices) = sphere(rings, 2 * rings);
+    let triangles: Vec<obvhs::triangle::Triangle> = indices
+        .chunks_exact(3)
+        .map(|t| obvhs::triangle::Triangle {
+            v0: positions[t[0] as usize].into(),
+            v1: positions[t[1] as usize].into(),
+            v2: positions[t[2] as usize].into(),
+        })
+        .collect();
+    let bvh = build_cwbvh_from_tris(
+        &triangles,
+        BvhBuildParams::medium_build(),
+        &mut core::time::Duration::ZERO,
+    );
+    let rays: Vec<obvhs::ray::Ray> = rays(RAYS)
+        .iter()
+        .map(|r| obvhs::ray::Ray::new_inf(r.origin.into(), r.direction.into()))
+        .collect();
+    bencher
+        .counter(divan::counter::ItemsCount::new(RAYS))
+        .bench_local(|| {
+            rays.iter()
+                .filter(|&&ray| {
+                    let mut hit = RayHit::none();
+                    bvh.ray_traverse(ray, &mut hit, |r, id| {
+                        triangles[bvh.primitive_indices[id] as usize].intersect(r)
+                    })
+                })
+                .count()
+        });
 }
