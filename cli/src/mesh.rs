@@ -7,6 +7,7 @@ use std::io::BufReader;
 use std::path::Path;
 
 use antumbra_core::MeshView;
+use antumbra_core::raycast::MAX_COORDINATE;
 use glam::Vec3;
 
 use crate::bounds::Bounds;
@@ -22,7 +23,8 @@ pub struct TriangleMesh {
 
 impl TriangleMesh {
     /// A mesh from raw arrays; fails with the core's reason when they do not form a
-    /// valid mesh view (index out of range, non-finite position, ...).
+    /// valid mesh view (index out of range, non-finite position, ...) or a
+    /// coordinate is beyond the ray caster's [`MAX_COORDINATE`].
     pub fn new(
         name: impl Into<String>,
         positions: Vec<[f32; 3]>,
@@ -31,6 +33,16 @@ impl TriangleMesh {
         let name = name.into();
         MeshView::new(&positions, &indices)
             .with_context(|| format!("{name} is not a valid triangle mesh"))?;
+        // The BVH's limit, checked here once so every caster built from this mesh
+        // can be built.
+        if let Some(vertex) = positions
+            .iter()
+            .position(|p| p.iter().any(|c| c.abs() > MAX_COORDINATE))
+        {
+            return Err(Error::msg(format!(
+                "{name}: vertex {vertex} has a coordinate beyond the supported range of ±{MAX_COORDINATE:e}"
+            )));
+        }
         Ok(TriangleMesh {
             name,
             positions,

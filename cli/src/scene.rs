@@ -6,6 +6,7 @@ use antumbra_core::{Hit, MeshView, Ray, RayCaster};
 use glam::Vec3;
 
 use crate::bounds::Bounds;
+use crate::error::{Context, Result};
 use crate::mesh::TriangleMesh;
 
 /// Diffuse reflectance of the object.
@@ -43,7 +44,7 @@ pub struct SurfacePoint {
 impl Scene {
     /// A scene of `mesh` alone, or on a large square ground plane at the bottom of
     /// its bounds (y = min y; the data is +Y up) when `ground` is true.
-    pub fn new(mesh: &TriangleMesh, ground: bool) -> Self {
+    pub fn new(mesh: &TriangleMesh, ground: bool) -> Result<Self> {
         let object_bounds = mesh.bounds();
         let mut positions = mesh.positions().to_vec();
         let mut indices = mesh.indices().to_vec();
@@ -63,16 +64,18 @@ impl Scene {
             indices.extend([0, 1, 2, 0, 2, 3].map(|k| base + k));
             normals.extend([Vec3::Y; 4]);
         }
-        let view = MeshView::new(&positions, &indices).expect("a valid mesh plus a valid quad");
-        let bvh = BvhScene::new(&view);
-        Scene {
+        let view = MeshView::new(&positions, &indices)
+            .with_context(|| format!("{} with a ground plane is not a valid mesh", mesh.name()))?;
+        let bvh = BvhScene::new(&view)
+            .with_context(|| format!("cannot build the ray-casting scene of {}", mesh.name()))?;
+        Ok(Scene {
             positions,
             indices,
             normals,
             object_triangles: mesh.triangle_count(),
             object_bounds,
             bvh,
-        }
+        })
     }
 
     /// Bounds of the object (without the ground).

@@ -65,7 +65,7 @@ const RAYS: usize = 1024;
 fn bvh_closest_hit(bencher: divan::Bencher<'_, '_>, rings: u32) {
     let (positions, indices) = sphere(rings, 2 * rings);
     let mesh = MeshView::new(&positions, &indices).unwrap();
-    let scene = BvhScene::new(&mesh);
+    let scene = BvhScene::new(&mesh).unwrap();
     let rays = rays(RAYS);
     bencher
         .counter(divan::counter::ItemsCount::new(RAYS))
@@ -87,7 +87,7 @@ fn brute_force_closest_hit(bencher: divan::Bencher<'_, '_>, rings: u32) {
 fn bvh_occluded(bencher: divan::Bencher<'_, '_>, rings: u32) {
     let (positions, indices) = sphere(rings, 2 * rings);
     let mesh = MeshView::new(&positions, &indices).unwrap();
-    let scene = BvhScene::new(&mesh);
+    let scene = BvhScene::new(&mesh).unwrap();
     let rays = rays(RAYS);
     bencher
         .counter(divan::counter::ItemsCount::new(RAYS))
@@ -106,11 +106,8 @@ fn obvhs_native_closest_hit(bencher: divan::Bencher<'_, '_>, rings: u32) {
             v2: positions[t[2] as usize].into(),
         })
         .collect();
-    let bvh = build_cwbvh_from_tris(
-        &triangles,
-        BvhBuildParams::medium_build(),
-        &mut core::time::Duration::ZERO,
-    );
+    let mut build_time = core::time::Duration::ZERO;
+    let bvh = build_cwbvh_from_tris(&triangles, BvhBuildParams::medium_build(), &mut build_time);
     let rays: Vec<obvhs::ray::Ray> = rays(RAYS)
         .iter()
         .map(|r| obvhs::ray::Ray::new_inf(r.origin.into(), r.direction.into()))

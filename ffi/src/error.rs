@@ -42,7 +42,8 @@ thread_local! {
 
 /// Optional function called on every failed call, from the failing thread, with the
 /// result code, the message (valid only during the call) and the `user_data` given
-/// to `antumbra_set_error_callback`. It must not call back into Antumbra.
+/// to `antumbra_set_error_callback`. It must return normally (no longjmp, no C++
+/// exception) and must not call back into Antumbra.
 pub type antumbra_error_callback = Option<
     unsafe extern "C" fn(code: antumbra_result, message: *const c_char, user_data: *mut c_void),
 >;
@@ -58,10 +59,13 @@ static CALLBACK: RwLock<Callback> = RwLock::new(Callback {
 });
 
 pub(crate) fn clear_last_error() {
-    LAST_ERROR.with(|last| {
-        let mut last = last.borrow_mut();
-        if !last.as_bytes().is_empty() {
-            *last = CString::default();
+    // `try_with`: during thread teardown the slot may be gone; there is nothing to
+    // clear then, and `with` would abort the process.
+    let _ = LAST_ERROR.try_with(|last| {
+        if let Ok(mut last) = last.try_borrow_mut() {
+            if !last.as_bytes().is_empty() {
+                *last = CString::default();
+            }
         }
     });
 }
@@ -77,7 +81,11 @@ pub(crate) fn record(function: &str, error: Error) -> antumbra_result {
         // with these arguments from any thread; `message` outlives the call.
         unsafe { function(error.code, message.as_ptr(), user_data as *mut c_void) };
     }
-    LAST_ERROR.with(|last| *last.borrow_mut() = message);
+    let _ = LAST_ERROR.try_with(|last| {
+        if let Ok(mut last) = last.try_borrow_mut() {
+            *last = message;
+        }
+    });
     error.code
 }
 
@@ -90,7 +98,9 @@ pub(crate) fn record(function: &str, error: Error) -> antumbra_result {
 /// Thread safety: each thread has its own message.
 #[unsafe(no_mangle)]
 pub extern "C" fn antumbra_last_error_message() -> *const c_char {
-    LAST_ERROR.with(|last| last.borrow().as_ptr())
+    LAST_ERROR
+        .try_with(|last| last.try_borrow().map_or(c"".as_ptr(), |m| m.as_ptr()))
+        .unwrap_or(c"".as_ptr())
 }
 
 /// Copies this thread's last error message, NUL included, into `buffer`.
@@ -98,10 +108,11 @@ pub extern "C" fn antumbra_last_error_message() -> *const c_char {
 /// @param buffer destination of `capacity` bytes; may be NULL when `capacity` is 0.
 /// @param capacity size of `buffer` in bytes.
 /// @param required_size if not NULL, receives the bytes needed including the NUL,
-///        on success and on ANTUMBRA_RESULT_BUFFER_TOO_SMALL.
+///        on success and on ANTUMBRA_RESULT_BUFFER_TOO_SMALL (only then).
 /// @return ANTUMBRA_RESULT_OK; ANTUMBRA_RESULT_NULL_ARGUMENT when `buffer` is NULL
-///         and `capacity` > 0; ANTUMBRA_RESULT_BUFFER_TOO_SMALL when `capacity` is
-///         less than the size needed (nothing is written to `buffer`).
+///         and `capacity` > 0; ANTUMBRA_RESULT_INVALID_ARGUMENT when
+///         `required_size` is misaligned; ANTUMBRA_RESULT_BUFFER_TOO_SMALL when
+///         `capacity` is less than the size needed (nothing is written to `buffer`).
 ///
 /// Unlike other calls this one does not replace the last error message with its
 /// own outcome, so it can be called repeatedly (to size, then to copy).
@@ -120,16 +131,23 @@ pub unsafe extern "C" fn antumbra_last_error_message_copy(
         LAST_ERROR.with(|last| {
             let last = last.borrow();
             let bytes = last.as_bytes_with_nul();
-            if !required_size.is_null() {
-                // SAFETY: non-NULL `required_size` is a valid `size_t*` by contract.
-                unsafe { *required_size = bytes.len() };
-            }
             if buffer.is_null() && capacity > 0 {
                 return ANTUMBRA_RESULT_NULL_ARGUMENT;
             }
+            if !required_size.is_null() && !required_size.is_aligned() {
+                return ANTUMBRA_RESULT_INVALID_ARGUMENT;
+            }
+            let report_size = || {
+                if !required_size.is_null() {
+                    // SAFETY: non-NULL, aligned (checked), a `size_t*` by contract.
+                    unsafe { required_size.write(bytes.len()) };
+                }
+            };
             if capacity < bytes.len() {
+                report_size();
                 return ANTUMBRA_RESULT_BUFFER_TOO_SMALL;
             }
+            report_size();
             // SAFETY: `buffer` is valid for `capacity >= bytes.len()` bytes and
             // cannot overlap the library-owned message.
             unsafe {

@@ -26,11 +26,13 @@ const UNIT_TOLERANCE: f32 = 1e-3;
 /// is written, and the thread's last error message and the error callback report
 /// ANTUMBRA_RESULT_NULL_ARGUMENT, ANTUMBRA_RESULT_NON_FINITE or
 /// ANTUMBRA_RESULT_INVALID_ARGUMENT.
+/// `normal` may be the same array as `tangent` or `bitangent` (it is read before
+/// anything is written); `tangent` and `bitangent` must not overlap.
 /// Thread safety: safe from any thread.
 ///
 /// # Safety
 /// Non-NULL pointers must point to 3 floats each (readable for `normal`, writable
-/// for the others).
+/// for the others), aligned to 4 bytes.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn antumbra_frame_from_normal(
     normal: *const f32,
@@ -38,13 +40,12 @@ pub unsafe extern "C" fn antumbra_frame_from_normal(
     bitangent: *mut f32,
 ) {
     let _ = guard("antumbra_frame_from_normal", || {
-        // SAFETY: pointer contracts forwarded from the caller.
+        // Read the normal into a local before touching outputs: it may alias them.
+        // SAFETY: pointer contract forwarded from the caller.
         let n = unsafe { raw::slice(normal, 3, "normal") }?;
-        // SAFETY: as above.
-        let t = unsafe { raw::slice_mut(tangent, 3, "tangent") }?;
-        // SAFETY: as above.
-        let b = unsafe { raw::slice_mut(bitangent, 3, "bitangent") }?;
         let n = Vec3::new(n[0], n[1], n[2]);
+        let t = raw::writable(tangent, 3, "tangent")?;
+        let b = raw::writable(bitangent, 3, "bitangent")?;
         if !n.is_finite() {
             return Err(Error::new(
                 ANTUMBRA_RESULT_NON_FINITE,
@@ -58,8 +59,12 @@ pub unsafe extern "C" fn antumbra_frame_from_normal(
             )));
         }
         let frame = Frame::from_normal(n);
-        t.copy_from_slice(&frame.tangent.to_array());
-        b.copy_from_slice(&frame.bitangent.to_array());
+        // SAFETY: both checked non-NULL, aligned, 3 floats; written through raw
+        // pointers only, so aliasing with `normal` creates no conflicting reference.
+        unsafe {
+            core::ptr::copy_nonoverlapping(frame.tangent.to_array().as_ptr(), t, 3);
+            core::ptr::copy_nonoverlapping(frame.bitangent.to_array().as_ptr(), b, 3);
+        }
         Ok(())
     });
 }

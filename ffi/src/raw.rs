@@ -75,6 +75,16 @@ pub(crate) unsafe fn slice_mut<'a, T>(
     Ok(unsafe { core::slice::from_raw_parts_mut(pointer, len) })
 }
 
+/// Checks `len` writable elements at `pointer` without creating a reference, for
+/// outputs that may legally alias each other or the inputs: write them with
+/// `core::ptr` functions only.
+pub(crate) fn writable<T>(pointer: *mut T, len: usize, argument: &str) -> Result<*mut T, Error> {
+    if len > 0 {
+        check_raw(pointer.cast_const(), len, argument)?;
+    }
+    Ok(pointer)
+}
+
 /// A required pointer to one value.
 ///
 /// # Safety

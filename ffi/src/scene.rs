@@ -3,7 +3,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use antumbra_core::raycast::BvhScene;
+use antumbra_core::raycast::{BvhError, BvhScene};
 use antumbra_core::{Ray, RayCaster};
 use glam::Vec3;
 
@@ -55,12 +55,15 @@ const MISS: antumbra_hit = antumbra_hit {
 /// afterwards).
 ///
 /// @param mesh the triangles; at least one. Every index < vertex_count, every
-///        coordinate finite, position_stride 0 (packed) or >= 12.
+///        coordinate finite and within ±1e12 (vertices used by triangles),
+///        position_stride 0 (packed) or >= 12.
 /// @param out receives the new scene on success; untouched on failure.
 /// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, out, or a NULL array with a
 ///         non-zero count); INVALID_ARGUMENT (no triangles, stride below 12,
-///         misaligned indices, size overflow); INDEX_OUT_OF_RANGE; NON_FINITE;
-///         OUT_OF_MEMORY; PANIC.
+///         misaligned indices or out, size overflow, coordinate beyond ±1e12);
+///         INDEX_OUT_OF_RANGE; NON_FINITE; OUT_OF_MEMORY (when the triangle
+///         arrays cannot be reserved; the BVH builder's own temporary allocations
+///         abort the process on exhaustion, as Rust allocations do); PANIC.
 ///
 /// Ownership: the caller owns `*out` and frees it with `antumbra_scene_destroy`.
 /// Thread safety: safe from any thread; the new scene is independent of others.
@@ -78,6 +81,7 @@ pub unsafe extern "C" fn antumbra_scene_create(
         if out.is_null() {
             return Err(Error::null("out"));
         }
+        let out = raw::writable(out, 1, "out")?;
         // SAFETY: caller contract on `mesh`.
         let view = unsafe { raw::reference(mesh, "mesh") }?;
         // SAFETY: caller contract on the arrays inside `mesh`.
@@ -87,11 +91,16 @@ pub unsafe extern "C" fn antumbra_scene_create(
                 "mesh->triangle_count is 0: a scene needs at least one triangle",
             ));
         }
-        let bvh = BvhScene::try_new(&mesh).map_err(|e| {
-            Error::new(
+        let bvh = BvhScene::new(&mesh).map_err(|e| match e {
+            BvhError::CoordinateOutOfRange { vertex } => Error::invalid(format!(
+                "mesh->positions: vertex {vertex} has a coordinate beyond the supported \
+                 range of ±{:e}",
+                antumbra_core::raycast::MAX_COORDINATE
+            )),
+            BvhError::OutOfMemory(e) => Error::new(
                 ANTUMBRA_RESULT_OUT_OF_MEMORY,
                 format!("no memory for {} triangles: {e}", mesh.triangle_count()),
-            )
+            ),
         })?;
         let scene = Box::new(antumbra_scene {
             bvh,
@@ -238,10 +247,14 @@ fn with_scene(
 /// @param directions 3 floats per ray, finite, not all zero; need not be unit.
 /// @param t_max one per ray, >= 0; +INFINITY for unbounded rays.
 /// @param ray_count number of rays; 0 is a valid empty batch (arrays may be NULL).
-/// @param occluded receives one byte per ray; untouched on failure.
-/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (zero direction,
-///         negative t_max, misaligned array); NON_FINITE; POISONED; PANIC.
+/// @param occluded receives one byte per ray; untouched on failure (except after
+///        ANTUMBRA_RESULT_PANIC, an internal bug, when it may be partly written).
+/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (scene, or an array with ray_count
+///         > 0); INVALID_ARGUMENT (zero direction, negative t_max, misaligned
+///         array, ray_count overflow); NON_FINITE (NaN or infinite origin or
+///         direction, NaN t_max); POISONED; PANIC.
 ///
+/// Ownership: borrows every array for the call only.
 /// Thread safety: any number of threads may query the same scene at once.
 ///
 /// # Safety
@@ -269,14 +282,25 @@ pub unsafe extern "C" fn antumbra_scene_occluded(
     })
 }
 
-/// Closest hit for a batch of rays, with the same ray semantics as
-/// `antumbra_scene_occluded`. A miss reports distance +INFINITY, triangle
-/// ANTUMBRA_INVALID_INDEX and u = v = 0. Equal-distance ties may report either
-/// triangle.
+/// Closest hit for a batch of rays: the hit with the smallest t in
+/// 0 < t < t_max[i] (t in units of |directions[i]|). A miss reports distance
+/// +INFINITY, triangle ANTUMBRA_INVALID_INDEX and u = v = 0. Equal-distance ties
+/// may report either triangle. Triangles are two-sided; the test is watertight.
 ///
-/// @param hits receives one antumbra_hit per ray; untouched on failure.
-/// @return as `antumbra_scene_occluded`.
+/// @param scene the scene.
+/// @param origins 3 floats per ray, finite.
+/// @param directions 3 floats per ray, finite, not all zero; need not be unit.
+/// @param t_max one per ray, >= 0; +INFINITY for unbounded rays.
+/// @param ray_count number of rays; 0 is a valid empty batch (arrays may be NULL).
+/// @param hits receives one antumbra_hit per ray; untouched on failure (except
+///        after ANTUMBRA_RESULT_PANIC, an internal bug, when it may be partly
+///        written).
+/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (scene, or an array with ray_count
+///         > 0); INVALID_ARGUMENT (zero direction, negative t_max, misaligned
+///         array, ray_count overflow); NON_FINITE (NaN or infinite origin or
+///         direction, NaN t_max); POISONED; PANIC.
 ///
+/// Ownership: borrows every array for the call only.
 /// Thread safety: any number of threads may query the same scene at once.
 ///
 /// # Safety

@@ -258,6 +258,50 @@ fn bad_meshes_are_rejected_with_their_own_code_and_out_untouched() {
 }
 
 #[test]
+fn coordinates_beyond_the_supported_range_and_misaligned_out_are_rejected() {
+    let huge = [-1e20f32, -1., 1., 1., -1., 1., 1., 1., 1., -1., 1., 1.];
+    let view = antumbra_mesh_view {
+        positions: huge.as_ptr(),
+        ..quad_view()
+    };
+    let (result, scene) = create(&view);
+    assert_eq!(result, ANTUMBRA_RESULT_INVALID_ARGUMENT);
+    assert!(scene.is_null());
+    assert!(
+        last_error().contains("vertex 0 has a coordinate beyond"),
+        "{}",
+        last_error()
+    );
+    // An out pointer one byte into a buffer: rejected before anything is built.
+    let mut buffer = [0u64; 2];
+    let misaligned = buffer
+        .as_mut_ptr()
+        .cast::<u8>()
+        .wrapping_add(1)
+        .cast::<*mut antumbra_scene>();
+    // SAFETY: the pointer is checked before any write, which is what is tested.
+    let result = unsafe { antumbra_scene_create(&quad_view(), misaligned) };
+    assert_eq!(result, ANTUMBRA_RESULT_INVALID_ARGUMENT);
+    assert!(last_error().contains("out") && last_error().contains("aligned"));
+    assert_eq!(buffer, [0, 0]);
+}
+
+#[test]
+fn frame_may_be_computed_in_place() {
+    let normal = [0.6f32, 0.0, 0.8];
+    let (mut t, mut b) = ([0.0f32; 3], [0.0f32; 3]);
+    // SAFETY: separate arrays.
+    unsafe { antumbra_frame_from_normal(normal.as_ptr(), t.as_mut_ptr(), b.as_mut_ptr()) };
+    let mut in_place = normal;
+    let mut b2 = [0.0f32; 3];
+    // SAFETY: `normal` and `tangent` are the same array, which the docs allow.
+    unsafe {
+        antumbra_frame_from_normal(in_place.as_ptr(), in_place.as_mut_ptr(), b2.as_mut_ptr())
+    };
+    assert_eq!((in_place, b2), (t, b));
+}
+
+#[test]
 fn bad_rays_are_rejected_and_outputs_untouched() {
     let (_, scene) = create(&quad_view());
     let good_o = [0.0f32; 6];
@@ -422,9 +466,14 @@ fn last_error_copy_reports_required_size() {
             small.iter().all(|&c| c == b'x' as std::ffi::c_char),
             "untouched"
         );
+        let mut untouched = 7usize;
         assert_eq!(
-            antumbra_last_error_message_copy(ptr::null_mut(), 3, ptr::null_mut()),
+            antumbra_last_error_message_copy(ptr::null_mut(), 3, &mut untouched),
             ANTUMBRA_RESULT_NULL_ARGUMENT
+        );
+        assert_eq!(
+            untouched, 7,
+            "required_size is written only on OK or BUFFER_TOO_SMALL"
         );
         let mut big = vec![0 as std::ffi::c_char; required];
         assert_eq!(

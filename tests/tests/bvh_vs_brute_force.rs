@@ -35,7 +35,7 @@ fn bunny_and_teapot_match_brute_force_bit_for_bit() {
     for (name, seed) in [("bunny.obj", 11u64), ("teapot.obj", 12)] {
         let mesh = load_obj(name);
         let view = mesh.view();
-        let (bvh, brute) = (BvhScene::new(&view), BruteForceCaster::new(view));
+        let (bvh, brute) = (BvhScene::new(&view).unwrap(), BruteForceCaster::new(view));
         let mut rng = SmallRng::seed_from_u64(seed);
         agree_exactly(name, &mixed_rays(&mut rng, &mesh, 5000), &bvh, &brute);
         agree_exactly(
@@ -66,6 +66,6 @@ fn teapot_ray_whose_nearer_hit_was_culled_by_box_rounding() {
         f32::INFINITY,
     );
     let expected = BruteForceCaster::new(view).closest_hit(&ray).unwrap();
-    let got = BvhScene::new(&view).closest_hit(&ray).unwrap();
+    let got = BvhScene::new(&view).unwrap().closest_hit(&ray).unwrap();
     assert_eq!(got.t, expected.t);
 }

@@ -72,7 +72,7 @@ pub fn run(args: &BakeArgs) -> Result<()> {
 /// `max_distance`. Vertices with no defined normal (only degenerate triangles
 /// around them) get 1.
 pub fn bake_visibility(mesh: &TriangleMesh, rays: u32, max_distance: f32) -> Vec<f32> {
-    let bvh = BvhScene::new(&mesh.view());
+    let bvh = BvhScene::new(&mesh.view()).expect("TriangleMesh keeps coordinates in range");
     let normals = mesh.vertex_normals();
     let offset = ORIGIN_OFFSET * mesh.bounds().diagonal();
     let bar = progress::bar(mesh.vertex_count() as u64, "baking", "vertices");

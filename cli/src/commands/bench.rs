@@ -59,7 +59,7 @@ pub fn run_raycast(args: &BenchRaycastArgs) -> Result<()> {
         .map(|(_, ray)| ray)
         .collect();
     let build_started = Instant::now();
-    let bvh = BvhScene::new(&mesh.view());
+    let bvh = BvhScene::new(&mesh.view()).expect("TriangleMesh keeps coordinates in range");
     let build_time = build_started.elapsed();
     let brute_force = BruteForceCaster::new(mesh.view());
     let threads = rayon::current_num_threads();

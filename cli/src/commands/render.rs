@@ -30,7 +30,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| default_output(args, env.is_some()));
 
-    let scene = Scene::new(&mesh, !args.no_ground);
+    let scene = Scene::new(&mesh, !args.no_ground)?;
     let width = args.size as usize;
     let height = (width * 3 / 4).max(1);
     let view = ViewAngles {

@@ -117,7 +117,7 @@ pub fn run(args: &VerifyArgs) -> Result<()> {
 /// `(rays, mismatches)`.
 fn verify_mesh(mesh: &TriangleMesh, count: usize, seed: u64) -> (usize, usize) {
     let rays = random_rays(mesh, &RayClass::ALL, count, seed);
-    let bvh = BvhScene::new(&mesh.view());
+    let bvh = BvhScene::new(&mesh.view()).expect("TriangleMesh keeps coordinates in range");
     let brute_force = BruteForceCaster::new(mesh.view());
     let bar = progress::bar(rays.len() as u64, mesh.name(), "rays");
     let outcomes: Vec<Outcome> = rays

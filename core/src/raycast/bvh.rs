@@ -15,6 +15,7 @@
 //! with [`super::BruteForceCaster`], so the two agree bit for bit.
 
 use alloc::collections::TryReserveError;
+
 use alloc::vec::Vec;
 use core::time::Duration;
 
@@ -41,27 +42,61 @@ pub struct BvhScene {
     original: Vec<u32>,
 }
 
+/// Largest coordinate magnitude a [`BvhScene`] accepts. obvhs's builder breaks
+/// (index out of bounds) on scenes near 1e17 and beyond; 1e12 leaves a wide margin
+/// and is far beyond any real scene in any unit.
+pub const MAX_COORDINATE: f32 = 1e12;
+
+/// Why a [`BvhScene`] could not be built.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum BvhError {
+    /// A vertex used by a triangle has a coordinate beyond ±[`MAX_COORDINATE`].
+    CoordinateOutOfRange {
+        /// The vertex.
+        vertex: u32,
+    },
+    /// The per-triangle arrays could not be reserved.
+    OutOfMemory(TryReserveError),
+}
+
+impl core::fmt::Display for BvhError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            BvhError::CoordinateOutOfRange { vertex } => write!(
+                f,
+                "vertex {vertex} has a coordinate beyond the supported range of ±{MAX_COORDINATE:e}"
+            ),
+            BvhError::OutOfMemory(e) => write!(f, "out of memory: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for BvhError {}
+
 impl BvhScene {
     /// Builds the hierarchy over every triangle of `mesh` (which may be empty).
     ///
-    /// Aborts like any Rust allocation if memory runs out; [`BvhScene::try_new`]
-    /// reports that instead.
-    pub fn new(mesh: &MeshView<'_>) -> Self {
-        match Self::try_new(mesh) {
-            Ok(scene) => scene,
-            Err(_) => alloc::alloc::handle_alloc_error(core::alloc::Layout::new::<[Vec3; 3]>()),
+    /// Fails when a vertex used by a triangle is beyond ±[`MAX_COORDINATE`], or when
+    /// the per-triangle arrays (the bulk of the scene's memory) cannot be reserved;
+    /// the builder's own temporary allocations, of the same order, abort on
+    /// exhaustion like any Rust allocation.
+    pub fn new(mesh: &MeshView<'_>) -> Result<Self, BvhError> {
+        if let Some(&vertex) = mesh
+            .indices()
+            .iter()
+            .find(|&&v| mesh.position(v as usize).abs().max_element() > MAX_COORDINATE)
+        {
+            return Err(BvhError::CoordinateOutOfRange { vertex });
         }
-    }
-
-    /// Builds the hierarchy, reporting failure to reserve the per-triangle arrays
-    /// (the bulk of the scene's memory) instead of aborting. The builder's own
-    /// temporary allocations, of the same order, are not covered.
-    pub fn try_new(mesh: &MeshView<'_>) -> Result<Self, TryReserveError> {
         let count = mesh.triangle_count();
         let mut triangles: Vec<Triangle> = Vec::new();
         let mut corners: Vec<[Vec3; 3]> = Vec::new();
-        triangles.try_reserve_exact(count)?;
-        corners.try_reserve_exact(count)?;
+        triangles
+            .try_reserve_exact(count)
+            .map_err(BvhError::OutOfMemory)?;
+        corners
+            .try_reserve_exact(count)
+            .map_err(BvhError::OutOfMemory)?;
         if count == 0 {
             return Ok(BvhScene {
                 bvh: CwBvh::default(),
@@ -99,16 +134,19 @@ const SLAB_ROUNDING: f32 = 2.0 * (3.0 * f32::EPSILON / 2.0) / (1.0 - 3.0 * f32::
 /// Relative padding of decoded child boxes, which absorbs the rounding of
 /// `p + q * extent` (the quantised planes are exact, the sum is not).
 const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
-/// Magnitude of 1/d for direction components below 1/HUGE_INVERSE: finite, so slab
-/// products never become NaN, and far beyond any real box distance.
-const HUGE_INVERSE: f32 = 1e30;
-
 /// Per-ray constants of the conservative box test, in units of the unit direction.
 struct TraversalRay {
     origin: Vec3A,
+    /// 1/d per axis; unused on parallel axes.
     inverse: Vec3A,
+    /// Axes along which the direction is zero (or below the smallest normal f32):
+    /// the ray is treated as parallel to those slabs, which is exact for zero and
+    /// off by less than 1.2e-38 of the distance travelled otherwise.
+    parallel: [bool; 3],
     /// Query `t` to unit-direction distance.
     length: f32,
+    /// Never cull a box that could hold a hit after this distance (<= 0).
+    t_min: f32,
     /// Never cull a box that could hold a hit before this distance.
     t_max: f32,
 }
@@ -121,19 +159,28 @@ impl TraversalRay {
         let scaled = ray.direction / largest;
         let length = largest * scaled.length();
         let unit = scaled.normalize();
+        let parallel = unit.to_array().map(|c| c.abs() < f32::MIN_POSITIVE);
         let inverse = unit.to_array().map(|c| {
-            if c.abs() * HUGE_INVERSE > 1.0 {
-                1.0 / c
-            } else if c.is_sign_negative() {
-                -HUGE_INVERSE
+            if c.abs() < f32::MIN_POSITIVE {
+                0.0
             } else {
-                HUGE_INVERSE
+                1.0 / c
             }
         });
+        // Boxes behind the origin can hold hits only for a negative t_min; round
+        // that bound outwards like t_max.
+        let t_min = if ray.t_min < 0.0 {
+            let distance = ray.t_min * length;
+            distance + distance * (4.0 * f32::EPSILON)
+        } else {
+            0.0
+        };
         let mut traversal = TraversalRay {
             origin: ray.origin.into(),
             inverse: Vec3A::from_array(inverse),
+            parallel,
             length,
+            t_min,
             t_max: 0.0,
         };
         traversal.shorten(ray.t_max);
@@ -148,7 +195,7 @@ impl TraversalRay {
         self.t_max = distance + distance * (4.0 * f32::EPSILON);
     }
 
-    /// The children of `node` the ray may enter at a distance in `[0, t_max]`, as
+    /// The children of `node` the ray may enter at a distance in `[t_min, t_max]`, as
     /// the hit mask obvhs's `traverse!` expects. Conservative: boxes are padded and
     /// the exit distance is rounded up, so no child holding a hit is ever culled.
     /// Four children at a time in `Vec4` lanes (SSE2 on x86-64).
@@ -169,15 +216,29 @@ impl TraversalRay {
             // (plane - origin) / d per axis; planes are exact in the node's grid.
             let slab = |q_lo: Vec4, q_hi: Vec4, axis: usize| {
                 let o = self.origin[axis];
-                let inv = self.inverse[axis];
-                let t_lo = (q_lo * extent[axis] + lo_base[axis] - o) * inv;
-                let t_hi = (q_hi * extent[axis] + hi_base[axis] - o) * inv;
-                (t_lo.min(t_hi), t_lo.max(t_hi))
+                let lo = q_lo * extent[axis] + lo_base[axis];
+                let hi = q_hi * extent[axis] + hi_base[axis];
+                if self.parallel[axis] {
+                    // Inside the slab: no constraint; outside: never enters.
+                    let inside = lo.cmple(Vec4::splat(o)) & Vec4::splat(o).cmple(hi);
+                    // f32::MAX, not infinity: padding the exit below must not
+                    // produce inf - inf.
+                    let everything = Vec4::splat(f32::MAX);
+                    (
+                        Vec4::select(inside, -everything, everything),
+                        Vec4::select(inside, everything, -everything),
+                    )
+                } else {
+                    let inv = self.inverse[axis];
+                    let t_lo = (lo - o) * inv;
+                    let t_hi = (hi - o) * inv;
+                    (t_lo.min(t_hi), t_lo.max(t_hi))
+                }
             };
             let (near_x, far_x) = slab(lanes(&node.child_min_x), lanes(&node.child_max_x), 0);
             let (near_y, far_y) = slab(lanes(&node.child_min_y), lanes(&node.child_max_y), 1);
             let (near_z, far_z) = slab(lanes(&node.child_min_z), lanes(&node.child_max_z), 2);
-            let near = near_x.max(near_y).max(near_z).max(Vec4::ZERO);
+            let near = near_x.max(near_y).max(near_z).max(Vec4::splat(self.t_min));
             let far = far_x.min(far_y).min(far_z);
             let far = (far + far.abs() * SLAB_ROUNDING).min(Vec4::splat(self.t_max));
             let entered = near.cmple(far).bitmask() as usize;

@@ -5,19 +5,22 @@
 //! Semantics, shared by every implementation and by the C API: a ray
 //! `origin + t * direction` hits a triangle when `t_min < t < t_max`, with `t` in
 //! units of the direction's length (directions need not be normalised). Triangles
-//! are two-sided. A ray with a zero or non-finite component hits nothing.
+//! are two-sided. A ray with a zero direction or a non-finite origin, direction or
+//! NaN interval end hits nothing.
 //!
 //! The triangle test is the watertight algorithm of Woop, Benthin and Wald,
 //! "Watertight Ray/Triangle Intersection" (JCGT 2013): a ray through a shared edge
 //! or vertex hits at least one of the triangles that share it, so closed meshes
 //! have no pinholes. Edge functions that round to exactly zero are recomputed in
-//! `f64`, as the paper prescribes.
+//! `f64`, as the paper prescribes. When `f32` would overflow or underflow (ray and
+//! triangle more than ~1e12 apart, or a triangle smaller than ~1e-13 near the
+//! ray), the whole test is redone in `f64`, which covers every finite `f32` input.
 
 #[cfg(feature = "bvh")]
 mod bvh;
 
 #[cfg(feature = "bvh")]
-pub use bvh::BvhScene;
+pub use bvh::{BvhError, BvhScene, MAX_COORDINATE};
 
 use glam::Vec3;
 
@@ -94,11 +97,19 @@ pub trait RayCaster {
 #[derive(Clone, Copy, Debug)]
 pub struct PreparedRay {
     origin: Vec3,
+    direction: Vec3,
     axes: [usize; 3],
     shear: Vec3,
     t_min: f32,
     t_max: f32,
 }
+
+/// Below this |det| (or with a non-finite intermediate) the f32 test may have lost
+/// precision to underflow: far above the subnormal range, so f32 results that pass
+/// are fully precise.
+const WIDE_DETERMINANT: f32 = 1e-30;
+/// Sheared corner coordinates all below this: their products would underflow.
+const WIDE_EXTENT: f32 = 1e-15;
 
 /// Where a ray crosses one triangle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -136,6 +147,7 @@ impl PreparedRay {
         let shear = Vec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
         Some(PreparedRay {
             origin: ray.origin,
+            direction: ray.direction,
             axes: [kx, ky, kz],
             shear,
             t_min: ray.t_min,
@@ -160,6 +172,7 @@ impl PreparedRay {
     pub fn intersect(&self, a: Vec3, b: Vec3, c: Vec3) -> Option<TriangleHit> {
         let [kx, ky, kz] = self.axes;
         let s = self.shear;
+        let corners = (a, b, c);
         let a = a - self.origin;
         let b = b - self.origin;
         let c = c - self.origin;
@@ -170,6 +183,18 @@ impl PreparedRay {
         let cx = c[kx] - s.x * c[kz];
         let cy = c[ky] - s.y * c[kz];
 
+        // Below this lateral extent the f32 edge products would underflow.
+        let extent = ax
+            .abs()
+            .max(ay.abs())
+            .max(bx.abs())
+            .max(by.abs())
+            .max(cx.abs())
+            .max(cy.abs());
+        if extent < WIDE_EXTENT {
+            // Zero extent: every corner on the ray's line, a degenerate miss.
+            return (extent > 0.0).then(|| self.intersect_wide(corners.0, corners.1, corners.2))?;
+        }
         let mut eu = cx * by - cy * bx;
         let mut ev = ax * cy - ay * cx;
         let mut ew = bx * ay - by * ax;
@@ -187,6 +212,9 @@ impl PreparedRay {
             ev = (ax * cy - ay * cx) as f32;
             ew = (bx * ay - by * ax) as f32;
         }
+        if !(eu.is_finite() && ev.is_finite() && ew.is_finite()) {
+            return self.intersect_wide(corners.0, corners.1, corners.2);
+        }
         if (eu < 0.0 || ev < 0.0 || ew < 0.0) && (eu > 0.0 || ev > 0.0 || ew > 0.0) {
             return None;
         }
@@ -197,17 +225,51 @@ impl PreparedRay {
         let az = s.z * a[kz];
         let bz = s.z * b[kz];
         let cz = s.z * c[kz];
-        let inv_det = 1.0 / det;
-        let t = (eu * az + ev * bz + ew * cz) * inv_det;
-        if t > self.t_min && t < self.t_max {
-            Some(TriangleHit {
-                t,
-                u: ev * inv_det,
-                v: ew * inv_det,
-            })
-        } else {
-            None
+        let scaled_t = eu * az + ev * bz + ew * cz;
+        if !scaled_t.is_finite()
+            || det.abs() < WIDE_DETERMINANT
+            || scaled_t.abs() < WIDE_DETERMINANT
+        {
+            return self.intersect_wide(corners.0, corners.1, corners.2);
         }
+        let inv_det = 1.0 / det;
+        let t = scaled_t * inv_det;
+        self.accept(t, ev * inv_det, ew * inv_det)
+    }
+
+    #[inline]
+    fn accept(&self, t: f32, u: f32, v: f32) -> Option<TriangleHit> {
+        (t > self.t_min && t < self.t_max).then_some(TriangleHit { t, u, v })
+    }
+
+    /// The same test entirely in `f64`, for inputs whose `f32` products overflow or
+    /// underflow. `a`, `b`, `c` are the original corners.
+    #[cold]
+    fn intersect_wide(&self, a: Vec3, b: Vec3, c: Vec3) -> Option<TriangleHit> {
+        let [kx, ky, kz] = self.axes;
+        let wide = |v: Vec3| [f64::from(v.x), f64::from(v.y), f64::from(v.z)];
+        let (o, d) = (wide(self.origin), wide(self.direction));
+        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let shear = |p: Vec3| {
+            let p = wide(p);
+            let q = [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
+            (q[kx] - sx * q[kz], q[ky] - sy * q[kz], sz * q[kz])
+        };
+        let (ax, ay, az) = shear(a);
+        let (bx, by, bz) = shear(b);
+        let (cx, cy, cz) = shear(c);
+        let eu = cx * by - cy * bx;
+        let ev = ax * cy - ay * cx;
+        let ew = bx * ay - by * ax;
+        if (eu < 0.0 || ev < 0.0 || ew < 0.0) && (eu > 0.0 || ev > 0.0 || ew > 0.0) {
+            return None;
+        }
+        let det = eu + ev + ew;
+        if det == 0.0 {
+            return None;
+        }
+        let t = (eu * az + ev * bz + ew * cz) / det;
+        self.accept(t as f32, (ev / det) as f32, (ew / det) as f32)
     }
 }
 

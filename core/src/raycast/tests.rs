@@ -141,6 +141,50 @@ fn hit_requires_t_strictly_inside_the_interval() {
 }
 
 #[test]
+fn extreme_scales_are_exact_through_the_wide_path() {
+    // A unit quad scaled by s, hit head-on from the origin at t = s: f32 edge
+    // products overflow above ~5e12 and underflow below ~1e-13.
+    for s in [1e-30f32, 1e-19, 1e-15, 1e-6, 1.0, 3e12, 1e13, 1e20, 1e30] {
+        let quad = [
+            Vec3::new(-s, -s, s),
+            Vec3::new(s, -s, s),
+            Vec3::new(s, s, s),
+            Vec3::new(-s, s, s),
+        ];
+        let ray = Ray::new(Vec3::ZERO, Vec3::new(0.1, 0.2, 1.0), f32::INFINITY);
+        let prepared = PreparedRay::new(&ray).unwrap();
+        let hit = prepared
+            .intersect(quad[0], quad[1], quad[2])
+            .or_else(|| prepared.intersect(quad[0], quad[2], quad[3]))
+            .unwrap_or_else(|| panic!("scale {s}: missed"));
+        assert!(
+            (hit.t - s).abs() <= 4.0 * f32::EPSILON * s,
+            "scale {s}: t = {}",
+            hit.t
+        );
+    }
+}
+
+#[test]
+fn negative_t_min_reaches_behind_the_origin() {
+    let tri = [
+        Vec3::new(-1.0, -1.0, 1.0),
+        Vec3::new(1.0, -1.0, 1.0),
+        Vec3::new(0.0, 1.0, 1.0),
+    ];
+    let ray = Ray {
+        origin: Vec3::new(0.1, 0.2, 3.0),
+        direction: Vec3::Z,
+        t_min: -5.0,
+        t_max: 0.0,
+    };
+    let hit = PreparedRay::new(&ray)
+        .unwrap()
+        .intersect(tri[0], tri[1], tri[2]);
+    assert_eq!(hit.map(|h| h.t), Some(-2.0));
+}
+
+#[test]
 fn invalid_rays_hit_nothing() {
     for ray in [
         Ray::new(Vec3::ZERO, Vec3::ZERO, 1.0),
@@ -243,7 +287,7 @@ mod bvh_against_brute_force {
     fn compare(positions: &[[f32; 3]], indices: &[u32], rays: usize, rng: &mut SmallRng) -> usize {
         let mesh = MeshView::new(positions, indices).unwrap();
         let brute = BruteForceCaster::new(mesh);
-        let bvh = BvhScene::new(&mesh);
+        let bvh = BvhScene::new(&mesh).unwrap();
         assert_eq!(bvh.triangle_count(), mesh.triangle_count());
         let mut hits = 0;
         for _ in 0..rays {
@@ -294,7 +338,7 @@ mod bvh_against_brute_force {
     #[test]
     fn empty_scene_hits_nothing() {
         let mesh = MeshView::new(&[], &[]).unwrap();
-        let bvh = BvhScene::new(&mesh);
+        let bvh = BvhScene::new(&mesh).unwrap();
         let ray = Ray::new(Vec3::ZERO, Vec3::Z, f32::INFINITY);
         assert!(!bvh.occluded(&ray));
         assert!(bvh.closest_hit(&ray).is_none());
@@ -330,7 +374,7 @@ mod bvh_against_brute_force {
         let (positions, indices) = soup(&mut rng, 2000);
         let mesh = MeshView::new(&positions, &indices).unwrap();
         let brute = BruteForceCaster::new(mesh);
-        let bvh = BvhScene::new(&mesh);
+        let bvh = BvhScene::new(&mesh).unwrap();
         let mut hits = 0;
         for _ in 0..20_000 {
             let ray = extreme_ray(&mut rng);
@@ -358,7 +402,7 @@ mod bvh_against_brute_force {
             }
             let mesh = MeshView::new(&positions, &indices).unwrap();
             let brute = BruteForceCaster::new(mesh);
-            let bvh = BvhScene::new(&mesh);
+            let bvh = BvhScene::new(&mesh).unwrap();
             let mut hits = 0;
             for _ in 0..4000 {
                 let mut ray = random_ray(&mut rng, 2.0);
@@ -381,11 +425,74 @@ mod bvh_against_brute_force {
     }
 
     #[test]
+    fn axis_parallel_rays_find_thin_far_geometry() {
+        // A sliver 2e-20 wide at z = 1e11 on the z axis: the ray's x and y
+        // components are exactly zero, so the box test must treat those slabs as
+        // parallel rather than use a finite stand-in for 1/0.
+        let positions = [[-1e-20, -1.0, 1e11], [1e-20, -1.0, 1e11], [0.0, 1.0, 1e11]];
+        let indices = [0, 1, 2];
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let bvh = BvhScene::new(&mesh).unwrap();
+        let ray = Ray::new(Vec3::ZERO, Vec3::Z, f32::INFINITY);
+        let expected = BruteForceCaster::new(mesh).closest_hit(&ray);
+        assert_eq!(expected.map(|h| h.t), Some(1e11));
+        assert_eq!(bvh.closest_hit(&ray).map(|h| h.t), Some(1e11));
+        assert!(bvh.occluded(&ray));
+    }
+
+    #[test]
+    fn negative_t_min_finds_hits_behind_the_origin() {
+        let mut rng = SmallRng::seed_from_u64(8);
+        let (positions, indices) = soup(&mut rng, 300);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let brute = BruteForceCaster::new(mesh);
+        let bvh = BvhScene::new(&mesh).unwrap();
+        let mut behind = 0;
+        for _ in 0..6000 {
+            let mut ray = random_ray(&mut rng, 2.0);
+            ray.t_min = -rng.random_range(0.0..3.0);
+            let expected = brute.closest_hit(&ray);
+            assert_eq!(
+                bvh.closest_hit(&ray).map(|h| h.t),
+                expected.map(|h| h.t),
+                "{ray:?}"
+            );
+            assert_eq!(bvh.occluded(&ray), expected.is_some());
+            behind += usize::from(expected.is_some_and(|h| h.t < 0.0));
+        }
+        assert!(behind > 100, "too few hits behind the origin: {behind}");
+    }
+
+    #[test]
+    fn coordinates_beyond_the_limit_are_an_error_not_a_panic() {
+        for scale in [1e12f32, 1e13, 1e20, 3e38] {
+            let positions = [
+                [-scale, -scale, 1.0],
+                [scale, -scale, 1.0],
+                [0.0, scale, 1.0],
+            ];
+            let indices = [0, 1, 2];
+            let mesh = MeshView::new(&positions, &indices).unwrap();
+            let built = BvhScene::new(&mesh);
+            if scale <= MAX_COORDINATE {
+                let bvh = built.unwrap();
+                let ray = Ray::new(Vec3::ZERO, Vec3::Z, f32::INFINITY);
+                assert_eq!(bvh.closest_hit(&ray).map(|h| h.t), Some(1.0));
+            } else {
+                assert_eq!(
+                    built.unwrap_err(),
+                    BvhError::CoordinateOutOfRange { vertex: 0 }
+                );
+            }
+        }
+    }
+
+    #[test]
     fn batches_equal_one_ray_at_a_time() {
         let mut rng = SmallRng::seed_from_u64(5);
         let (positions, indices) = soup(&mut rng, 500);
         let mesh = MeshView::new(&positions, &indices).unwrap();
-        let bvh = BvhScene::new(&mesh);
+        let bvh = BvhScene::new(&mesh).unwrap();
         let rays: Vec<Ray> = (0..5000).map(|_| random_ray(&mut rng, 2.0)).collect();
         let mut occluded = alloc::vec![false; rays.len()];
         let mut hits = alloc::vec![None; rays.len()];
@@ -406,7 +513,7 @@ mod bvh_against_brute_force {
             let (positions, indices) = soup(&mut rng, triangles);
             let mesh = MeshView::new(&positions, &indices).unwrap();
             let brute = BruteForceCaster::new(mesh);
-            let bvh = BvhScene::new(&mesh);
+            let bvh = BvhScene::new(&mesh).unwrap();
             for _ in 0..64 {
                 let ray = random_ray(&mut rng, 2.0);
                 prop_assert_eq!(bvh.occluded(&ray), brute.occluded(&ray));

@@ -89,7 +89,7 @@ impl DemoContext {
         if let Some(scene) = self.bunny.get() {
             return Ok(scene);
         }
-        let scene = Scene::new(&builtin::bunny()?, true);
+        let scene = Scene::new(&builtin::bunny()?, true)?;
         Ok(self.bunny.get_or_init(|| scene))
     }
 
