@@ -64,7 +64,8 @@ typedef int32_t antumbra_result;
 /**
  * Optional function called on every failed call, from the failing thread, with the
  * result code, the message (valid only during the call) and the `user_data` given
- * to `antumbra_set_error_callback`. It must not call back into Antumbra.
+ * to `antumbra_set_error_callback`. It must return normally (no longjmp, no C++
+ * exception) and must not call back into Antumbra.
  */
 typedef void (*antumbra_error_callback)(antumbra_result code, const char *message, void *user_data);
 
@@ -192,10 +193,11 @@ const char *antumbra_last_error_message(void);
  * @param buffer destination of `capacity` bytes; may be NULL when `capacity` is 0.
  * @param capacity size of `buffer` in bytes.
  * @param required_size if not NULL, receives the bytes needed including the NUL,
- *        on success and on ANTUMBRA_RESULT_BUFFER_TOO_SMALL.
+ *        on success and on ANTUMBRA_RESULT_BUFFER_TOO_SMALL (only then).
  * @return ANTUMBRA_RESULT_OK; ANTUMBRA_RESULT_NULL_ARGUMENT when `buffer` is NULL
- *         and `capacity` > 0; ANTUMBRA_RESULT_BUFFER_TOO_SMALL when `capacity` is
- *         less than the size needed (nothing is written to `buffer`).
+ *         and `capacity` > 0; ANTUMBRA_RESULT_INVALID_ARGUMENT when
+ *         `required_size` is misaligned; ANTUMBRA_RESULT_BUFFER_TOO_SMALL when
+ *         `capacity` is less than the size needed (nothing is written to `buffer`).
  *
  * Unlike other calls this one does not replace the last error message with its
  * own outcome, so it can be called repeatedly (to size, then to copy).
@@ -235,11 +237,13 @@ void antumbra_set_error_callback(antumbra_error_callback callback, void *user_da
  * is written, and the thread's last error message and the error callback report
  * ANTUMBRA_RESULT_NULL_ARGUMENT, ANTUMBRA_RESULT_NON_FINITE or
  * ANTUMBRA_RESULT_INVALID_ARGUMENT.
+ * `normal` may be the same array as `tangent` or `bitangent` (it is read before
+ * anything is written); `tangent` and `bitangent` must not overlap.
  * Thread safety: safe from any thread.
  *
  * # Safety
  * Non-NULL pointers must point to 3 floats each (readable for `normal`, writable
- * for the others).
+ * for the others), aligned to 4 bytes.
  */
 void antumbra_frame_from_normal(const float *normal, float *tangent, float *bitangent);
 
@@ -256,12 +260,15 @@ const char *antumbra_result_str(antumbra_result code);
  * afterwards).
  *
  * @param mesh the triangles; at least one. Every index < vertex_count, every
- *        coordinate finite, position_stride 0 (packed) or >= 12.
+ *        coordinate finite and within ±1e12 (vertices used by triangles),
+ *        position_stride 0 (packed) or >= 12.
  * @param out receives the new scene on success; untouched on failure.
  * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, out, or a NULL array with a
  *         non-zero count); INVALID_ARGUMENT (no triangles, stride below 12,
- *         misaligned indices, size overflow); INDEX_OUT_OF_RANGE; NON_FINITE;
- *         OUT_OF_MEMORY; PANIC.
+ *         misaligned indices or out, size overflow, coordinate beyond ±1e12);
+ *         INDEX_OUT_OF_RANGE; NON_FINITE; OUT_OF_MEMORY (when the triangle
+ *         arrays cannot be reserved; the BVH builder's own temporary allocations
+ *         abort the process on exhaustion, as Rust allocations do); PANIC.
  *
  * Ownership: the caller owns `*out` and frees it with `antumbra_scene_destroy`.
  * Thread safety: safe from any thread; the new scene is independent of others.
@@ -297,10 +304,14 @@ void antumbra_scene_destroy(struct antumbra_scene *scene);
  * @param directions 3 floats per ray, finite, not all zero; need not be unit.
  * @param t_max one per ray, >= 0; +INFINITY for unbounded rays.
  * @param ray_count number of rays; 0 is a valid empty batch (arrays may be NULL).
- * @param occluded receives one byte per ray; untouched on failure.
- * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (zero direction,
- *         negative t_max, misaligned array); NON_FINITE; POISONED; PANIC.
+ * @param occluded receives one byte per ray; untouched on failure (except after
+ *        ANTUMBRA_RESULT_PANIC, an internal bug, when it may be partly written).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (scene, or an array with ray_count
+ *         > 0); INVALID_ARGUMENT (zero direction, negative t_max, misaligned
+ *         array, ray_count overflow); NON_FINITE (NaN or infinite origin or
+ *         direction, NaN t_max); POISONED; PANIC.
  *
+ * Ownership: borrows every array for the call only.
  * Thread safety: any number of threads may query the same scene at once.
  *
  * # Safety
@@ -316,14 +327,25 @@ antumbra_result antumbra_scene_occluded(const struct antumbra_scene *scene,
                                         uint8_t *occluded);
 
 /**
- * Closest hit for a batch of rays, with the same ray semantics as
- * `antumbra_scene_occluded`. A miss reports distance +INFINITY, triangle
- * ANTUMBRA_INVALID_INDEX and u = v = 0. Equal-distance ties may report either
- * triangle.
+ * Closest hit for a batch of rays: the hit with the smallest t in
+ * 0 < t < t_max[i] (t in units of |directions[i]|). A miss reports distance
+ * +INFINITY, triangle ANTUMBRA_INVALID_INDEX and u = v = 0. Equal-distance ties
+ * may report either triangle. Triangles are two-sided; the test is watertight.
  *
- * @param hits receives one antumbra_hit per ray; untouched on failure.
- * @return as `antumbra_scene_occluded`.
+ * @param scene the scene.
+ * @param origins 3 floats per ray, finite.
+ * @param directions 3 floats per ray, finite, not all zero; need not be unit.
+ * @param t_max one per ray, >= 0; +INFINITY for unbounded rays.
+ * @param ray_count number of rays; 0 is a valid empty batch (arrays may be NULL).
+ * @param hits receives one antumbra_hit per ray; untouched on failure (except
+ *        after ANTUMBRA_RESULT_PANIC, an internal bug, when it may be partly
+ *        written).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (scene, or an array with ray_count
+ *         > 0); INVALID_ARGUMENT (zero direction, negative t_max, misaligned
+ *         array, ray_count overflow); NON_FINITE (NaN or infinite origin or
+ *         direction, NaN t_max); POISONED; PANIC.
  *
+ * Ownership: borrows every array for the call only.
  * Thread safety: any number of threads may query the same scene at once.
  *
  * # Safety
