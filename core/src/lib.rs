@@ -58,6 +58,7 @@ extern crate std;
 
 pub mod geom;
 pub mod raycast;
+pub mod sh;
 
 pub use geom::{Frame, MeshError, MeshView};
 pub use raycast::{BruteForceCaster, Hit, Ray, RayCaster};
