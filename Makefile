@@ -11,6 +11,9 @@ CARGO ?= cargo
 NO_STD_TARGET := thumbv7em-none-eabihf
 PYENV := $(CURDIR)/target/pyenv
 export ANTUMBRA_ORACLE_PYTHON := $(PYENV)/bin/python
+# Property tests draw from a fixed seed here so a CI run is reproducible; plain
+# `cargo test` keeps proptest's random seeds for exploring.
+export PROPTEST_RNG_SEED ?= 20261122
 # Root installs system packages directly; anyone else goes through sudo.
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
