@@ -57,6 +57,7 @@ extern crate alloc;
 extern crate std;
 
 pub mod geom;
+pub mod hemi;
 pub mod raycast;
 pub mod sh;
 
