@@ -209,8 +209,14 @@ impl<'a> MeshView<'a> {
     /// Corner positions of triangle `triangle`. Panics when out of range.
     #[inline]
     pub fn triangle(&self, triangle: usize) -> [Vec3; 3] {
-        self.triangle_indices(triangle)
-            .map(|vertex| self.position(vertex as usize))
+        // Spelled out rather than `array::map`, which does not always inline and
+        // then moves the corners through the stack in hot loops.
+        let [a, b, c] = self.triangle_indices(triangle);
+        [
+            self.position(a as usize),
+            self.position(b as usize),
+            self.position(c as usize),
+        ]
     }
 
     /// Corner positions of every triangle, in order.
