@@ -69,12 +69,15 @@ pub enum Command {
     #[command(subcommand)]
     Bench(BenchCommand),
 
-    /// Check the BVH ray caster against the brute-force reference on random rays.
+    /// Check Antumbra's answers against a reference: `antumbra verify` (or
+    /// `verify raycast`) checks the BVH ray caster against brute force; `verify
+    /// hemi` checks hemisphere masks against Embree.
     ///
-    /// Both use the same watertight triangle test, so closest-hit distances must be
-    /// bit-identical, the triangles may differ only on exact ties (checked by
-    /// re-intersecting), and occlusion answers must agree. Prints the agreement per
-    /// class of rays and exits with a non-zero status on any mismatch.
+    /// Without a subcommand: both ray casters use the same watertight triangle
+    /// test, so closest-hit distances must be bit-identical, the triangles may
+    /// differ only on exact ties (checked by re-intersecting), and occlusion answers
+    /// must agree. Prints the agreement per class of rays and exits with a non-zero
+    /// status on any mismatch.
     Verify(VerifyArgs),
 }
 
@@ -151,6 +154,11 @@ pub enum BenchCommand {
     /// occlusion queries, on one thread and on all cores, and prints rays per
     /// second and the BVH's speed-up.
     Raycast(BenchRaycastArgs),
+
+    /// Hemispherical rasterization: time per rasterized triangle (exact and table)
+    /// and per receiver, against tracing the same cell directions with the BVH and
+    /// with Embree (one thread each), printed as ratios.
+    Hemi(BenchHemiArgs),
 }
 
 /// Arguments of `antumbra bench raycast`.
@@ -170,9 +178,85 @@ pub struct BenchRaycastArgs {
     pub min_time: u64,
 }
 
-/// Arguments of `antumbra verify`.
+/// Arguments of `antumbra bench hemi`.
 #[derive(Debug, Args)]
+pub struct BenchHemiArgs {
+    /// Mesh (Wavefront OBJ) [default: the built-in bunny].
+    #[arg(long, value_name = "FILE.obj")]
+    pub mesh: Option<PathBuf>,
+
+    /// Number of receivers timed (vertices spread evenly over the mesh).
+    #[arg(long, value_name = "N", default_value_t = 400, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    pub receivers: u32,
+
+    /// Time each figure over at least this many milliseconds.
+    #[arg(long, value_name = "MS", default_value_t = 400)]
+    pub min_time: u64,
+
+    /// Skip the Embree figure (it needs the oracle's Python, see `verify hemi`).
+    #[arg(long)]
+    pub no_embree: bool,
+}
+
+/// Arguments of `antumbra verify`: a subcommand, or the ray-caster check's options.
+#[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct VerifyArgs {
+    /// What to verify [default: raycast].
+    #[command(subcommand)]
+    pub what: Option<VerifyCommand>,
+
+    /// Options of the default `raycast` check.
+    #[command(flatten)]
+    pub raycast: VerifyRaycastArgs,
+}
+
+/// The checks of `antumbra verify`.
+#[derive(Debug, Subcommand)]
+pub enum VerifyCommand {
+    /// The BVH ray caster against the brute-force reference (the default).
+    Raycast(VerifyRaycastArgs),
+
+    /// Hemisphere masks against Embree: for a few hundred receivers (mesh
+    /// vertices with their area-weighted normals, the center of projection pushed
+    /// off the surface by 1e-3 of the bounding-box diagonal), traces every valid
+    /// cell direction with Embree and compares with the rasterized mask.
+    ///
+    /// Needs the Embree oracle's Python (`make pyenv` creates target/pyenv; or set
+    /// ANTUMBRA_ORACLE_PYTHON). The last line reads `hemi <quality> agreement:
+    /// <percent>% of <cells> cells, <receivers> receivers`; the exit status is
+    /// non-zero below 99.99 % (exact) or 99.5 % (table).
+    Hemi(VerifyHemiArgs),
+}
+
+/// Mask quality on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum QualityArg {
+    /// Per-row analytic half-space masks, exact at cell centers.
+    Exact,
+    /// The paper's precomputed half-space table (128x128 octahedral, 2 MiB).
+    Table,
+}
+
+/// Arguments of `antumbra verify hemi`.
+#[derive(Debug, Args)]
+pub struct VerifyHemiArgs {
+    /// Mesh to check (Wavefront OBJ) [default: the built-in bunny].
+    #[arg(long, value_name = "FILE.obj")]
+    pub mesh: Option<PathBuf>,
+
+    /// Half-space mask quality.
+    #[arg(long, value_enum, default_value_t = QualityArg::Exact)]
+    pub quality: QualityArg,
+
+    /// Number of receivers (vertices spread evenly over the mesh's vertex order).
+    #[arg(long, value_name = "N", default_value_t = 300, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub receivers: u32,
+}
+
+/// Arguments of `antumbra verify raycast`.
+#[derive(Debug, Args)]
+pub struct VerifyRaycastArgs {
     /// Mesh to check (Wavefront OBJ); repeat for several [default: the built-in
     /// bunny and teapot].
     #[arg(long, value_name = "FILE.obj")]

@@ -239,3 +239,35 @@ fn missing_and_bad_files_fail_with_a_message_naming_them() {
         "{message}"
     );
 }
+
+#[test]
+fn verify_hemi_prints_the_agreement_line_and_passes_on_the_bunny() {
+    let output = antumbra(&["verify", "hemi", "--receivers", "20"]);
+    assert_success(&output);
+    let text = stdout(&output);
+    let last = text.lines().last().unwrap_or_default();
+    assert!(
+        last.starts_with("hemi exact agreement: ") && last.ends_with("cells, 20 receivers"),
+        "{text}"
+    );
+}
+
+#[test]
+fn bench_hemi_reports_ratios_against_the_bvh() {
+    let output = antumbra(&[
+        "bench",
+        "hemi",
+        "--receivers",
+        "10",
+        "--min-time",
+        "1",
+        "--no-embree",
+    ]);
+    assert_success(&output);
+    let text = stdout(&output);
+    assert!(
+        text.contains("less time per receiver than the BVH"),
+        "{text}"
+    );
+    assert!(text.contains("ns per rasterized triangle"), "{text}");
+}

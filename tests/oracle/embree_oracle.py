@@ -282,6 +282,10 @@ def main(argv=None):
     ap.add_argument("--raw", action="store_true",
                     help="report Embree's answers without the open-interval boundary "
                          "corrections (flag bit 1)")
+    ap.add_argument("--timing", metavar="FILE",
+                    help="write 'occluded_seconds=S' to FILE: the wall time of one batch "
+                         "occlusion query over all rays on one thread (a second call, "
+                         "after the scene is committed)")
     ap.add_argument("--crossing-eps", type=float, default=DEFAULT_EPS,
                     help=f"relative step past each hit (default {DEFAULT_EPS})")
     args = ap.parse_args(argv)
@@ -306,6 +310,14 @@ def main(argv=None):
     n = len(orig)
     caster = Caster(verts, tris, orig, dirs, tmax, args.crossing_eps)
     occ = caster.occluded()
+    if args.timing:
+        # embreex's run() loops rtcOccluded1 over the batch in C on this thread.
+        import time
+        started = time.perf_counter()
+        caster.occluded()
+        elapsed = time.perf_counter() - started
+        with open(args.timing, "w") as f:
+            f.write(f"occluded_seconds={elapsed!r}\n")
     c_hit, c_t, prim, u, v = caster.closest(raw=False)
     inconsistent = int((c_hit & ~occ).sum())
     if args.raw:

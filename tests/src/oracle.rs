@@ -95,64 +95,147 @@ fn f32_at(bytes: &[u8], at: usize) -> f32 {
     f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap())
 }
 
-/// Casts `rays` against `mesh` with Embree. Panics (fails the test) with a setup
-/// hint when the oracle cannot run.
-pub fn cast(mesh: &Mesh, rays: &[Ray], crossings: bool) -> Vec<OracleHit> {
+/// The oracle script, built in so callers outside this checkout (the CLI) can run it.
+const ORACLE_SCRIPT: &str = include_str!("../oracle/embree_oracle.py");
+
+/// What to ask the oracle for besides hits.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct OracleOptions {
+    /// Count the surfaces crossed on each segment.
+    pub crossings: bool,
+    /// Time one batch occlusion query over all rays (one thread).
+    pub timing: bool,
+}
+
+/// Embree's answers for a batch, and optionally its timing.
+#[derive(Clone, Debug)]
+pub struct OracleRun {
+    /// One answer per ray.
+    pub hits: Vec<OracleHit>,
+    /// Wall time of one batch occlusion query, when asked for.
+    pub occluded_seconds: Option<f64>,
+}
+
+/// Casts `rays` against the triangles `(positions, indices)` with Embree; an error
+/// says what failed and how to set the oracle up.
+pub fn try_cast(
+    positions: &[[f32; 3]],
+    indices: &[u32],
+    rays: &[Ray],
+    options: OracleOptions,
+) -> Result<OracleRun, String> {
     let python = python();
-    assert!(
-        python.exists(),
-        "Embree oracle interpreter {} does not exist. {SETUP_HINT}",
-        python.display()
-    );
-    let (mesh_path, rays_path, out_path) = (
-        scratch_path("mesh"),
-        scratch_path("rays"),
-        scratch_path("out"),
-    );
-    for (path, bytes) in [
-        (&mesh_path, mesh_bytes(mesh)),
-        (&rays_path, ray_bytes(rays)),
-    ] {
+    if !python.exists() {
+        return Err(format!(
+            "Embree oracle interpreter {} does not exist. {SETUP_HINT}",
+            python.display()
+        ));
+    }
+    if rays.iter().any(|r| r.t_min != 0.0) {
+        return Err("the oracle casts over (0, t_max): t_min must be 0".into());
+    }
+    let mesh = Mesh {
+        positions: positions.to_vec(),
+        indices: indices.to_vec(),
+    };
+    let paths = ["py", "mesh", "rays", "out", "timing"].map(scratch_path);
+    let [script, mesh_path, rays_path, out_path, timing_path] = &paths;
+    let cleanup = || {
+        for path in &paths {
+            let _ = std::fs::remove_file(path);
+        }
+    };
+    let written = [
+        (script, ORACLE_SCRIPT.as_bytes().to_vec()),
+        (mesh_path, mesh_bytes(&mesh)),
+        (rays_path, ray_bytes(rays)),
+    ]
+    .into_iter()
+    .try_for_each(|(path, bytes)| {
         std::fs::File::create(path)
             .and_then(|mut f| f.write_all(&bytes))
-            .unwrap_or_else(|e| panic!("cannot write {}: {e}", path.display()));
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))
+    });
+    if let Err(e) = written {
+        cleanup();
+        return Err(e);
     }
     let mut command = Command::new(&python);
-    command
-        .arg(repo_root().join("tests/oracle/embree_oracle.py"))
-        .args([&mesh_path, &rays_path, &out_path]);
-    if crossings {
+    command.arg(script).args([mesh_path, rays_path, out_path]);
+    if options.crossings {
         command.arg("--crossings");
     }
-    let output = command
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run {}: {e}. {SETUP_HINT}", python.display()));
-    let result = std::fs::read(&out_path);
-    for path in [&mesh_path, &rays_path, &out_path] {
-        let _ = std::fs::remove_file(path);
+    if options.timing {
+        command.arg("--timing").arg(timing_path);
     }
-    assert!(
-        output.status.success(),
-        "Embree oracle failed ({}): {}\n{SETUP_HINT}",
-        output.status,
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let bytes = result.expect("oracle wrote no result file");
-    assert_eq!(&bytes[0..4], b"ANTO", "oracle result magic");
-    assert_eq!(u32_at(&bytes, 4), 1, "oracle result version");
-    assert_eq!(u32_at(&bytes, 8) as usize, rays.len(), "oracle ray count");
-    assert_eq!(bytes.len(), 16 + 24 * rays.len(), "oracle result size");
-    (0..rays.len())
+    let output = command.output();
+    let result = std::fs::read(out_path);
+    let timing = std::fs::read_to_string(timing_path);
+    cleanup();
+    let output =
+        output.map_err(|e| format!("cannot run {}: {e}. {SETUP_HINT}", python.display()))?;
+    if !output.status.success() {
+        return Err(format!(
+            "Embree oracle failed ({}): {}\n{SETUP_HINT}",
+            output.status,
+            String::from_utf8_lossy(&output.stderr)
+        ));
+    }
+    let bytes = result.map_err(|e| format!("oracle wrote no result file: {e}"))?;
+    let hits = parse_result(&bytes, rays.len())?;
+    let occluded_seconds = if options.timing {
+        let text = timing.map_err(|e| format!("oracle wrote no timing file: {e}"))?;
+        let value = text
+            .trim()
+            .strip_prefix("occluded_seconds=")
+            .and_then(|v| v.parse::<f64>().ok())
+            .ok_or_else(|| format!("unreadable oracle timing: {text:?}"))?;
+        Some(value)
+    } else {
+        None
+    };
+    Ok(OracleRun {
+        hits,
+        occluded_seconds,
+    })
+}
+
+fn parse_result(bytes: &[u8], rays: usize) -> Result<Vec<OracleHit>, String> {
+    if bytes.len() < 16 || &bytes[0..4] != b"ANTO" || u32_at(bytes, 4) != 1 {
+        return Err("oracle result has a bad header".into());
+    }
+    if u32_at(bytes, 8) as usize != rays || bytes.len() != 16 + 24 * rays {
+        return Err(format!(
+            "oracle result holds {} bytes for {} rays; expected {}",
+            bytes.len(),
+            u32_at(bytes, 8),
+            16 + 24 * rays
+        ));
+    }
+    Ok((0..rays)
         .map(|i| {
             let at = 16 + 24 * i;
             OracleHit {
-                occluded: u32_at(&bytes, at) != 0,
-                t: f32_at(&bytes, at + 4),
-                triangle: u32_at(&bytes, at + 8),
-                u: f32_at(&bytes, at + 12),
-                v: f32_at(&bytes, at + 16),
-                crossings: u32_at(&bytes, at + 20),
+                occluded: u32_at(bytes, at) != 0,
+                t: f32_at(bytes, at + 4),
+                triangle: u32_at(bytes, at + 8),
+                u: f32_at(bytes, at + 12),
+                v: f32_at(bytes, at + 16),
+                crossings: u32_at(bytes, at + 20),
             }
         })
-        .collect()
+        .collect())
+}
+
+/// Casts `rays` against `mesh` with Embree. Panics (fails the test) with a setup
+/// hint when the oracle cannot run.
+pub fn cast(mesh: &Mesh, rays: &[Ray], crossings: bool) -> Vec<OracleHit> {
+    let options = OracleOptions {
+        crossings,
+        timing: false,
+    };
+    match try_cast(&mesh.positions, &mesh.indices, rays, options) {
+        Ok(run) => run.hits,
+        Err(message) => panic!("{message}"),
+    }
 }

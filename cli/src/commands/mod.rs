@@ -3,13 +3,14 @@
 mod bake;
 mod bench;
 mod demo;
+mod hemi;
 mod render;
 mod verify;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use crate::cli::{BenchCommand, Command};
+use crate::cli::{BenchCommand, Command, VerifyArgs, VerifyCommand};
 use crate::error::Result;
 
 /// Runs the chosen command.
@@ -19,7 +20,16 @@ pub fn run(command: Command) -> Result<()> {
         Command::Render(args) => render::run(&args),
         Command::Bake(args) => bake::run(&args),
         Command::Bench(BenchCommand::Raycast(args)) => bench::run_raycast(&args),
-        Command::Verify(args) => verify::run(&args),
+        Command::Bench(BenchCommand::Hemi(args)) => hemi::run_bench(&args),
+        Command::Verify(VerifyArgs {
+            what: Some(VerifyCommand::Hemi(args)),
+            ..
+        }) => hemi::run_verify(&args),
+        Command::Verify(VerifyArgs {
+            what: Some(VerifyCommand::Raycast(args)),
+            ..
+        }) => verify::run(&args),
+        Command::Verify(VerifyArgs { raycast, .. }) => verify::run(&raycast),
     }
 }
 

@@ -5,7 +5,7 @@ use antumbra_core::{BruteForceCaster, Hit, Ray, RayCaster};
 use rayon::prelude::*;
 
 use crate::builtin;
-use crate::cli::VerifyArgs;
+use crate::cli::VerifyRaycastArgs;
 use crate::error::{Error, Result};
 use crate::mesh::TriangleMesh;
 use crate::progress;
@@ -80,7 +80,7 @@ struct Tally {
 }
 
 /// Checks every mesh and fails when any ray disagrees.
-pub fn run(args: &VerifyArgs) -> Result<()> {
+pub fn run(args: &VerifyRaycastArgs) -> Result<()> {
     let meshes = if args.mesh.is_empty() {
         vec![builtin::bunny()?, builtin::teapot()?]
     } else {
