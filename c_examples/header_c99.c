@@ -35,6 +35,15 @@ extern const struct antumbra_api_table {
                                       const float *, size_t, uint8_t *);
     antumbra_result (*scene_intersect)(const antumbra_scene *, const float *, const float *,
                                        const float *, size_t, antumbra_hit *);
+    void (*hemi_options_init)(antumbra_hemi_options *);
+    antumbra_result (*hemi_table_create)(uint32_t, antumbra_hemi_table **);
+    void (*hemi_table_destroy)(antumbra_hemi_table *);
+    antumbra_result (*hemi_rasterize)(const antumbra_mesh_view *, const float *, const float *, size_t,
+                                      const antumbra_hemi_options *, antumbra_hemi_mask *);
+    antumbra_result (*hemi_cell_direction)(uint32_t, uint32_t, float *);
+    antumbra_result (*hemi_valid_mask)(antumbra_hemi_mask *);
+    antumbra_result (*sh_project_equirect)(const float *, uint32_t, uint32_t, size_t, uint32_t, float *);
+    antumbra_result (*sh_eval)(const float *, uint32_t, float *);
     uint32_t (*version)(void);
     const char *(*version_string)(void);
 } antumbra_api_table_c;
@@ -49,6 +58,14 @@ const struct antumbra_api_table antumbra_api_table_c = {
     antumbra_scene_destroy,
     antumbra_scene_occluded,
     antumbra_scene_intersect,
+    antumbra_hemi_options_init,
+    antumbra_hemi_table_create,
+    antumbra_hemi_table_destroy,
+    antumbra_hemi_rasterize,
+    antumbra_hemi_cell_direction,
+    antumbra_hemi_valid_mask,
+    antumbra_sh_project_equirect,
+    antumbra_sh_eval,
     antumbra_version,
     antumbra_version_string,
 };
@@ -69,3 +86,7 @@ extern const struct antumbra_mesh_view antumbra_header_c99_mesh;
 const antumbra_mesh_view antumbra_header_c99_mesh = {NULL, 0, 0, NULL, 0};
 extern const struct antumbra_hit antumbra_header_c99_hit;
 const antumbra_hit antumbra_header_c99_hit = {0.0f, ANTUMBRA_INVALID_INDEX, 0.0f, 0.0f};
+extern const struct antumbra_hemi_mask antumbra_header_c99_hemi_mask;
+const antumbra_hemi_mask antumbra_header_c99_hemi_mask = {{0}};
+extern const struct antumbra_hemi_options antumbra_header_c99_hemi_options;
+const antumbra_hemi_options antumbra_header_c99_hemi_options = {ANTUMBRA_HEMI_QUALITY_EXACT, 0, 0.0f, 0, NULL};

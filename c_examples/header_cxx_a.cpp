@@ -37,6 +37,23 @@ static_assert(same<antumbra_result (*)(const antumbra_scene *, const float *, co
                                        size_t, antumbra_hit *),
                    decltype(&antumbra_scene_intersect)>(),
               "scene_intersect");
+static_assert(same<void (*)(antumbra_hemi_options *), decltype(&antumbra_hemi_options_init)>(),
+              "hemi_options_init");
+static_assert(same<antumbra_result (*)(uint32_t, antumbra_hemi_table **), decltype(&antumbra_hemi_table_create)>(),
+              "hemi_table_create");
+static_assert(same<void (*)(antumbra_hemi_table *), decltype(&antumbra_hemi_table_destroy)>(), "hemi_table_destroy");
+static_assert(same<antumbra_result (*)(const antumbra_mesh_view *, const float *, const float *, size_t,
+                                       const antumbra_hemi_options *, antumbra_hemi_mask *),
+                   decltype(&antumbra_hemi_rasterize)>(),
+              "hemi_rasterize");
+static_assert(same<antumbra_result (*)(uint32_t, uint32_t, float *), decltype(&antumbra_hemi_cell_direction)>(),
+              "hemi_cell_direction");
+static_assert(same<antumbra_result (*)(antumbra_hemi_mask *), decltype(&antumbra_hemi_valid_mask)>(),
+              "hemi_valid_mask");
+static_assert(same<antumbra_result (*)(const float *, uint32_t, uint32_t, size_t, uint32_t, float *),
+                   decltype(&antumbra_sh_project_equirect)>(),
+              "sh_project_equirect");
+static_assert(same<antumbra_result (*)(const float *, uint32_t, float *), decltype(&antumbra_sh_eval)>(), "sh_eval");
 static_assert(same<uint32_t (*)(), decltype(&antumbra_version)>(), "version");
 static_assert(same<const char *(*)(), decltype(&antumbra_version_string)>(), "version_string");
 static_assert(same<int32_t, antumbra_result>(), "antumbra_result is int32_t");
@@ -48,6 +65,12 @@ static_assert(std::is_standard_layout<antumbra_hit>::value, "hit is standard lay
 static_assert(std::is_trivially_copyable<antumbra_hit>::value, "hit is trivially copyable");
 static_assert(sizeof(antumbra_hit) == 16, "hit size as seen from C++");
 static_assert(sizeof(antumbra_mesh_view) == 5 * sizeof(void *), "mesh_view size as seen from C++");
+static_assert(std::is_standard_layout<antumbra_hemi_mask>::value, "hemi_mask is standard layout");
+static_assert(std::is_trivially_copyable<antumbra_hemi_mask>::value, "hemi_mask is trivially copyable");
+static_assert(sizeof(antumbra_hemi_mask) == 128, "hemi_mask size as seen from C++");
+static_assert(std::is_standard_layout<antumbra_hemi_options>::value, "hemi_options is standard layout");
+static_assert(std::is_trivially_copyable<antumbra_hemi_options>::value, "hemi_options is trivially copyable");
+static_assert(sizeof(antumbra_hemi_options) == 16 + sizeof(void *), "hemi_options size as seen from C++");
 
 }  // namespace
 

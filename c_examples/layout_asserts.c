@@ -49,6 +49,30 @@ _Static_assert(alignof(antumbra_hit) == 4, "hit alignment");
 /* Callers allocate hit arrays with malloc(n * sizeof(antumbra_hit)); no tail padding. */
 _Static_assert(sizeof(antumbra_hit[3]) == 48, "hit array stride");
 
+/* ---- antumbra_hemi_mask: 32 rows of 32 bits, 128 bytes on every ABI ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_mask, rows[0], uint32_t), "hemi_mask.rows element type");
+_Static_assert(sizeof(((antumbra_hemi_mask *)0)->rows) == 32 * sizeof(uint32_t), "hemi_mask.rows has 32 rows");
+_Static_assert(offsetof(antumbra_hemi_mask, rows) == 0, "hemi_mask.rows offset");
+_Static_assert(sizeof(antumbra_hemi_mask) == 128, "hemi_mask size");
+_Static_assert(alignof(antumbra_hemi_mask) == 4, "hemi_mask alignment");
+/* Callers allocate one mask per receiver: no tail padding. */
+_Static_assert(sizeof(antumbra_hemi_mask[3]) == 384, "hemi_mask array stride");
+
+/* ---- antumbra_hemi_options: four 4-byte fields, then a pointer, no padding ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_options, quality, uint32_t), "quality type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_options, cull_backfaces, uint32_t), "cull_backfaces type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_options, normal_offset, float), "normal_offset type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_options, parallel, uint32_t), "parallel type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_options, table, const antumbra_hemi_table *), "table type");
+/* The leading fields are fixed: external tools rely on them. */
+_Static_assert(offsetof(antumbra_hemi_options, quality) == 0, "hemi_options.quality offset");
+_Static_assert(offsetof(antumbra_hemi_options, cull_backfaces) == 4, "hemi_options.cull_backfaces offset");
+_Static_assert(offsetof(antumbra_hemi_options, normal_offset) == 8, "hemi_options.normal_offset offset");
+_Static_assert(offsetof(antumbra_hemi_options, parallel) == 12, "hemi_options.parallel offset");
+_Static_assert(offsetof(antumbra_hemi_options, table) == 16, "hemi_options.table offset");
+_Static_assert(sizeof(antumbra_hemi_options) == 16 + sizeof(void *), "hemi_options size");
+_Static_assert(alignof(antumbra_hemi_options) == alignof(void *), "hemi_options alignment");
+
 /* ---- Literal numbers for the ABI at hand ---- */
 #if UINTPTR_MAX == UINT64_MAX
 /* LP64 (and LLP64, where the layout of these structs is the same). */
@@ -60,6 +84,8 @@ _Static_assert(offsetof(antumbra_mesh_view, indices) == 24, "LP64 mesh_view.indi
 _Static_assert(offsetof(antumbra_mesh_view, triangle_count) == 32, "LP64 mesh_view.triangle_count");
 _Static_assert(sizeof(antumbra_mesh_view) == 40, "LP64 mesh_view size");
 _Static_assert(alignof(antumbra_mesh_view) == 8, "LP64 mesh_view alignment");
+_Static_assert(sizeof(antumbra_hemi_options) == 24, "LP64 hemi_options size");
+_Static_assert(alignof(antumbra_hemi_options) == 8, "LP64 hemi_options alignment");
 #elif UINTPTR_MAX == UINT32_MAX
 _Static_assert(sizeof(void *) == 4 && sizeof(size_t) == 4, "32-bit guard is honest");
 _Static_assert(offsetof(antumbra_mesh_view, vertex_count) == 4, "ILP32 mesh_view.vertex_count");
@@ -68,6 +94,8 @@ _Static_assert(offsetof(antumbra_mesh_view, indices) == 12, "ILP32 mesh_view.ind
 _Static_assert(offsetof(antumbra_mesh_view, triangle_count) == 16, "ILP32 mesh_view.triangle_count");
 _Static_assert(sizeof(antumbra_mesh_view) == 20, "ILP32 mesh_view size");
 _Static_assert(alignof(antumbra_mesh_view) == 4, "ILP32 mesh_view alignment");
+_Static_assert(sizeof(antumbra_hemi_options) == 20, "ILP32 hemi_options size");
+_Static_assert(alignof(antumbra_hemi_options) == 4, "ILP32 hemi_options alignment");
 #else
 #error "no literal layout written for this pointer width; add one"
 #endif
@@ -90,6 +118,13 @@ _Static_assert(ANTUMBRA_RESULT_POISONED == 9, "POISONED");
 
 /* ---- Other constants ---- */
 _Static_assert(ANTUMBRA_INVALID_INDEX == UINT32_MAX, "INVALID_INDEX is UINT32_MAX");
+_Static_assert(ANTUMBRA_HEMI_QUALITY_EXACT == 0, "HEMI_QUALITY_EXACT is 0 (fixed)");
+_Static_assert(ANTUMBRA_HEMI_QUALITY_TABLE == 1, "HEMI_QUALITY_TABLE is 1 (fixed)");
+_Static_assert(ANTUMBRA_HEMI_GRID == 32, "HEMI_GRID");
+_Static_assert(ANTUMBRA_HEMI_VALID_CELL_COUNT == 812, "HEMI_VALID_CELL_COUNT");
+_Static_assert(ANTUMBRA_HEMI_TABLE_DEFAULT_RESOLUTION == 128, "HEMI_TABLE_DEFAULT_RESOLUTION");
+_Static_assert(ANTUMBRA_HEMI_TABLE_MAX_RESOLUTION == 1024, "HEMI_TABLE_MAX_RESOLUTION");
+_Static_assert(ANTUMBRA_SH_MAX_BANDS == 8, "SH_MAX_BANDS");
 _Static_assert(_Generic(ANTUMBRA_VERSION, uint32_t: 1, default: 0), "ANTUMBRA_VERSION is a uint32_t");
 _Static_assert(ANTUMBRA_VERSION ==
                    ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR,

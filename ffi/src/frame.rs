@@ -11,7 +11,7 @@ use crate::result::*;
 
 /// How far |normal| may be from 1: the frame formula assumes a unit normal, and a
 /// normal this far off is a caller bug, not rounding.
-const UNIT_TOLERANCE: f32 = 1e-3;
+pub(crate) const UNIT_TOLERANCE: f32 = 1e-3;
 
 /// The orthonormal frame (tangent, bitangent, normal) of Duff et al. 2017 around a
 /// unit normal, exactly as Antumbra's hemisphere algorithms use it:

@@ -19,10 +19,12 @@
 mod boundary;
 mod error;
 mod frame;
+mod hemi;
 mod mesh;
 mod raw;
 mod result;
 mod scene;
+mod sh;
 mod version;
 
 pub use error::{
@@ -30,12 +32,21 @@ pub use error::{
     antumbra_set_error_callback,
 };
 pub use frame::antumbra_frame_from_normal;
+pub use hemi::{
+    ANTUMBRA_HEMI_GRID, ANTUMBRA_HEMI_QUALITY_EXACT, ANTUMBRA_HEMI_QUALITY_TABLE,
+    ANTUMBRA_HEMI_TABLE_DEFAULT_RESOLUTION, ANTUMBRA_HEMI_TABLE_MAX_RESOLUTION,
+    ANTUMBRA_HEMI_VALID_CELL_COUNT, antumbra_hemi_cell_direction, antumbra_hemi_mask,
+    antumbra_hemi_options, antumbra_hemi_options_init, antumbra_hemi_rasterize,
+    antumbra_hemi_table, antumbra_hemi_table_create, antumbra_hemi_table_destroy,
+    antumbra_hemi_valid_mask,
+};
 pub use mesh::antumbra_mesh_view;
 pub use result::*;
 pub use scene::{
     ANTUMBRA_INVALID_INDEX, antumbra_hit, antumbra_scene, antumbra_scene_create,
     antumbra_scene_destroy, antumbra_scene_intersect, antumbra_scene_occluded,
 };
+pub use sh::{ANTUMBRA_SH_MAX_BANDS, antumbra_sh_eval, antumbra_sh_project_equirect};
 pub use version::{antumbra_version, antumbra_version_string};
 
 /// The crate version's parts, parsed at compile time from `Cargo.toml`; the header's

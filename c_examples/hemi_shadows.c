@@ -1,0 +1,767 @@
+/*
+ * hemi_shadows.c: self-shadowing of a mesh that deforms every frame, through
+ * Antumbra's hemispherical rasterizer (Kautz, Lehtinen and Aila 2004).
+ *
+ * A torus with an elliptical cross-section is generated here and deformed on the
+ * C side every frame (the cross-section twists along the ring, the ring breathes
+ * and waves), as a skinned or simulated mesh would be. Per frame the program
+ * computes vertex normals, asks antumbra_hemi_rasterize for the 32x32 visibility
+ * mask above every vertex, and shades each vertex from its mask:
+ *
+ *   - ambient visibility: unoccluded valid cells / valid cells (the disk
+ *     projection makes every cell carry the same cosine-weighted solid angle);
+ *   - sky light: (pi / 812) * sum of the sky radiance over the unoccluded cells'
+ *     world directions (cell directions from antumbra_hemi_cell_direction, frame
+ *     from antumbra_frame_from_normal);
+ *   - sun light: the cell the sun falls in decides whether the vertex is in shadow.
+ *
+ * The last frame is also rasterized with the table quality (the shared table,
+ * on the library's worker threads, and a caller-owned table, on this thread),
+ * which must agree with the exact masks on at least 99 % of the valid cells and
+ * with each other bit for bit, and is drawn into a PPM image by a small z-buffered
+ * software rasterizer. The sky is also projected onto 3 SH bands with
+ * antumbra_sh_project_equirect, and the SH irradiance must match the cell sum.
+ *
+ * Usage: hemi_shadows [out.ppm]   (default hemi_shadows.ppm)
+ * Exit status: 0 on success, 1 on any unexpected result or implausible shading.
+ */
+#define _POSIX_C_SOURCE 199309L /* clock_gettime */
+
+#include "antumbra.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define PI_F 3.14159265358979323846f
+
+/* The mesh: RINGS cross-sections of SIDES vertices, 2 * RINGS * SIDES triangles. */
+#define RINGS 48
+#define SIDES 16
+#define VERTEX_COUNT (RINGS * SIDES)
+#define TRIANGLE_COUNT (2 * RINGS * SIDES)
+#define FRAMES 3
+
+#define WIDTH 200
+#define HEIGHT 150
+
+/* ------------------------------------------------------------------------- */
+/* Failure reporting                                                          */
+/* ------------------------------------------------------------------------- */
+
+static void fail(const char *format, ...)
+{
+    va_list args;
+    va_start(args, format);
+    fputs("hemi_shadows: ", stderr);
+    vfprintf(stderr, format, args);
+    fputc('\n', stderr);
+    va_end(args);
+    exit(EXIT_FAILURE);
+}
+
+/* Every antumbra_result goes through here: anything but OK ends the program with
+ * the library's own explanation. */
+static void check(antumbra_result result, const char *call)
+{
+    if (result != ANTUMBRA_RESULT_OK) {
+        fail("%s failed: %s: %s", call, antumbra_result_str(result), antumbra_last_error_message());
+    }
+    if (antumbra_last_error_message()[0] != '\0') {
+        fail("%s succeeded but left the error message \"%s\"", call, antumbra_last_error_message());
+    }
+}
+
+static void *checked_malloc(size_t size)
+{
+    void *memory = malloc(size);
+    if (memory == NULL) {
+        fail("out of memory (%lu bytes)", (unsigned long)size);
+    }
+    return memory;
+}
+
+static double now_ms(void)
+{
+    struct timespec t;
+    if (clock_gettime(CLOCK_MONOTONIC, &t) != 0) {
+        fail("clock_gettime failed");
+    }
+    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Small vector helpers                                                       */
+/* ------------------------------------------------------------------------- */
+
+typedef struct vec3 {
+    float x, y, z;
+} vec3;
+
+static vec3 v3(float x, float y, float z)
+{
+    vec3 v;
+    v.x = x;
+    v.y = y;
+    v.z = z;
+    return v;
+}
+static vec3 add(vec3 a, vec3 b) { return v3(a.x + b.x, a.y + b.y, a.z + b.z); }
+static vec3 sub(vec3 a, vec3 b) { return v3(a.x - b.x, a.y - b.y, a.z - b.z); }
+static vec3 scale(vec3 a, float s) { return v3(a.x * s, a.y * s, a.z * s); }
+static vec3 mul(vec3 a, vec3 b) { return v3(a.x * b.x, a.y * b.y, a.z * b.z); }
+static float dot(vec3 a, vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static vec3 cross(vec3 a, vec3 b)
+{
+    return v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+static float length(vec3 a) { return sqrtf(dot(a, a)); }
+static vec3 normalize(vec3 a) { return scale(a, 1.0f / length(a)); }
+static vec3 load3(const float *p) { return v3(p[0], p[1], p[2]); }
+static void store3(float *p, vec3 v)
+{
+    p[0] = v.x;
+    p[1] = v.y;
+    p[2] = v.z;
+}
+
+static int popcount32(uint32_t x)
+{
+    int n = 0;
+    for (; x != 0; x &= x - 1) {
+        ++n;
+    }
+    return n;
+}
+
+/* ------------------------------------------------------------------------- */
+/* The deforming torus                                                        */
+/* ------------------------------------------------------------------------- */
+
+typedef struct mesh {
+    float positions[3 * VERTEX_COUNT];
+    float normals[3 * VERTEX_COUNT];
+    uint32_t indices[3 * TRIANGLE_COUNT];
+} mesh;
+
+static uint32_t vertex_index(int ring, int side)
+{
+    return (uint32_t)(((ring + RINGS) % RINGS) * SIDES + (side + SIDES) % SIDES);
+}
+
+/* Quads between neighbouring cross-sections, counter-clockwise seen from
+ * outside, so the computed normals point out of the tube. */
+static void build_indices(mesh *m)
+{
+    int ring, side, t = 0;
+    for (ring = 0; ring < RINGS; ++ring) {
+        for (side = 0; side < SIDES; ++side) {
+            const uint32_t a = vertex_index(ring, side), b = vertex_index(ring + 1, side);
+            const uint32_t c = vertex_index(ring + 1, side + 1), d = vertex_index(ring, side + 1);
+            uint32_t *tri = &m->indices[3 * t];
+            tri[0] = a;
+            tri[1] = c;
+            tri[2] = b;
+            tri[3] = a;
+            tri[4] = d;
+            tri[5] = c;
+            t += 2;
+        }
+    }
+}
+
+/* The pose at time `time`: around the vertical axis, a ring of radius about 1
+ * carrying an elliptical cross-section (semi-axes 0.42 and 0.2) that turns once
+ * along the ring (so the seam closes) and spins with time; the ring's radius
+ * breathes and its height waves. */
+static void deform(mesh *m, float time)
+{
+    int ring, side;
+    for (ring = 0; ring < RINGS; ++ring) {
+        const float phi = 2.0f * PI_F * (float)ring / (float)RINGS;
+        const vec3 radial = v3(cosf(phi), 0.0f, sinf(phi));
+        const vec3 up = v3(0.0f, 1.0f, 0.0f);
+        const float major = 1.0f + 0.08f * sinf(3.0f * phi + 1.7f * time);
+        const float lift = 0.18f * sinf(2.0f * phi - 1.3f * time);
+        const float twist = phi + 0.9f * time;
+        const vec3 center = add(scale(radial, major), scale(up, lift));
+        for (side = 0; side < SIDES; ++side) {
+            const float theta = 2.0f * PI_F * (float)side / (float)SIDES;
+            const float a = 0.42f * cosf(theta), b = 0.2f * sinf(theta);
+            const float r = a * cosf(twist) - b * sinf(twist);
+            const float y = a * sinf(twist) + b * cosf(twist);
+            store3(&m->positions[3 * vertex_index(ring, side)], add(center, add(scale(radial, r), scale(up, y))));
+        }
+    }
+}
+
+/* Area-weighted vertex normals: the sum of the unnormalised face normals around
+ * each vertex, normalised in float (the library wants unit normals within 1e-3). */
+static void compute_normals(mesh *m)
+{
+    int t, v;
+    memset(m->normals, 0, sizeof m->normals);
+    for (t = 0; t < TRIANGLE_COUNT; ++t) {
+        const uint32_t *tri = &m->indices[3 * t];
+        const vec3 a = load3(&m->positions[3 * tri[0]]), b = load3(&m->positions[3 * tri[1]]);
+        const vec3 c = load3(&m->positions[3 * tri[2]]);
+        const vec3 face = cross(sub(b, a), sub(c, a));
+        int k;
+        for (k = 0; k < 3; ++k) {
+            float *n = &m->normals[3 * tri[k]];
+            store3(n, add(load3(n), face));
+        }
+    }
+    for (v = 0; v < VERTEX_COUNT; ++v) {
+        float *n = &m->normals[3 * v];
+        const float len = length(load3(n));
+        if (!(len > 0.0f)) {
+            fail("vertex %d has a zero normal", v);
+        }
+        store3(n, normalize(load3(n)));
+    }
+}
+
+/* Distance of a vertex from the torus axis, to find the innermost (facing the
+ * hole: concave along the ring, looking at the far side) and outermost vertices. */
+static float axis_distance(const mesh *m, int v)
+{
+    return sqrtf(m->positions[3 * v] * m->positions[3 * v] + m->positions[3 * v + 2] * m->positions[3 * v + 2]);
+}
+
+/* ------------------------------------------------------------------------- */
+/* Lighting                                                                   */
+/* ------------------------------------------------------------------------- */
+
+/* Sky radiance: constant + linear in the direction, brighter and bluer above,
+ * darker (ground bounce) below, a little warmer towards +X. Positive everywhere.
+ * Its irradiance has a closed form: E(n) = pi k0 + (2 pi / 3)(k1 n.y + k2 n.x). */
+static const vec3 SKY_K0 = {0.30f, 0.36f, 0.50f};
+static const vec3 SKY_K1 = {0.18f, 0.22f, 0.30f};
+static const vec3 SKY_K2 = {0.04f, 0.02f, 0.00f};
+static const vec3 SUN_IRRADIANCE = {3.0f, 2.7f, 2.2f};
+static const vec3 ALBEDO = {0.80f, 0.56f, 0.36f};
+
+static vec3 sky_radiance(vec3 d) { return add(SKY_K0, add(scale(SKY_K1, d.y), scale(SKY_K2, d.x))); }
+
+static vec3 sky_irradiance_exact(vec3 n)
+{
+    return add(scale(SKY_K0, PI_F), scale(add(scale(SKY_K1, n.y), scale(SKY_K2, n.x)), 2.0f * PI_F / 3.0f));
+}
+
+/* The 812 valid cells with their local directions, read from the library. */
+typedef struct cells {
+    int count;
+    uint8_t i[ANTUMBRA_HEMI_VALID_CELL_COUNT], j[ANTUMBRA_HEMI_VALID_CELL_COUNT];
+    vec3 direction[ANTUMBRA_HEMI_VALID_CELL_COUNT];
+    antumbra_hemi_mask valid;
+} cells;
+
+/* Asks for every cell of the grid: valid ones must succeed with the documented
+ * formula's direction, invalid ones must be refused with INVALID_ARGUMENT, and the
+ * valid ones must be antumbra_hemi_valid_mask's. */
+static void load_cells(cells *c)
+{
+    antumbra_hemi_mask from_directions;
+    uint32_t i, j;
+    memset(&from_directions, 0, sizeof from_directions);
+    c->count = 0;
+    for (j = 0; j < ANTUMBRA_HEMI_GRID; ++j) {
+        for (i = 0; i < ANTUMBRA_HEMI_GRID; ++i) {
+            const float u = ((float)i + 0.5f) / 16.0f - 1.0f, v = ((float)j + 0.5f) / 16.0f - 1.0f;
+            float d[3] = {-9.0f, -9.0f, -9.0f};
+            const antumbra_result result = antumbra_hemi_cell_direction(i, j, d);
+            if (u * u + v * v >= 1.0f) {
+                if (result != ANTUMBRA_RESULT_INVALID_ARGUMENT || d[0] != -9.0f) {
+                    fail("antumbra_hemi_cell_direction(%u, %u) outside the disk returned %s", i, j,
+                         antumbra_result_str(result));
+                }
+                continue;
+            }
+            check(result, "antumbra_hemi_cell_direction");
+            {
+                const float z = sqrtf(1.0f - u * u - v * v);
+#if FLT_EVAL_METHOD == 0
+                /* Documented: exact coordinates and one correctly rounded sqrtf. */
+                const int same = d[0] == u && d[1] == v && d[2] == z;
+#else
+                const int same = d[0] == u && d[1] == v && fabsf(d[2] - z) <= 1e-7f;
+#endif
+                if (!same) {
+                    fail("cell (%u, %u): direction (%.9g, %.9g, %.9g), formula (%.9g, %.9g, %.9g)", i, j,
+                         (double)d[0], (double)d[1], (double)d[2], (double)u, (double)v, (double)z);
+                }
+            }
+            from_directions.rows[j] |= 1u << i;
+            c->i[c->count] = (uint8_t)i;
+            c->j[c->count] = (uint8_t)j;
+            c->direction[c->count] = load3(d);
+            ++c->count;
+        }
+    }
+    check(antumbra_hemi_valid_mask(&c->valid), "antumbra_hemi_valid_mask");
+    if (c->count != ANTUMBRA_HEMI_VALID_CELL_COUNT || memcmp(&from_directions, &c->valid, sizeof c->valid) != 0) {
+        fail("%d cells have directions; antumbra_hemi_valid_mask disagrees or the count is not %d", c->count,
+             ANTUMBRA_HEMI_VALID_CELL_COUNT);
+    }
+}
+
+typedef struct frame3 {
+    vec3 t, b, n;
+} frame3;
+
+static frame3 receiver_frame(vec3 n)
+{
+    float normal[3], tangent[3], bitangent[3];
+    frame3 f;
+    store3(normal, n);
+    antumbra_frame_from_normal(normal, tangent, bitangent);
+    if (antumbra_last_error_message()[0] != '\0') {
+        fail("antumbra_frame_from_normal failed: %s", antumbra_last_error_message());
+    }
+    f.t = load3(tangent);
+    f.b = load3(bitangent);
+    f.n = n;
+    return f;
+}
+
+static vec3 to_world(const frame3 *f, vec3 local)
+{
+    return add(add(scale(f->t, local.x), scale(f->b, local.y)), scale(f->n, local.z));
+}
+
+/* Irradiance from the sky over the cells not set in `mask` (all of them for NULL):
+ * every valid cell stands for pi / 812 of the cosine-weighted hemisphere. */
+static vec3 sky_irradiance_cells(const cells *c, const frame3 *f, const antumbra_hemi_mask *mask)
+{
+    vec3 sum = v3(0.0f, 0.0f, 0.0f);
+    int k;
+    for (k = 0; k < c->count; ++k) {
+        if (mask != NULL && (mask->rows[c->j[k]] >> c->i[k] & 1u)) {
+            continue;
+        }
+        sum = add(sum, sky_radiance(to_world(f, c->direction[k])));
+    }
+    return scale(sum, PI_F / (float)c->count);
+}
+
+/* Whether the sun direction (world, unit) is blocked: the cell it falls in. A
+ * sun below the horizon is "blocked" too (no direct light). */
+static int sun_blocked(const frame3 *f, vec3 sun, const antumbra_hemi_mask *mask)
+{
+    const float u = dot(sun, f->t), v = dot(sun, f->b), w = dot(sun, f->n);
+    int i, j;
+    if (w <= 0.0f) {
+        return 1;
+    }
+    i = (int)floorf((u + 1.0f) * 16.0f);
+    j = (int)floorf((v + 1.0f) * 16.0f);
+    i = i < 0 ? 0 : i > 31 ? 31 : i;
+    j = j < 0 ? 0 : j > 31 ? 31 : j;
+    return (int)(mask->rows[j] >> i & 1u);
+}
+
+/* The sky projected onto 3 SH bands through the library, and the irradiance
+ * those coefficients give (clamped-cosine convolution: pi, 2pi/3, pi/4 per band),
+ * checked against the closed form and against the cell sum of an unoccluded
+ * receiver: three routes to the same number that share only the conventions. */
+static void check_sky_sh(const cells *c)
+{
+    enum { MAP_W = 64, MAP_H = 32, BANDS = 3, COEFFS = BANDS * BANDS };
+    static float map[MAP_H][MAP_W][3];
+    float sh[3 * COEFFS];
+    const float band_factor[BANDS] = {PI_F, 2.0f * PI_F / 3.0f, PI_F / 4.0f};
+    const vec3 normals[3] = {{0.0f, 1.0f, 0.0f}, {0.6f, 0.0f, 0.8f}, {-0.48f, -0.6f, 0.64f}};
+    int row, column, k;
+    for (row = 0; row < MAP_H; ++row) {
+        for (column = 0; column < MAP_W; ++column) {
+            /* The documented map convention: theta from +Y, u = 0.5 along +X,
+             * u = 0.75 along +Z. */
+            const float theta = ((float)row + 0.5f) / (float)MAP_H * PI_F;
+            const float phi = (((float)column + 0.5f) / (float)MAP_W - 0.5f) * 2.0f * PI_F;
+            const vec3 d = v3(sinf(theta) * cosf(phi), cosf(theta), sinf(theta) * sinf(phi));
+            store3(map[row][column], sky_radiance(d));
+        }
+    }
+    check(antumbra_sh_project_equirect(&map[0][0][0], MAP_W, MAP_H, 0, BANDS, sh), "antumbra_sh_project_equirect");
+    for (k = 0; k < 3; ++k) {
+        const vec3 n = normalize(normals[k]);
+        const frame3 f = receiver_frame(n);
+        const vec3 exact = sky_irradiance_exact(n), from_cells = sky_irradiance_cells(c, &f, NULL);
+        float y[COEFFS], n3[3], e[3];
+        int channel, l, m;
+        store3(n3, n);
+        check(antumbra_sh_eval(n3, BANDS, y), "antumbra_sh_eval");
+        for (channel = 0; channel < 3; ++channel) {
+            e[channel] = 0.0f;
+            for (l = 0; l < BANDS; ++l) {
+                for (m = -l; m <= l; ++m) {
+                    e[channel] += band_factor[l] * sh[channel * COEFFS + l * (l + 1) + m] * y[l * (l + 1) + m];
+                }
+            }
+        }
+        printf("hemi_shadows: sky irradiance at n = (%.2f, %.2f, %.2f): exact %.4f, SH %.4f, cells %.4f (green)\n",
+               (double)n.x, (double)n.y, (double)n.z, (double)exact.y, (double)e[1], (double)from_cells.y);
+        if (fabsf(e[0] - exact.x) > 0.01f * exact.x || fabsf(e[1] - exact.y) > 0.01f * exact.y ||
+            fabsf(e[2] - exact.z) > 0.01f * exact.z) {
+            fail("SH irradiance (%g, %g, %g) differs from the closed form (%g, %g, %g) by more than 1%%",
+                 (double)e[0], (double)e[1], (double)e[2], (double)exact.x, (double)exact.y, (double)exact.z);
+        }
+        if (length(sub(from_cells, exact)) > 0.02f * length(exact)) {
+            fail("cell-sum irradiance (%g, %g, %g) differs from the closed form (%g, %g, %g) by more than 2%%",
+                 (double)from_cells.x, (double)from_cells.y, (double)from_cells.z, (double)exact.x,
+                 (double)exact.y, (double)exact.z);
+        }
+    }
+}
+
+/* ------------------------------------------------------------------------- */
+/* Shading                                                                    */
+/* ------------------------------------------------------------------------- */
+
+typedef struct shading {
+    float visibility[VERTEX_COUNT]; /* unoccluded fraction of the valid cells */
+    vec3 radiance[VERTEX_COUNT];    /* outgoing, diffuse */
+    int in_shadow;                  /* vertices facing the sun but blocked */
+} shading;
+
+static void shade(const mesh *m, const cells *c, const antumbra_hemi_mask *masks, vec3 sun, shading *out)
+{
+    int v, j;
+    out->in_shadow = 0;
+    for (v = 0; v < VERTEX_COUNT; ++v) {
+        const antumbra_hemi_mask *mask = &masks[v];
+        const vec3 n = load3(&m->normals[3 * v]);
+        const frame3 f = receiver_frame(n);
+        vec3 irradiance;
+        int occluded = 0;
+        for (j = 0; j < ANTUMBRA_HEMI_GRID; ++j) {
+            if (mask->rows[j] & ~c->valid.rows[j]) {
+                fail("vertex %d: mask row %d sets invalid cells (0x%08lx)", v, j, (unsigned long)mask->rows[j]);
+            }
+            occluded += popcount32(mask->rows[j]);
+        }
+        out->visibility[v] = 1.0f - (float)occluded / (float)c->count;
+        irradiance = sky_irradiance_cells(c, &f, mask);
+        if (dot(n, sun) > 0.0f) {
+            if (sun_blocked(&f, sun, mask)) {
+                ++out->in_shadow;
+            } else {
+                irradiance = add(irradiance, scale(SUN_IRRADIANCE, dot(n, sun)));
+            }
+        }
+        out->radiance[v] = scale(mul(ALBEDO, irradiance), 1.0f / PI_F);
+    }
+}
+
+/* Mean visibility of the `count` vertices nearest to (sign = +1) or farthest from
+ * (sign = -1) the torus axis. */
+static float extreme_visibility(const mesh *m, const shading *s, int count, float sign)
+{
+    static int order[VERTEX_COUNT];
+    float sum = 0.0f;
+    int v, k;
+    /* Selection by repeated minimum: small and obviously right. */
+    for (v = 0; v < VERTEX_COUNT; ++v) {
+        order[v] = v;
+    }
+    for (k = 0; k < count; ++k) {
+        int best = k;
+        for (v = k + 1; v < VERTEX_COUNT; ++v) {
+            if (sign * axis_distance(m, order[v]) < sign * axis_distance(m, order[best])) {
+                best = v;
+            }
+        }
+        v = order[k];
+        order[k] = order[best];
+        order[best] = v;
+        sum += s->visibility[order[k]];
+    }
+    return sum / (float)count;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Software rasterizer (perspective, z-buffered, Gouraud)                     */
+/* ------------------------------------------------------------------------- */
+
+typedef struct image {
+    float depth[WIDTH * HEIGHT];
+    unsigned char rgb[WIDTH * HEIGHT * 3];
+} image;
+
+typedef struct camera {
+    vec3 eye, forward, right, up;
+    float focal; /* pixels */
+} camera;
+
+static camera look_at(vec3 eye, vec3 target, float vertical_fov_degrees)
+{
+    camera c;
+    c.eye = eye;
+    c.forward = normalize(sub(target, eye));
+    c.right = normalize(cross(c.forward, v3(0.0f, 1.0f, 0.0f)));
+    c.up = cross(c.right, c.forward);
+    c.focal = 0.5f * (float)HEIGHT / tanf(0.5f * vertical_fov_degrees * PI_F / 180.0f);
+    return c;
+}
+
+/* Screen position (pixels, y down) and view depth of a point. */
+static vec3 project(const camera *c, vec3 p)
+{
+    const vec3 d = sub(p, c->eye);
+    const float depth = dot(d, c->forward);
+    return v3(0.5f * (float)WIDTH + c->focal * dot(d, c->right) / depth,
+              0.5f * (float)HEIGHT - c->focal * dot(d, c->up) / depth, depth);
+}
+
+static unsigned char to_byte(float linear)
+{
+    /* Exposure tone curve, then display gamma. */
+    const float mapped = powf(1.0f - expf(-1.0f * linear), 1.0f / 2.2f);
+    return (unsigned char)(mapped * 255.0f + 0.5f);
+}
+
+static int render(const mesh *m, const shading *s, image *img)
+{
+    const camera cam = look_at(v3(0.0f, 2.3f, 2.9f), v3(0.0f, -0.1f, 0.0f), 45.0f);
+    int x, y, t, covered = 0;
+    for (y = 0; y < HEIGHT; ++y) {
+        for (x = 0; x < WIDTH; ++x) {
+            /* Background: the sky's radiance straight up, darkened towards the bottom. */
+            const float fade = 1.0f - 0.5f * (float)y / (float)HEIGHT;
+            unsigned char *px = &img->rgb[3 * (y * WIDTH + x)];
+            img->depth[y * WIDTH + x] = INFINITY;
+            px[0] = to_byte(0.25f * fade);
+            px[1] = to_byte(0.3f * fade);
+            px[2] = to_byte(0.45f * fade);
+        }
+    }
+    for (t = 0; t < TRIANGLE_COUNT; ++t) {
+        const uint32_t *tri = &m->indices[3 * t];
+        const vec3 a = project(&cam, load3(&m->positions[3 * tri[0]]));
+        const vec3 b = project(&cam, load3(&m->positions[3 * tri[1]]));
+        const vec3 c = project(&cam, load3(&m->positions[3 * tri[2]]));
+        const float area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+        int x0, x1, y0, y1;
+        if (a.z <= 0.1f || b.z <= 0.1f || c.z <= 0.1f || area >= 0.0f) {
+            continue; /* behind the camera, or back-facing (clockwise on a y-down screen) */
+        }
+        x0 = (int)floorf(fminf(a.x, fminf(b.x, c.x)));
+        x1 = (int)ceilf(fmaxf(a.x, fmaxf(b.x, c.x)));
+        y0 = (int)floorf(fminf(a.y, fminf(b.y, c.y)));
+        y1 = (int)ceilf(fmaxf(a.y, fmaxf(b.y, c.y)));
+        x0 = x0 < 0 ? 0 : x0;
+        y0 = y0 < 0 ? 0 : y0;
+        x1 = x1 > WIDTH - 1 ? WIDTH - 1 : x1;
+        y1 = y1 > HEIGHT - 1 ? HEIGHT - 1 : y1;
+        for (y = y0; y <= y1; ++y) {
+            for (x = x0; x <= x1; ++x) {
+                const float px = (float)x + 0.5f, py = (float)y + 0.5f;
+                const float wa = ((b.x - px) * (c.y - py) - (b.y - py) * (c.x - px)) / area;
+                const float wb = ((c.x - px) * (a.y - py) - (c.y - py) * (a.x - px)) / area;
+                const float wc = 1.0f - wa - wb;
+                float depth;
+                vec3 colour;
+                unsigned char *out;
+                if (wa < 0.0f || wb < 0.0f || wc < 0.0f) {
+                    continue;
+                }
+                /* Perspective-correct: 1/z is linear on screen. */
+                depth = 1.0f / (wa / a.z + wb / b.z + wc / c.z);
+                if (depth >= img->depth[y * WIDTH + x]) {
+                    continue;
+                }
+                img->depth[y * WIDTH + x] = depth;
+                colour = scale(add(add(scale(s->radiance[tri[0]], wa / a.z), scale(s->radiance[tri[1]], wb / b.z)),
+                                   scale(s->radiance[tri[2]], wc / c.z)),
+                               depth);
+                out = &img->rgb[3 * (y * WIDTH + x)];
+                out[0] = to_byte(colour.x);
+                out[1] = to_byte(colour.y);
+                out[2] = to_byte(colour.z);
+            }
+        }
+    }
+    for (x = 0; x < WIDTH * HEIGHT; ++x) {
+        covered += isfinite(img->depth[x]) != 0;
+    }
+    return covered;
+}
+
+static void write_ppm(const char *path, const image *img)
+{
+    FILE *file = fopen(path, "wb");
+    if (file == NULL) {
+        fail("cannot open %s for writing", path);
+    }
+    if (fprintf(file, "P6\n%d %d\n255\n", WIDTH, HEIGHT) < 0 ||
+        fwrite(img->rgb, 1, sizeof img->rgb, file) != sizeof img->rgb) {
+        fclose(file);
+        fail("cannot write %s", path);
+    }
+    if (fclose(file) != 0) {
+        fail("cannot finish writing %s", path);
+    }
+}
+
+/* ------------------------------------------------------------------------- */
+/* Main                                                                       */
+/* ------------------------------------------------------------------------- */
+
+static void check_version(void)
+{
+    char expected[32];
+    if (antumbra_version() != ANTUMBRA_VERSION) {
+        fail("library version 0x%06lx does not match header 0x%06lx", (unsigned long)antumbra_version(),
+             (unsigned long)ANTUMBRA_VERSION);
+    }
+    if (strcmp(antumbra_version_string(), ANTUMBRA_VERSION_STRING) != 0) {
+        fail("library version \"%s\" does not match header \"%s\"", antumbra_version_string(),
+             ANTUMBRA_VERSION_STRING);
+    }
+    sprintf(expected, "%d.%d.%d", ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR, ANTUMBRA_VERSION_PATCH);
+    if (strcmp(expected, ANTUMBRA_VERSION_STRING) != 0) {
+        fail("header: ANTUMBRA_VERSION_STRING \"%s\" is not %s", ANTUMBRA_VERSION_STRING, expected);
+    }
+}
+
+/* Fraction of valid cells on which two batches of masks agree. */
+static double agreement(const antumbra_hemi_mask *a, const antumbra_hemi_mask *b, int count)
+{
+    long differ = 0;
+    int v, j;
+    for (v = 0; v < count; ++v) {
+        for (j = 0; j < ANTUMBRA_HEMI_GRID; ++j) {
+            differ += popcount32(a[v].rows[j] ^ b[v].rows[j]);
+        }
+    }
+    return 1.0 - (double)differ / ((double)count * ANTUMBRA_HEMI_VALID_CELL_COUNT);
+}
+
+static double rasterize_timed(const antumbra_mesh_view *view, const mesh *m, const antumbra_hemi_options *options,
+                              antumbra_hemi_mask *masks, const char *what)
+{
+    const double start = now_ms();
+    check(antumbra_hemi_rasterize(view, m->positions, m->normals, VERTEX_COUNT, options, masks), what);
+    return now_ms() - start;
+}
+
+int main(int argc, char **argv)
+{
+    const char *path = argc > 1 ? argv[1] : "hemi_shadows.ppm";
+    const vec3 sun = normalize(v3(0.3f, 0.4f, 0.85f));
+    mesh *m = checked_malloc(sizeof *m);
+    cells *c = checked_malloc(sizeof *c);
+    shading *s = checked_malloc(sizeof *s);
+    image *img = checked_malloc(sizeof *img);
+    antumbra_hemi_mask *exact = checked_malloc(VERTEX_COUNT * sizeof *exact);
+    antumbra_hemi_mask *table = checked_malloc(VERTEX_COUNT * sizeof *table);
+    antumbra_hemi_mask *own_table = checked_malloc(VERTEX_COUNT * sizeof *own_table);
+    antumbra_hemi_table *handle = NULL;
+    antumbra_hemi_options options;
+    antumbra_mesh_view view;
+    double table_agreement = 0.0;
+    int frame, covered;
+
+    check_version();
+    printf("hemi_shadows: antumbra %s, torus of %d vertices and %d triangles, %d frames\n",
+           antumbra_version_string(), VERTEX_COUNT, TRIANGLE_COUNT, FRAMES);
+
+    load_cells(c);
+    check_sky_sh(c);
+
+    build_indices(m);
+    view.positions = m->positions;
+    view.vertex_count = VERTEX_COUNT;
+    view.position_stride = 0;
+    view.indices = m->indices;
+    view.triangle_count = TRIANGLE_COUNT;
+
+    antumbra_hemi_options_init(&options);
+    if (antumbra_last_error_message()[0] != '\0' || options.quality != ANTUMBRA_HEMI_QUALITY_EXACT ||
+        options.cull_backfaces != 0 || options.normal_offset != 0.0f || options.parallel != 0 ||
+        options.table != NULL) {
+        fail("antumbra_hemi_options_init did not write the documented defaults");
+    }
+
+    for (frame = 0; frame < FRAMES; ++frame) {
+        const float time = 0.7f * (float)frame;
+        float inner, outer, mean = 0.0f;
+        double ms;
+        int v;
+
+        deform(m, time);
+        compute_normals(m);
+        ms = rasterize_timed(&view, m, &options, exact, "antumbra_hemi_rasterize (exact)");
+        shade(m, c, exact, sun, s);
+        for (v = 0; v < VERTEX_COUNT; ++v) {
+            mean += s->visibility[v] / (float)VERTEX_COUNT;
+        }
+        inner = extreme_visibility(m, s, SIDES, 1.0f);
+        outer = extreme_visibility(m, s, SIDES, -1.0f);
+        printf("hemi_shadows: frame %d: exact masks in %.2f ms (%.1f us per vertex); visibility mean %.3f, "
+               "innermost %.3f, outermost %.3f; %d sunward vertices in shadow\n",
+               frame, ms, 1e3 * ms / VERTEX_COUNT, (double)mean, (double)inner, (double)outer, s->in_shadow);
+        /* The innermost vertices look across the hole at the far side of the
+         * torus; the outermost ones see open sky over a convex surface. */
+        if (!(outer > 0.97f) || !(inner < outer - 0.05f)) {
+            fail("frame %d: innermost visibility %.3f, outermost %.3f: expected the hole side darker and the "
+                 "outside nearly unoccluded",
+                 frame, (double)inner, (double)outer);
+        }
+        if (s->in_shadow == 0) {
+            fail("frame %d: no vertex facing the sun is shadowed; the torus should shadow itself", frame);
+        }
+    }
+
+    /* The last frame again with the table quality: the library's shared table on
+     * its worker threads, and a table of our own (same resolution) on this thread;
+     * the two must be identical, and close to the exact masks. */
+    {
+        antumbra_hemi_options table_options = options;
+        double ms_shared, ms_own;
+        table_options.quality = ANTUMBRA_HEMI_QUALITY_TABLE;
+        table_options.parallel = 1;
+        ms_shared = rasterize_timed(&view, m, &table_options, table, "antumbra_hemi_rasterize (table, parallel)");
+        check(antumbra_hemi_table_create(0, &handle), "antumbra_hemi_table_create");
+        if (handle == NULL) {
+            fail("antumbra_hemi_table_create returned OK and a NULL table");
+        }
+        table_options.table = handle;
+        table_options.parallel = 0;
+        ms_own = rasterize_timed(&view, m, &table_options, own_table, "antumbra_hemi_rasterize (own table)");
+        antumbra_hemi_table_destroy(handle);
+        table_agreement = agreement(exact, table, VERTEX_COUNT);
+        printf("hemi_shadows: table masks in %.2f ms on the worker threads (first call builds the shared table), "
+               "%.2f ms (%.1f us per vertex) on this thread; %.3f%% of valid cells agree with exact\n",
+               ms_shared, ms_own, 1e3 * ms_own / VERTEX_COUNT, 100.0 * table_agreement);
+        if (memcmp(table, own_table, VERTEX_COUNT * sizeof *table) != 0) {
+            fail("the shared table on worker threads and an own table of the same resolution gave different masks");
+        }
+        if (!(table_agreement >= 0.99)) {
+            fail("table quality agrees with exact on %.3f%% of cells; at least 99%% expected",
+                 100.0 * table_agreement);
+        }
+    }
+
+    covered = render(m, s, img);
+    write_ppm(path, img);
+    printf("hemi_shadows: wrote %s (%dx%d, %d%% covered)\n", path, WIDTH, HEIGHT, 100 * covered / (WIDTH * HEIGHT));
+    if (covered < WIDTH * HEIGHT / 10) {
+        fail("the torus covers only %d of %d pixels", covered, WIDTH * HEIGHT);
+    }
+
+    free(own_table);
+    free(table);
+    free(exact);
+    free(img);
+    free(s);
+    free(c);
+    free(m);
+    return EXIT_SUCCESS;
+}

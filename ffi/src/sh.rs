@@ -1,0 +1,256 @@
+//! Spherical harmonics for C callers: projection of an equirectangular RGB map
+//! (the lighting the shading entry points take) and evaluation of the basis.
+//!
+//! The basis is core's (`antumbra_core::sh`): real, orthonormal, with the
+//! Condon–Shortley phase; coefficient (l, m) at index `l(l+1) + m`; `bands` bands
+//! hold `bands²` coefficients; the map convention is core's default
+//! `EquirectMapping::Y_UP`.
+
+use antumbra_core::sh::{self, EquirectMapping, MAX_BANDS, ShRgb};
+use glam::Vec3;
+
+use crate::boundary::guard;
+use crate::error::Error;
+use crate::frame::UNIT_TOLERANCE;
+use crate::raw;
+use crate::result::*;
+
+/// The most SH bands supported (lmax = 7, 64 coefficients per channel).
+pub const ANTUMBRA_SH_MAX_BANDS: u32 = 8;
+
+const _: () = assert!(ANTUMBRA_SH_MAX_BANDS as usize == MAX_BANDS);
+
+const TEXEL_BYTES: usize = 3 * core::mem::size_of::<f32>();
+
+fn check_bands(bands: u32) -> Result<usize, Error> {
+    if (1..=ANTUMBRA_SH_MAX_BANDS).contains(&bands) {
+        Ok(bands as usize)
+    } else {
+        Err(Error::invalid(format!(
+            "bands is {bands}; expected 1 to {ANTUMBRA_SH_MAX_BANDS}"
+        )))
+    }
+}
+
+/// SH coefficients of a linear RGB equirectangular (latitude–longitude) map:
+/// `c_i = ∫ L(ω) Y_i(ω) dω` per channel, each texel weighted by its exact solid
+/// angle and evaluated at its center (accumulated in double precision).
+///
+/// Map convention (+Y up, the `antumbra` command's): texel (column, row) of a
+/// width × height map covers `u ∈ [column/width, (column+1)/width)`,
+/// `v ∈ [row/height, (row+1)/height)`; with `θ = v·π`, `φ = 2π(u - 0.5)` it looks
+/// along `(sin θ cos φ, cos θ, sin θ sin φ)`. So row 0 looks up (+Y), the last row
+/// down (-Y), the center `u = 0.5` along +X, `u = 0.75` along +Z, `u = 0.25` along
+/// -Z and the seam `u = 0` along -X; inversely `u = 0.5 + atan2(z, x)/2π`,
+/// `v = acos(y)/π`. Facing -Z with +Y up, +X is on the right: panoramas are not
+/// mirrored.
+///
+/// SH convention: real, orthonormal (`∫ Y_i Y_j dω = δ_ij`), Condon–Shortley phase,
+/// coefficient (l, m) at index `l(l+1) + m`: `Y_0 = 0.282095`,
+/// `Y_1 = -0.488603 y`, `Y_2 = 0.488603 z`, `Y_3 = -0.488603 x`, ... (as
+/// `antumbra_sh_eval`). A constant map of value c gives `c_0 = 2√π · c` and 0
+/// elsewhere up to the quadrature error.
+///
+/// @param rgb texels, 3 floats each (R, G, B, linear), rows from the top; finite
+///        (negative values are allowed: projection is linear). 4-byte aligned.
+/// @param width texels per row, at least 1.
+/// @param height rows, at least 1.
+/// @param row_stride_bytes bytes from one row to the next: 0 for packed rows
+///        (`12 * width`), otherwise at least `12 * width` and a multiple of 4.
+/// @param bands 1 to `ANTUMBRA_SH_MAX_BANDS` (8).
+/// @param coefficients receives `3 * bands * bands` floats: the bands² red
+///        coefficients, then green, then blue; untouched on failure. Must not
+///        overlap `rgb`.
+/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (rgb, coefficients); INVALID_ARGUMENT
+///         (bands out of range, zero width or height, stride below the row size
+///         or not a multiple of 4, misaligned array, size overflow); NON_FINITE (a
+///         NaN or infinite texel, named by column and row); OUT_OF_MEMORY (a
+///         strided map is first copied into a packed temporary of
+///         `12 * width * height` bytes, which could not be allocated); PANIC.
+///
+/// Cost: O(width × height × bands), no allocation for packed maps.
+/// Ownership: borrows the arrays for the call only.
+/// Thread safety: safe from any thread.
+///
+/// # Safety
+/// `rgb` must be NULL or valid for `(height - 1) * stride + 12 * width` bytes;
+/// `coefficients` NULL or valid for `3 * bands * bands` floats.
+#[must_use]
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn antumbra_sh_project_equirect(
+    rgb: *const f32,
+    width: u32,
+    height: u32,
+    row_stride_bytes: usize,
+    bands: u32,
+    coefficients: *mut f32,
+) -> antumbra_result {
+    guard("antumbra_sh_project_equirect", || {
+        let bands = check_bands(bands)?;
+        if width == 0 || height == 0 {
+            return Err(Error::invalid(format!(
+                "the map is {width}x{height} texels; width and height must be at least 1"
+            )));
+        }
+        let (w, h) = (width as usize, height as usize);
+        let row_bytes = raw::element_count(w, TEXEL_BYTES, "width")?;
+        let stride = match row_stride_bytes {
+            0 => row_bytes,
+            s if s < row_bytes => {
+                return Err(Error::invalid(format!(
+                    "row_stride_bytes is {s}, less than the {row_bytes} bytes of {w} RGB texels"
+                )));
+            }
+            s if s % core::mem::size_of::<f32>() != 0 => {
+                return Err(Error::invalid(format!(
+                    "row_stride_bytes is {s}, not a multiple of 4 (the size of a float)"
+                )));
+            }
+            s => s,
+        };
+        let total_bytes = (h - 1)
+            .checked_mul(stride)
+            .and_then(|b| b.checked_add(row_bytes))
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "{h} rows at row_stride_bytes {stride} overflow size_t"
+                ))
+            })?;
+        let stride_floats = stride / core::mem::size_of::<f32>();
+        // SAFETY: caller contract on `rgb` for `total_bytes` bytes.
+        let floats = unsafe { raw::slice(rgb, total_bytes / 4, "rgb") }?;
+        let count = bands * bands;
+        // SAFETY: caller contract: valid for 3 * bands² floats, no overlap with `rgb`.
+        let out = unsafe { raw::slice_mut(coefficients, 3 * count, "coefficients") }?;
+        for row in 0..h {
+            let texels = &floats[row * stride_floats..][..3 * w];
+            if let Some(column) = texels
+                .chunks_exact(3)
+                .position(|t| !t.iter().all(|c| c.is_finite()))
+            {
+                let t = &texels[3 * column..3 * column + 3];
+                return Err(Error::new(
+                    ANTUMBRA_RESULT_NON_FINITE,
+                    format!(
+                        "rgb: texel (column {column}, row {row}) is ({}, {}, {}), not finite",
+                        t[0], t[1], t[2]
+                    ),
+                ));
+            }
+        }
+        let packed_copy;
+        let pixels: &[[f32; 3]] = if stride == row_bytes {
+            bytemuck::cast_slice(floats)
+        } else {
+            let mut copy = Vec::new();
+            copy.try_reserve_exact(w * h).map_err(|e| {
+                Error::new(
+                    ANTUMBRA_RESULT_OUT_OF_MEMORY,
+                    format!(
+                        "no memory to pack the {w}x{h} map ({} bytes): {e}",
+                        w * h * TEXEL_BYTES
+                    ),
+                )
+            })?;
+            for row in 0..h {
+                let texels = &floats[row * stride_floats..][..3 * w];
+                copy.extend(texels.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
+            }
+            packed_copy = copy;
+            &packed_copy
+        };
+        let (r, green_blue) = out.split_at_mut(count);
+        let (g, b) = green_blue.split_at_mut(count);
+        project(pixels, w, h, bands, [r, g, b]).map_err(|e| Error::invalid(e.to_string()))
+    })
+}
+
+/// Projects with the const coefficient count for `bands` and writes the channels.
+fn project(
+    pixels: &[[f32; 3]],
+    width: usize,
+    height: usize,
+    bands: usize,
+    out: [&mut [f32]; 3],
+) -> Result<(), sh::ShError> {
+    fn write<const N: usize>(
+        pixels: &[[f32; 3]],
+        width: usize,
+        height: usize,
+        out: [&mut [f32]; 3],
+    ) -> Result<(), sh::ShError> {
+        let sh: ShRgb<N> =
+            sh::project_equirect::<N, _>(pixels, width, height, &EquirectMapping::Y_UP)?;
+        for (channel, coeffs) in out.into_iter().zip(sh.channels()) {
+            channel.copy_from_slice(&coeffs.coeffs);
+        }
+        Ok(())
+    }
+    match bands {
+        1 => write::<1>(pixels, width, height, out),
+        2 => write::<4>(pixels, width, height, out),
+        3 => write::<9>(pixels, width, height, out),
+        4 => write::<16>(pixels, width, height, out),
+        5 => write::<25>(pixels, width, height, out),
+        6 => write::<36>(pixels, width, height, out),
+        7 => write::<49>(pixels, width, height, out),
+        8 => write::<64>(pixels, width, height, out),
+        _ => unreachable!("bands checked to be 1..=8"),
+    }
+}
+
+/// The real SH basis functions at a direction: `values[l(l+1) + m] = Y_l^m(direction)`
+/// for `l < bands`, real, orthonormal, with the Condon–Shortley phase (the
+/// convention of `antumbra_sh_project_equirect`): `values[0] = 0.282095`,
+/// `values[1] = -0.488603 y`, `values[2] = 0.488603 z`, `values[3] = -0.488603 x`,
+/// `values[6] = 0.315392 (3z² - 1)`, ...; θ is measured from +Z and φ from +X
+/// towards +Y.
+///
+/// @param direction 3 floats, finite, unit length within 1e-3 (used as given).
+/// @param bands 1 to `ANTUMBRA_SH_MAX_BANDS` (8).
+/// @param values receives `bands * bands` floats; untouched on failure. May be the
+///        same array as `direction` (it is read first).
+/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (direction, values); INVALID_ARGUMENT
+///         (bands out of range, a direction whose length is not 1 within 1e-3,
+///         misaligned array); NON_FINITE (direction).
+///
+/// Thread safety: safe from any thread.
+///
+/// # Safety
+/// `direction` must be NULL or valid for reading 3 floats; `values` NULL or valid
+/// for writing `bands * bands` floats.
+#[must_use]
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn antumbra_sh_eval(
+    direction: *const f32,
+    bands: u32,
+    values: *mut f32,
+) -> antumbra_result {
+    guard("antumbra_sh_eval", || {
+        // Read the direction into a local first: `values` may alias it.
+        // SAFETY: caller contract on `direction`.
+        let d = unsafe { raw::slice(direction, 3, "direction") }?;
+        let d = Vec3::from_slice(d);
+        let bands = check_bands(bands)?;
+        let count = bands * bands;
+        let out = raw::writable(values, count, "values")?;
+        if !d.is_finite() {
+            return Err(Error::new(
+                ANTUMBRA_RESULT_NON_FINITE,
+                format!("direction ({}, {}, {}) is not finite", d.x, d.y, d.z),
+            ));
+        }
+        let length = d.length();
+        if (length - 1.0).abs() > UNIT_TOLERANCE {
+            return Err(Error::invalid(format!(
+                "direction has length {length}, not 1 (tolerance {UNIT_TOLERANCE})"
+            )));
+        }
+        let mut basis = [0.0f32; sh::MAX_COEFFS];
+        sh::eval_basis_into(d, &mut basis[..count]).map_err(|e| Error::invalid(e.to_string()))?;
+        // SAFETY: `out` checked non-NULL and aligned for `count` floats; written
+        // through the raw pointer only, so aliasing `direction` is fine.
+        unsafe { core::ptr::copy_nonoverlapping(basis.as_ptr(), out, count) };
+        Ok(())
+    })
+}
