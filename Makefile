@@ -17,7 +17,7 @@ export PROPTEST_RNG_SEED ?= 20261122
 # Root installs system packages directly; anyone else goes through sudo.
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
-TEST_STEPS := fmt clippy no-std cargo-test header oracle-selfcheck embree c-examples python-abi
+TEST_STEPS := fmt clippy doc no-std cargo-test header oracle-selfcheck embree c-examples python-abi
 
 .PHONY: demo test deps toolchain system-packages pyenv $(TEST_STEPS) clean
 
@@ -60,6 +60,11 @@ clippy:
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
 	$(CARGO) clippy -p antumbra-core --no-default-features -- -D warnings
 	$(CARGO) clippy -p antumbra-core --all-features --all-targets -- -D warnings
+
+# Every public item documented, and no broken intra-doc links (the ffi docs are
+# also the C reference).
+doc:
+	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --workspace --no-deps --exclude antumbra-cli
 
 no-std:
 	$(CARGO) build -p antumbra-core --no-default-features --target $(NO_STD_TARGET)

@@ -557,7 +557,7 @@ void antumbra_scene_destroy(struct antumbra_scene *scene);
 
 /**
  * Any-hit occlusion for a batch of rays: `occluded[i] = 1` when ray i hits a
- * triangle at some 0 < t < t_max[i] (t in units of |directions[i]|), else 0.
+ * triangle at some `0 < t < t_max[i]` (t in units of `|directions[i]|`), else 0.
  * Triangles are two-sided; the triangle test is watertight.
  *
  * @param scene the scene.
@@ -589,7 +589,7 @@ antumbra_result antumbra_scene_occluded(const struct antumbra_scene *scene,
 
 /**
  * Closest hit for a batch of rays: the hit with the smallest t in
- * 0 < t < t_max[i] (t in units of |directions[i]|). A miss reports distance
+ * `0 < t < t_max[i]` (t in units of `|directions[i]|`). A miss reports distance
  * +INFINITY, triangle ANTUMBRA_INVALID_INDEX and u = v = 0. Equal-distance ties
  * may report either triangle. Triangles are two-sided; the test is watertight.
  *
