@@ -33,6 +33,17 @@
 //! reading and culling every triangle (about 9 ns each; most fall below the
 //! horizon).
 //!
+//! Integration and shading (the rest of the paper's pipeline):
+//! [`TransferTable`] turns a mask into a local SH transfer vector with exact
+//! per-cell integrals (also by byte lookup, [`TransferLut`], or the paper's 8×8
+//! downsampling), [`TransferRotation`] and [`shade_diffuse`] shade it under world
+//! SH lighting, [`glossy_transfer`] and [`PhongLobe`] add a glossy lobe about the
+//! view's mirror direction, and [`transfer_batch`] / [`shade_batch`] run every
+//! vertex of a deforming mesh per frame with an optional far mesh
+//! ([`HemiScene`]) and cluster culling ([`TriangleClusters`]). Against ray-traced
+//! references on the bunny (tests/tests/hemi_transfer.rs) the exact transfer is
+//! within 1.4 % on every vertex (0.38 % mean).
+//!
 //! Invariants (the design's fixed conventions, hemi.md): bit `i` of `rows[j]` is
 //! cell `(i, j)`, set = occluded; cell centers `u = (i + 0.5)/16 - 1`,
 //! `v = (j + 0.5)/16 - 1`; valid iff `u² + v² < 1`, invalid cells always 0; the
@@ -56,19 +67,32 @@
 //! instance the incident ones, or the near ones of a coarser LOD mesh) either way.
 
 mod half_space;
+mod lod;
 mod mask;
+mod shading;
 mod table;
+mod transfer;
 mod triangle;
 
 #[cfg(test)]
 mod tests;
 
 pub use half_space::{half_space_mask, half_space_mask_reference};
+pub use lod::{
+    Aabb, BatchError, BatchOptions, ClusteredMesh, HemiScene, Material, TransferSpace,
+    TriangleClusters, VertexShading, scene_mask, scene_mask_with_counts, shade_batch,
+    shade_batch_split, shade_vertex, transfer_batch, vertex_normals, vertex_transfer,
+};
 pub use mask::{
     GRID, HemiMask, VALID_CELL_COUNT, cell_coordinate, cell_direction, cell_directions,
     is_valid_cell,
 };
+pub use shading::{LOBE_CUTOFF, PhongLobe, glossy_transfer, mirror_direction, shade_glossy};
 pub use table::HalfSpaceTable;
+pub use transfer::{
+    BLOCK, BLOCKS, QUADRATURE_NODES, TransferLut, TransferMethod, TransferRotation, TransferTable,
+    frame_matrix, shade_diffuse,
+};
 pub use triangle::{Culled, TriangleCone};
 
 use glam::Vec3;
