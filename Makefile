@@ -10,6 +10,8 @@ SHELL := /bin/bash
 CARGO ?= cargo
 NO_STD_TARGET := thumbv7em-none-eabihf
 PYENV := $(CURDIR)/target/pyenv
+# Where cargo puts its builds (CARGO_TARGET_DIR when set).
+TARGET_DIR := $(or $(CARGO_TARGET_DIR),$(CURDIR)/target)
 export ANTUMBRA_ORACLE_PYTHON := $(PYENV)/bin/python
 # Property tests draw from a fixed seed here so a CI run is reproducible; plain
 # `cargo test` keeps proptest's random seeds for exploring.
@@ -94,7 +96,7 @@ c-examples:
 # libantumbra.so through ctypes, against Embree directly: the ABI as a foreign caller sees it.
 python-abi:
 	$(CARGO) build --release -p antumbra-ffi
-	$(ANTUMBRA_ORACLE_PYTHON) tests/oracle/test_ctypes_abi.py target/release/libantumbra.so
+	$(ANTUMBRA_ORACLE_PYTHON) tests/oracle/test_ctypes_abi.py $(TARGET_DIR)/release/libantumbra.so
 
 clean:
 	$(CARGO) clean
