@@ -42,6 +42,23 @@ extern const struct antumbra_api_table {
                                       const antumbra_hemi_options *, antumbra_hemi_mask *);
     antumbra_result (*hemi_cell_direction)(uint32_t, uint32_t, float *);
     antumbra_result (*hemi_valid_mask)(antumbra_hemi_mask *);
+    void (*hemi_shading_options_init)(antumbra_hemi_shading_options *);
+    void (*hemi_material_init)(antumbra_hemi_material *);
+    antumbra_result (*hemi_shader_create)(const antumbra_mesh_view *, const antumbra_mesh_view *,
+                                          const antumbra_hemi_shading_options *, antumbra_hemi_shader **);
+    void (*hemi_shader_destroy)(antumbra_hemi_shader *);
+    antumbra_result (*hemi_shader_regroup)(antumbra_hemi_shader *, const antumbra_mesh_view *,
+                                           const antumbra_mesh_view *);
+    antumbra_result (*hemi_shader_transfer)(antumbra_hemi_shader *, const antumbra_mesh_view *, const float *,
+                                            const antumbra_mesh_view *, float *);
+    antumbra_result (*hemi_shader_shade)(antumbra_hemi_shader *, const antumbra_mesh_view *, const float *,
+                                         const antumbra_mesh_view *, const float *, const antumbra_hemi_material *,
+                                         float *, float *, float *);
+    antumbra_result (*hemi_transfer)(const antumbra_mesh_view *, const float *, const antumbra_mesh_view *,
+                                     const antumbra_hemi_shading_options *, float *);
+    antumbra_result (*hemi_shade)(const antumbra_mesh_view *, const float *, const antumbra_mesh_view *,
+                                  const antumbra_hemi_shading_options *, const float *, const antumbra_hemi_material *,
+                                  float *, float *, float *);
     antumbra_result (*sh_project_equirect)(const float *, uint32_t, uint32_t, size_t, uint32_t, float *);
     antumbra_result (*sh_eval)(const float *, uint32_t, float *);
     uint32_t (*version)(void);
@@ -64,6 +81,15 @@ const struct antumbra_api_table antumbra_api_table_c = {
     antumbra_hemi_rasterize,
     antumbra_hemi_cell_direction,
     antumbra_hemi_valid_mask,
+    antumbra_hemi_shading_options_init,
+    antumbra_hemi_material_init,
+    antumbra_hemi_shader_create,
+    antumbra_hemi_shader_destroy,
+    antumbra_hemi_shader_regroup,
+    antumbra_hemi_shader_transfer,
+    antumbra_hemi_shader_shade,
+    antumbra_hemi_transfer,
+    antumbra_hemi_shade,
     antumbra_sh_project_equirect,
     antumbra_sh_eval,
     antumbra_version,
@@ -90,3 +116,9 @@ extern const struct antumbra_hemi_mask antumbra_header_c99_hemi_mask;
 const antumbra_hemi_mask antumbra_header_c99_hemi_mask = {{0}};
 extern const struct antumbra_hemi_options antumbra_header_c99_hemi_options;
 const antumbra_hemi_options antumbra_header_c99_hemi_options = {ANTUMBRA_HEMI_QUALITY_EXACT, 0, 0.0f, 0, NULL};
+extern const struct antumbra_hemi_shading_options antumbra_header_c99_hemi_shading_options;
+const antumbra_hemi_shading_options antumbra_header_c99_hemi_shading_options = {
+    {ANTUMBRA_HEMI_QUALITY_EXACT, 0, 0.0f, 0, NULL}, 3, ANTUMBRA_HEMI_METHOD_CELLS, ANTUMBRA_HEMI_SPACE_WORLD, 1.0f};
+extern const struct antumbra_hemi_material antumbra_header_c99_hemi_material;
+const antumbra_hemi_material antumbra_header_c99_hemi_material = {
+    {1.0f, 1.0f, 1.0f}, {0.0f, 0.0f, 0.0f}, 16.0f, {0.0f, 0.0f, 0.0f}, NULL, NULL};

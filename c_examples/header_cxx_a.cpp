@@ -50,6 +50,37 @@ static_assert(same<antumbra_result (*)(uint32_t, uint32_t, float *), decltype(&a
               "hemi_cell_direction");
 static_assert(same<antumbra_result (*)(antumbra_hemi_mask *), decltype(&antumbra_hemi_valid_mask)>(),
               "hemi_valid_mask");
+static_assert(same<void (*)(antumbra_hemi_shading_options *), decltype(&antumbra_hemi_shading_options_init)>(),
+              "hemi_shading_options_init");
+static_assert(same<void (*)(antumbra_hemi_material *), decltype(&antumbra_hemi_material_init)>(),
+              "hemi_material_init");
+static_assert(same<antumbra_result (*)(const antumbra_mesh_view *, const antumbra_mesh_view *,
+                                       const antumbra_hemi_shading_options *, antumbra_hemi_shader **),
+                   decltype(&antumbra_hemi_shader_create)>(),
+              "hemi_shader_create");
+static_assert(same<void (*)(antumbra_hemi_shader *), decltype(&antumbra_hemi_shader_destroy)>(),
+              "hemi_shader_destroy");
+static_assert(same<antumbra_result (*)(antumbra_hemi_shader *, const antumbra_mesh_view *, const antumbra_mesh_view *),
+                   decltype(&antumbra_hemi_shader_regroup)>(),
+              "hemi_shader_regroup");
+static_assert(same<antumbra_result (*)(antumbra_hemi_shader *, const antumbra_mesh_view *, const float *,
+                                       const antumbra_mesh_view *, float *),
+                   decltype(&antumbra_hemi_shader_transfer)>(),
+              "hemi_shader_transfer");
+static_assert(same<antumbra_result (*)(antumbra_hemi_shader *, const antumbra_mesh_view *, const float *,
+                                       const antumbra_mesh_view *, const float *, const antumbra_hemi_material *,
+                                       float *, float *, float *),
+                   decltype(&antumbra_hemi_shader_shade)>(),
+              "hemi_shader_shade");
+static_assert(same<antumbra_result (*)(const antumbra_mesh_view *, const float *, const antumbra_mesh_view *,
+                                       const antumbra_hemi_shading_options *, float *),
+                   decltype(&antumbra_hemi_transfer)>(),
+              "hemi_transfer");
+static_assert(same<antumbra_result (*)(const antumbra_mesh_view *, const float *, const antumbra_mesh_view *,
+                                       const antumbra_hemi_shading_options *, const float *,
+                                       const antumbra_hemi_material *, float *, float *, float *),
+                   decltype(&antumbra_hemi_shade)>(),
+              "hemi_shade");
 static_assert(same<antumbra_result (*)(const float *, uint32_t, uint32_t, size_t, uint32_t, float *),
                    decltype(&antumbra_sh_project_equirect)>(),
               "sh_project_equirect");
@@ -71,6 +102,14 @@ static_assert(sizeof(antumbra_hemi_mask) == 128, "hemi_mask size as seen from C+
 static_assert(std::is_standard_layout<antumbra_hemi_options>::value, "hemi_options is standard layout");
 static_assert(std::is_trivially_copyable<antumbra_hemi_options>::value, "hemi_options is trivially copyable");
 static_assert(sizeof(antumbra_hemi_options) == 16 + sizeof(void *), "hemi_options size as seen from C++");
+static_assert(std::is_standard_layout<antumbra_hemi_shading_options>::value, "hemi_shading_options is standard layout");
+static_assert(std::is_trivially_copyable<antumbra_hemi_shading_options>::value,
+              "hemi_shading_options is trivially copyable");
+static_assert(sizeof(antumbra_hemi_shading_options) == sizeof(antumbra_hemi_options) + 16,
+              "hemi_shading_options size as seen from C++");
+static_assert(std::is_standard_layout<antumbra_hemi_material>::value, "hemi_material is standard layout");
+static_assert(std::is_trivially_copyable<antumbra_hemi_material>::value, "hemi_material is trivially copyable");
+static_assert(sizeof(antumbra_hemi_material) == 40 + 2 * sizeof(void *), "hemi_material size as seen from C++");
 
 }  // namespace
 

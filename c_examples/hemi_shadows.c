@@ -1,26 +1,34 @@
 /*
  * hemi_shadows.c: self-shadowing of a mesh that deforms every frame, through
- * Antumbra's hemispherical rasterizer (Kautz, Lehtinen and Aila 2004).
+ * Antumbra's hemispherical rasterizer (Kautz, Lehtinen and Aila 2004), shaded
+ * under spherical-harmonic lighting.
  *
  * A torus with an elliptical cross-section is generated here and deformed on the
  * C side every frame (the cross-section twists along the ring, the ring breathes
- * and waves), as a skinned or simulated mesh would be. Per frame the program
- * computes vertex normals, asks antumbra_hemi_rasterize for the 32x32 visibility
- * mask above every vertex, and shades each vertex from its mask:
+ * and waves), as a skinned or simulated mesh would be; a coarser torus, deformed
+ * the same way, stands in for it beyond a near radius (the far mesh). Per frame:
  *
- *   - ambient visibility: unoccluded valid cells / valid cells (the disk
- *     projection makes every cell carry the same cosine-weighted solid angle);
- *   - sky light: (pi / 812) * sum of the sky radiance over the unoccluded cells'
- *     world directions (cell directions from antumbra_hemi_cell_direction, frame
- *     from antumbra_frame_from_normal);
- *   - sun light: the cell the sun falls in decides whether the vertex is in shadow.
+ *   - antumbra_hemi_rasterize gives the 32x32 visibility mask above every vertex,
+ *     from which this program computes ambient visibility and decides which
+ *     sunward vertices are in shadow (cell directions from
+ *     antumbra_hemi_cell_direction, frame from antumbra_frame_from_normal);
+ *   - antumbra_hemi_shader_shade shades every vertex, diffuse + glossy, under a
+ *     procedural sky (a blue gradient and a bright sun lobe, generated here as
+ *     an equirectangular float image and projected onto 5 SH bands with
+ *     antumbra_sh_project_equirect), with and without the far mesh, timed.
+ *
+ * The shaded colours must be plausible: sunward vertices the masks say are lit
+ * brighter than those in shadow, glossy light only where the viewer is in front
+ * and stronger where the mirror direction is open, the far mesh close to the
+ * full one, and the diffuse colour equal to albedo/pi times the dot product of
+ * antumbra_hemi_shader_transfer's vectors with the lighting.
  *
  * The last frame is also rasterized with the table quality (the shared table,
  * on the library's worker threads, and a caller-owned table, on this thread),
  * which must agree with the exact masks on at least 99 % of the valid cells and
- * with each other bit for bit, and is drawn into a PPM image by a small z-buffered
- * software rasterizer. The sky is also projected onto 3 SH bands with
- * antumbra_sh_project_equirect, and the SH irradiance must match the cell sum.
+ * with each other bit for bit, and its shaded colours are drawn into a PPM image
+ * by a small z-buffered software rasterizer, over the sky. A linear sky is also
+ * projected onto 3 SH bands, and the SH irradiance must match the cell sum.
  *
  * Usage: hemi_shadows [out.ppm]   (default hemi_shadows.ppm)
  * Exit status: 0 on success, 1 on any unexpected result or implausible shading.
@@ -46,6 +54,21 @@
 #define VERTEX_COUNT (RINGS * SIDES)
 #define TRIANGLE_COUNT (2 * RINGS * SIDES)
 #define FRAMES 3
+
+/* The far mesh: the same torus, a third of the rings and half the sides. */
+#define FAR_RINGS 16
+#define FAR_SIDES 8
+#define FAR_VERTEX_COUNT (FAR_RINGS * FAR_SIDES)
+#define FAR_TRIANGLE_COUNT (2 * FAR_RINGS * FAR_SIDES)
+/* Occluders within this distance of a vertex come from the full mesh: about two
+ * far-mesh edges along the ring (0.39 each), more than the tube's width. */
+#define NEAR_RADIUS 0.8f
+
+/* SH lighting: 5 bands (25 coefficients per channel), enough for a glossy lobe. */
+#define SH_BANDS 5
+#define SH_COEFFS (SH_BANDS * SH_BANDS)
+#define SKY_MAP_W 128
+#define SKY_MAP_H 64
 
 #define WIDTH 200
 #define HEIGHT 150
@@ -114,7 +137,6 @@ static vec3 v3(float x, float y, float z)
 static vec3 add(vec3 a, vec3 b) { return v3(a.x + b.x, a.y + b.y, a.z + b.z); }
 static vec3 sub(vec3 a, vec3 b) { return v3(a.x - b.x, a.y - b.y, a.z - b.z); }
 static vec3 scale(vec3 a, float s) { return v3(a.x * s, a.y * s, a.z * s); }
-static vec3 mul(vec3 a, vec3 b) { return v3(a.x * b.x, a.y * b.y, a.z * b.z); }
 static float dot(vec3 a, vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 static vec3 cross(vec3 a, vec3 b)
 {
@@ -149,21 +171,27 @@ typedef struct mesh {
     uint32_t indices[3 * TRIANGLE_COUNT];
 } mesh;
 
-static uint32_t vertex_index(int ring, int side)
+typedef struct far_mesh {
+    float positions[3 * FAR_VERTEX_COUNT];
+    uint32_t indices[3 * FAR_TRIANGLE_COUNT];
+} far_mesh;
+
+static uint32_t torus_index(int rings, int sides, int ring, int side)
 {
-    return (uint32_t)(((ring + RINGS) % RINGS) * SIDES + (side + SIDES) % SIDES);
+    return (uint32_t)(((ring + rings) % rings) * sides + (side + sides) % sides);
 }
 
 /* Quads between neighbouring cross-sections, counter-clockwise seen from
  * outside, so the computed normals point out of the tube. */
-static void build_indices(mesh *m)
+static void build_torus_indices(uint32_t *indices, int rings, int sides)
 {
     int ring, side, t = 0;
-    for (ring = 0; ring < RINGS; ++ring) {
-        for (side = 0; side < SIDES; ++side) {
-            const uint32_t a = vertex_index(ring, side), b = vertex_index(ring + 1, side);
-            const uint32_t c = vertex_index(ring + 1, side + 1), d = vertex_index(ring, side + 1);
-            uint32_t *tri = &m->indices[3 * t];
+    for (ring = 0; ring < rings; ++ring) {
+        for (side = 0; side < sides; ++side) {
+            const uint32_t a = torus_index(rings, sides, ring, side), b = torus_index(rings, sides, ring + 1, side);
+            const uint32_t c = torus_index(rings, sides, ring + 1, side + 1);
+            const uint32_t d = torus_index(rings, sides, ring, side + 1);
+            uint32_t *tri = &indices[3 * t];
             tri[0] = a;
             tri[1] = c;
             tri[2] = b;
@@ -178,27 +206,32 @@ static void build_indices(mesh *m)
 /* The pose at time `time`: around the vertical axis, a ring of radius about 1
  * carrying an elliptical cross-section (semi-axes 0.42 and 0.2) that turns once
  * along the ring (so the seam closes) and spins with time; the ring's radius
- * breathes and its height waves. */
-static void deform(mesh *m, float time)
+ * breathes and its height waves. The same surface at any sampling, so the far
+ * mesh follows the full one. */
+static void deform_torus(float *positions, int rings, int sides, float time)
 {
     int ring, side;
-    for (ring = 0; ring < RINGS; ++ring) {
-        const float phi = 2.0f * PI_F * (float)ring / (float)RINGS;
+    for (ring = 0; ring < rings; ++ring) {
+        const float phi = 2.0f * PI_F * (float)ring / (float)rings;
         const vec3 radial = v3(cosf(phi), 0.0f, sinf(phi));
         const vec3 up = v3(0.0f, 1.0f, 0.0f);
         const float major = 1.0f + 0.08f * sinf(3.0f * phi + 1.7f * time);
         const float lift = 0.18f * sinf(2.0f * phi - 1.3f * time);
         const float twist = phi + 0.9f * time;
         const vec3 center = add(scale(radial, major), scale(up, lift));
-        for (side = 0; side < SIDES; ++side) {
-            const float theta = 2.0f * PI_F * (float)side / (float)SIDES;
+        for (side = 0; side < sides; ++side) {
+            const float theta = 2.0f * PI_F * (float)side / (float)sides;
             const float a = 0.42f * cosf(theta), b = 0.2f * sinf(theta);
             const float r = a * cosf(twist) - b * sinf(twist);
             const float y = a * sinf(twist) + b * cosf(twist);
-            store3(&m->positions[3 * vertex_index(ring, side)], add(center, add(scale(radial, r), scale(up, y))));
+            store3(&positions[3 * torus_index(rings, sides, ring, side)],
+                   add(center, add(scale(radial, r), scale(up, y))));
         }
     }
 }
+
+static void build_indices(mesh *m) { build_torus_indices(m->indices, RINGS, SIDES); }
+static void deform(mesh *m, float time) { deform_torus(m->positions, RINGS, SIDES, time); }
 
 /* Area-weighted vertex normals: the sum of the unnormalised face normals around
  * each vertex, normalised in float (the library wants unit normals within 1e-3). */
@@ -244,8 +277,9 @@ static float axis_distance(const mesh *m, int v)
 static const vec3 SKY_K0 = {0.30f, 0.36f, 0.50f};
 static const vec3 SKY_K1 = {0.18f, 0.22f, 0.30f};
 static const vec3 SKY_K2 = {0.04f, 0.02f, 0.00f};
-static const vec3 SUN_IRRADIANCE = {3.0f, 2.7f, 2.2f};
 static const vec3 ALBEDO = {0.80f, 0.56f, 0.36f};
+static const vec3 SPECULAR = {0.25f, 0.25f, 0.25f};
+#define GLOSSY_EXPONENT 24.0f
 
 static vec3 sky_radiance(vec3 d) { return add(SKY_K0, add(scale(SKY_K1, d.y), scale(SKY_K2, d.x))); }
 
@@ -350,11 +384,11 @@ static vec3 sky_irradiance_cells(const cells *c, const frame3 *f, const antumbra
     return scale(sum, PI_F / (float)c->count);
 }
 
-/* Whether the sun direction (world, unit) is blocked: the cell it falls in. A
- * sun below the horizon is "blocked" too (no direct light). */
-static int sun_blocked(const frame3 *f, vec3 sun, const antumbra_hemi_mask *mask)
+/* Whether a world direction (unit) is blocked: the cell it falls in. A
+ * direction below the horizon is "blocked" too (no light from there). */
+static int direction_blocked(const frame3 *f, vec3 d, const antumbra_hemi_mask *mask)
 {
-    const float u = dot(sun, f->t), v = dot(sun, f->b), w = dot(sun, f->n);
+    const float u = dot(d, f->t), v = dot(d, f->b), w = dot(d, f->n);
     int i, j;
     if (w <= 0.0f) {
         return 1;
@@ -426,19 +460,19 @@ static void check_sky_sh(const cells *c)
 
 typedef struct shading {
     float visibility[VERTEX_COUNT]; /* unoccluded fraction of the valid cells */
-    vec3 radiance[VERTEX_COUNT];    /* outgoing, diffuse */
+    signed char sun[VERTEX_COUNT];  /* facing the sun: 1 lit, 0 blocked; -1 facing away */
     int in_shadow;                  /* vertices facing the sun but blocked */
 } shading;
 
-static void shade(const mesh *m, const cells *c, const antumbra_hemi_mask *masks, vec3 sun, shading *out)
+/* What the masks say about each vertex: its visibility and whether the sun is
+ * blocked; checks that no invalid cell is set. */
+static void read_masks(const mesh *m, const cells *c, const antumbra_hemi_mask *masks, vec3 sun, shading *out)
 {
     int v, j;
     out->in_shadow = 0;
     for (v = 0; v < VERTEX_COUNT; ++v) {
         const antumbra_hemi_mask *mask = &masks[v];
         const vec3 n = load3(&m->normals[3 * v]);
-        const frame3 f = receiver_frame(n);
-        vec3 irradiance;
         int occluded = 0;
         for (j = 0; j < ANTUMBRA_HEMI_GRID; ++j) {
             if (mask->rows[j] & ~c->valid.rows[j]) {
@@ -447,15 +481,12 @@ static void shade(const mesh *m, const cells *c, const antumbra_hemi_mask *masks
             occluded += popcount32(mask->rows[j]);
         }
         out->visibility[v] = 1.0f - (float)occluded / (float)c->count;
-        irradiance = sky_irradiance_cells(c, &f, mask);
+        out->sun[v] = -1;
         if (dot(n, sun) > 0.0f) {
-            if (sun_blocked(&f, sun, mask)) {
-                ++out->in_shadow;
-            } else {
-                irradiance = add(irradiance, scale(SUN_IRRADIANCE, dot(n, sun)));
-            }
+            const frame3 f = receiver_frame(n);
+            out->sun[v] = (signed char)!direction_blocked(&f, sun, mask);
+            out->in_shadow += !out->sun[v];
         }
-        out->radiance[v] = scale(mul(ALBEDO, irradiance), 1.0f / PI_F);
     }
 }
 
@@ -483,6 +514,236 @@ static float extreme_visibility(const mesh *m, const shading *s, int count, floa
         sum += s->visibility[order[k]];
     }
     return sum / (float)count;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Shading under SH lighting, through the library                             */
+/* ------------------------------------------------------------------------- */
+
+static const vec3 CAMERA_EYE = {0.0f, 2.3f, 2.9f};
+static const vec3 CAMERA_TARGET = {0.0f, -0.1f, 0.0f};
+
+/* The procedural sky: a blue gradient from a pale horizon to a deep zenith, a
+ * dark warm ground, and a bright sun lobe of radiance SUN_PEAK exp(k (d.s - 1))
+ * (irradiance about 2 pi SUN_PEAK / k facing it). */
+static const vec3 SKY_ZENITH = {0.10f, 0.20f, 0.55f};
+static const vec3 SKY_HORIZON = {0.50f, 0.60f, 0.75f};
+static const vec3 SKY_GROUND = {0.10f, 0.08f, 0.06f};
+static const vec3 SUN_PEAK = {40.0f, 36.0f, 29.0f};
+#define SUN_SHARPNESS 60.0f
+
+static vec3 lerp3(vec3 a, vec3 b, float t) { return add(scale(a, 1.0f - t), scale(b, t)); }
+
+static vec3 sky_map_radiance(vec3 d, vec3 sun)
+{
+    const vec3 sky = d.y >= 0.0f ? lerp3(SKY_HORIZON, SKY_ZENITH, sqrtf(d.y))
+                                 : lerp3(scale(SKY_HORIZON, 0.5f), SKY_GROUND, sqrtf(-d.y));
+    return add(sky, scale(SUN_PEAK, expf(SUN_SHARPNESS * (dot(d, sun) - 1.0f))));
+}
+
+/* The sky as an equirectangular float image (the documented map convention:
+ * row 0 looks up, u = 0.5 along +X, u = 0.75 along +Z), projected onto SH_BANDS
+ * bands: sh[c * SH_COEFFS + k], red, green, blue. */
+static void project_sky(vec3 sun, float *sh)
+{
+    static float map[SKY_MAP_H][SKY_MAP_W][3];
+    int row, column;
+    for (row = 0; row < SKY_MAP_H; ++row) {
+        for (column = 0; column < SKY_MAP_W; ++column) {
+            const float theta = ((float)row + 0.5f) / (float)SKY_MAP_H * PI_F;
+            const float phi = (((float)column + 0.5f) / (float)SKY_MAP_W - 0.5f) * 2.0f * PI_F;
+            const vec3 d = v3(sinf(theta) * cosf(phi), cosf(theta), sinf(theta) * sinf(phi));
+            store3(map[row][column], sky_map_radiance(d, sun));
+        }
+    }
+    check(antumbra_sh_project_equirect(&map[0][0][0], SKY_MAP_W, SKY_MAP_H, 0, SH_BANDS, sh),
+          "antumbra_sh_project_equirect (sky)");
+    /* A sun this sharp rings on 5 bands (negative radiance around it, which a
+     * glossy lobe picks up); the Lanczos sigma factors sinc(l / SH_BANDS) trade a
+     * little sharpness for much less ringing, as engines do. */
+    {
+        int channel, l, m;
+        for (l = 1; l < SH_BANDS; ++l) {
+            const float x = PI_F * (float)l / (float)SH_BANDS;
+            const float sigma = sinf(x) / x;
+            for (channel = 0; channel < 3; ++channel) {
+                for (m = -l; m <= l; ++m) {
+                    sh[channel * SH_COEFFS + l * (l + 1) + m] *= sigma;
+                }
+            }
+        }
+    }
+}
+
+/* The SH lighting's radiance towards a direction (for a plausibility check). */
+static vec3 sh_radiance(const float *sh, vec3 d)
+{
+    float y[SH_COEFFS], dir[3];
+    vec3 out = v3(0.0f, 0.0f, 0.0f);
+    int k;
+    store3(dir, d);
+    check(antumbra_sh_eval(dir, SH_BANDS, y), "antumbra_sh_eval");
+    for (k = 0; k < SH_COEFFS; ++k) {
+        out = add(out, v3(sh[k] * y[k], sh[SH_COEFFS + k] * y[k], sh[2 * SH_COEFFS + k] * y[k]));
+    }
+    return out;
+}
+
+static float luminance(const float *rgb) { return 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2]; }
+
+/* One frame of per-vertex colours. */
+typedef struct shaded {
+    float rgb[3 * VERTEX_COUNT];
+    float diffuse[3 * VERTEX_COUNT];
+    float glossy[3 * VERTEX_COUNT];
+} shaded;
+
+static double shade_timed(antumbra_hemi_shader *shader, const antumbra_mesh_view *view, const mesh *m,
+                          const antumbra_mesh_view *far_view, const float *sky_sh,
+                          const antumbra_hemi_material *material, shaded *out, const char *what)
+{
+    const double start = now_ms();
+    check(antumbra_hemi_shader_shade(shader, view, m->normals, far_view, sky_sh, material, out->rgb, out->diffuse,
+                                     out->glossy),
+          what);
+    return now_ms() - start;
+}
+
+/* The shaded colours must make sense against what the masks say:
+ *   - sunward vertices whose sun cell is open are brighter (diffuse) than those
+ *     whose sun cell is blocked;
+ *   - the glossy term is exactly 0 where the viewer is behind the surface, never
+ *     noticeably negative, and stronger where the mirror direction is open than
+ *     where it is blocked;
+ *   - rgb = diffuse + glossy. */
+static void check_plausible(int frame, const mesh *m, const antumbra_hemi_mask *masks, const shading *s,
+                            const shaded *out, const char *which)
+{
+    double lit = 0.0, blocked = 0.0, open_glossy = 0.0, closed_glossy = 0.0;
+    int lit_count = 0, blocked_count = 0, open_count = 0, closed_count = 0, behind = 0, v, k;
+    float max_glossy = 0.0f, min_glossy = 0.0f;
+    for (v = 0; v < VERTEX_COUNT; ++v) {
+        const vec3 n = load3(&m->normals[3 * v]), p = load3(&m->positions[3 * v]);
+        const vec3 to_eye = normalize(sub(CAMERA_EYE, p));
+        const float *g = &out->glossy[3 * v];
+        for (k = 0; k < 3; ++k) {
+            if (out->rgb[3 * v + k] != out->diffuse[3 * v + k] + g[k]) {
+                fail("frame %d (%s): vertex %d: rgb is not diffuse + glossy", frame, which, v);
+            }
+            max_glossy = fmaxf(max_glossy, g[k]);
+            min_glossy = fminf(min_glossy, g[k]);
+        }
+        if (s->sun[v] >= 0) {
+            if (s->sun[v]) {
+                lit += luminance(&out->diffuse[3 * v]);
+                ++lit_count;
+            } else {
+                blocked += luminance(&out->diffuse[3 * v]);
+                ++blocked_count;
+            }
+        }
+        if (dot(n, to_eye) < -1e-3f) {
+            /* Clearly behind (not a rounding-level grazing view). */
+            ++behind;
+            if (g[0] != 0.0f || g[1] != 0.0f || g[2] != 0.0f) {
+                fail("frame %d (%s): vertex %d faces away from the viewer but has glossy light (%g, %g, %g)", frame,
+                     which, v, (double)g[0], (double)g[1], (double)g[2]);
+            }
+        } else if (dot(n, to_eye) > 0.0f) {
+            const vec3 mirror = sub(scale(n, 2.0f * dot(n, to_eye)), to_eye);
+            const frame3 f = receiver_frame(n);
+            if (direction_blocked(&f, mirror, &masks[v])) {
+                closed_glossy += luminance(g);
+                ++closed_count;
+            } else {
+                open_glossy += luminance(g);
+                ++open_count;
+            }
+        }
+    }
+    lit /= lit_count > 0 ? lit_count : 1;
+    blocked /= blocked_count > 0 ? blocked_count : 1;
+    open_glossy /= open_count > 0 ? open_count : 1;
+    closed_glossy /= closed_count > 0 ? closed_count : 1;
+    printf("hemi_shadows: frame %d (%s): sunward diffuse luminance %.3f lit (%d) vs %.3f shadowed (%d); glossy %.3f "
+           "with the mirror direction open (%d) vs %.3f blocked (%d), 0 on %d vertices facing away\n",
+           frame, which, lit, lit_count, blocked, blocked_count, open_glossy, open_count, closed_glossy, closed_count,
+           behind);
+    if (blocked_count == 0 || closed_count == 0 || behind == 0) {
+        fail("frame %d (%s): the pose has no shadowed sunward vertex, no blocked mirror direction or no vertex facing "
+             "away; the checks below would be vacuous",
+             frame, which);
+    }
+    if (!(lit > 1.5 * blocked)) {
+        fail("frame %d (%s): sunward vertices in the open (%.3f) are not clearly brighter than shadowed ones (%.3f)",
+             frame, which, lit, blocked);
+    }
+    if (!(open_glossy > 1.5 * closed_glossy)) {
+        fail("frame %d (%s): glossy light with the mirror direction open (%.3f) is not clearly above blocked (%.3f)",
+             frame, which, open_glossy, closed_glossy);
+    }
+    if (!(min_glossy > -0.02f * max_glossy)) {
+        fail("frame %d (%s): glossy light goes down to %g (max %g)", frame, which, (double)min_glossy,
+             (double)max_glossy);
+    }
+}
+
+/* antumbra_hemi_shader_transfer's world vectors dotted with the lighting are the
+ * diffuse colours (times albedo/pi), and their band-0 coefficient is the
+ * cosine-weighted visibility: T_0 = (sqrt(pi)/2) * (visible share of the disk),
+ * close to the mask's share of visible cells. */
+static void check_transfer(antumbra_hemi_shader *shader, const antumbra_mesh_view *view, const mesh *m,
+                           const float *sky_sh, const shaded *full, const shading *s)
+{
+    static float transfer[VERTEX_COUNT * SH_COEFFS];
+    const float t0_open = 0.886226925f;
+    double worst_colour = 0.0, worst_t0 = 0.0, sum_t0 = 0.0;
+    int v, k, channel;
+    check(antumbra_hemi_shader_transfer(shader, view, m->normals, NULL, transfer), "antumbra_hemi_shader_transfer");
+    for (v = 0; v < VERTEX_COUNT; ++v) {
+        const float *t = &transfer[v * SH_COEFFS];
+        const float albedo[3] = {ALBEDO.x, ALBEDO.y, ALBEDO.z};
+        for (channel = 0; channel < 3; ++channel) {
+            double e = 0.0, want = full->diffuse[3 * v + channel], error;
+            for (k = 0; k < SH_COEFFS; ++k) {
+                e += (double)t[k] * (double)sky_sh[channel * SH_COEFFS + k];
+            }
+            e *= albedo[channel] / PI_F;
+            error = fabs(e - want) / (fabs(want) + 1e-3);
+            worst_colour = error > worst_colour ? error : worst_colour;
+        }
+        {
+            const double difference = fabs(t[0] / t0_open - s->visibility[v]);
+            worst_t0 = difference > worst_t0 ? difference : worst_t0;
+            sum_t0 += difference;
+        }
+    }
+    printf("hemi_shadows: transfer vectors: diffuse from T.l within %.2g (relative) of the shaded diffuse; "
+           "T_0 / 0.886227 within %.3f of the visible cell share (mean %.4f)\n",
+           worst_colour, worst_t0, sum_t0 / VERTEX_COUNT);
+    if (!(worst_colour < 1e-4)) {
+        fail("albedo/pi * T.l differs from the shaded diffuse by %g (relative)", worst_colour);
+    }
+    if (!(worst_t0 < 0.05)) {
+        fail("T_0 / 0.886227 differs from the visible share of the cells by %g", worst_t0);
+    }
+}
+
+/* The far mesh stands in for the distant full mesh: the colours must stay close. */
+static void compare_far(int frame, const shaded *full, const shaded *far)
+{
+    double difference = 0.0, total = 0.0;
+    int i;
+    for (i = 0; i < 3 * VERTEX_COUNT; ++i) {
+        difference += fabs((double)far->rgb[i] - (double)full->rgb[i]);
+        total += fabs((double)full->rgb[i]);
+    }
+    printf("hemi_shadows: frame %d: the far mesh changes the colours by %.2f%% on average\n", frame,
+           100.0 * difference / total);
+    if (!(difference < 0.05 * total)) {
+        fail("frame %d: the far mesh changes the colours by %.2f%%; at most 5%% expected", frame,
+             100.0 * difference / total);
+    }
 }
 
 /* ------------------------------------------------------------------------- */
@@ -521,24 +782,29 @@ static vec3 project(const camera *c, vec3 p)
 
 static unsigned char to_byte(float linear)
 {
-    /* Exposure tone curve, then display gamma. */
-    const float mapped = powf(1.0f - expf(-1.0f * linear), 1.0f / 2.2f);
+    /* Exposure tone curve (the sunlit side reaches a radiance of about 1.5), then
+     * display gamma. */
+    const float mapped = powf(1.0f - expf(-0.6f * fmaxf(linear, 0.0f)), 1.0f / 2.2f);
     return (unsigned char)(mapped * 255.0f + 0.5f);
 }
 
-static int render(const mesh *m, const shading *s, image *img)
+/* Draws the mesh with per-vertex colours `rgb` (linear) over the sky. */
+static int render(const mesh *m, const float *rgb, vec3 sun, image *img)
 {
-    const camera cam = look_at(v3(0.0f, 2.3f, 2.9f), v3(0.0f, -0.1f, 0.0f), 45.0f);
+    const camera cam = look_at(CAMERA_EYE, CAMERA_TARGET, 45.0f);
     int x, y, t, covered = 0;
     for (y = 0; y < HEIGHT; ++y) {
         for (x = 0; x < WIDTH; ++x) {
-            /* Background: the sky's radiance straight up, darkened towards the bottom. */
-            const float fade = 1.0f - 0.5f * (float)y / (float)HEIGHT;
+            /* Background: the procedural sky along the pixel's ray. */
+            const vec3 d = normalize(add(scale(cam.forward, cam.focal),
+                                         add(scale(cam.right, (float)x + 0.5f - 0.5f * (float)WIDTH),
+                                             scale(cam.up, 0.5f * (float)HEIGHT - (float)y - 0.5f))));
+            const vec3 sky = sky_map_radiance(d, sun);
             unsigned char *px = &img->rgb[3 * (y * WIDTH + x)];
             img->depth[y * WIDTH + x] = INFINITY;
-            px[0] = to_byte(0.25f * fade);
-            px[1] = to_byte(0.3f * fade);
-            px[2] = to_byte(0.45f * fade);
+            px[0] = to_byte(sky.x);
+            px[1] = to_byte(sky.y);
+            px[2] = to_byte(sky.z);
         }
     }
     for (t = 0; t < TRIANGLE_COUNT; ++t) {
@@ -577,8 +843,9 @@ static int render(const mesh *m, const shading *s, image *img)
                     continue;
                 }
                 img->depth[y * WIDTH + x] = depth;
-                colour = scale(add(add(scale(s->radiance[tri[0]], wa / a.z), scale(s->radiance[tri[1]], wb / b.z)),
-                                   scale(s->radiance[tri[2]], wc / c.z)),
+                colour = scale(add(add(scale(load3(&rgb[3 * tri[0]]), wa / a.z),
+                                       scale(load3(&rgb[3 * tri[1]]), wb / b.z)),
+                                   scale(load3(&rgb[3 * tri[2]]), wc / c.z)),
                                depth);
                 out = &img->rgb[3 * (y * WIDTH + x)];
                 out[0] = to_byte(colour.x);
@@ -662,15 +929,22 @@ int main(int argc, char **argv)
     antumbra_hemi_mask *exact = checked_malloc(VERTEX_COUNT * sizeof *exact);
     antumbra_hemi_mask *table = checked_malloc(VERTEX_COUNT * sizeof *table);
     antumbra_hemi_mask *own_table = checked_malloc(VERTEX_COUNT * sizeof *own_table);
+    far_mesh *far = checked_malloc(sizeof *far);
+    shaded *full = checked_malloc(sizeof *full);
+    shaded *lod = checked_malloc(sizeof *lod);
     antumbra_hemi_table *handle = NULL;
+    antumbra_hemi_shader *shader = NULL;
     antumbra_hemi_options options;
-    antumbra_mesh_view view;
-    double table_agreement = 0.0;
+    antumbra_hemi_shading_options shading_options;
+    antumbra_hemi_material material;
+    antumbra_mesh_view view, far_view;
+    float sky_sh[3 * SH_COEFFS];
+    double table_agreement = 0.0, ms_far_total = 0.0, ms_full_total = 0.0;
     int frame, covered;
 
     check_version();
-    printf("hemi_shadows: antumbra %s, torus of %d vertices and %d triangles, %d frames\n",
-           antumbra_version_string(), VERTEX_COUNT, TRIANGLE_COUNT, FRAMES);
+    printf("hemi_shadows: antumbra %s, torus of %d vertices and %d triangles (far mesh: %d and %d), %d frames\n",
+           antumbra_version_string(), VERTEX_COUNT, TRIANGLE_COUNT, FAR_VERTEX_COUNT, FAR_TRIANGLE_COUNT, FRAMES);
 
     load_cells(c);
     check_sky_sh(c);
@@ -689,16 +963,61 @@ int main(int argc, char **argv)
         fail("antumbra_hemi_options_init did not write the documented defaults");
     }
 
+    /* The sky, projected once; it must be brighter towards the sun than away. */
+    project_sky(sun, sky_sh);
+    {
+        const vec3 towards = sh_radiance(sky_sh, sun), away = sh_radiance(sky_sh, scale(sun, -1.0f));
+        printf("hemi_shadows: sky on %d SH bands: radiance %.2f towards the sun, %.2f away (green)\n", SH_BANDS,
+               (double)towards.y, (double)away.y);
+        if (!(towards.y > 4.0f * away.y) || !(away.y > 0.0f)) {
+            fail("the projected sky is not brighter towards the sun (%g vs %g)", (double)towards.y,
+                 (double)away.y);
+        }
+    }
+
+    /* One shader for the whole animation, created from the rest pose with the
+     * far mesh; every frame passes the current positions. */
+    build_torus_indices(far->indices, FAR_RINGS, FAR_SIDES);
+    far_view.positions = far->positions;
+    far_view.vertex_count = FAR_VERTEX_COUNT;
+    far_view.position_stride = 0;
+    far_view.indices = far->indices;
+    far_view.triangle_count = FAR_TRIANGLE_COUNT;
+    antumbra_hemi_shading_options_init(&shading_options);
+    if (antumbra_last_error_message()[0] != '\0' || memcmp(&shading_options.raster, &options, sizeof options) != 0 ||
+        shading_options.bands != 3 || shading_options.method != ANTUMBRA_HEMI_METHOD_CELLS ||
+        shading_options.space != ANTUMBRA_HEMI_SPACE_WORLD || shading_options.near_radius != INFINITY) {
+        fail("antumbra_hemi_shading_options_init did not write the documented defaults");
+    }
+    shading_options.bands = SH_BANDS;
+    shading_options.near_radius = NEAR_RADIUS;
+    antumbra_hemi_material_init(&material);
+    if (antumbra_last_error_message()[0] != '\0' || material.albedo[0] != 1.0f || material.specular[0] != 0.0f ||
+        material.exponent != 16.0f || material.vertex_albedo != NULL || material.view_directions != NULL) {
+        fail("antumbra_hemi_material_init did not write the documented defaults");
+    }
+    store3(material.albedo, ALBEDO);
+    store3(material.specular, SPECULAR);
+    material.exponent = GLOSSY_EXPONENT;
+    store3(material.eye, CAMERA_EYE);
+    deform(m, 0.0f);
+    deform_torus(far->positions, FAR_RINGS, FAR_SIDES, 0.0f);
+    check(antumbra_hemi_shader_create(&view, &far_view, &shading_options, &shader), "antumbra_hemi_shader_create");
+    if (shader == NULL) {
+        fail("antumbra_hemi_shader_create returned OK and a NULL shader");
+    }
+
     for (frame = 0; frame < FRAMES; ++frame) {
         const float time = 0.7f * (float)frame;
         float inner, outer, mean = 0.0f;
-        double ms;
+        double ms, ms_far, ms_full;
         int v;
 
         deform(m, time);
+        deform_torus(far->positions, FAR_RINGS, FAR_SIDES, time);
         compute_normals(m);
         ms = rasterize_timed(&view, m, &options, exact, "antumbra_hemi_rasterize (exact)");
-        shade(m, c, exact, sun, s);
+        read_masks(m, c, exact, sun, s);
         for (v = 0; v < VERTEX_COUNT; ++v) {
             mean += s->visibility[v] / (float)VERTEX_COUNT;
         }
@@ -717,7 +1036,29 @@ int main(int argc, char **argv)
         if (s->in_shadow == 0) {
             fail("frame %d: no vertex facing the sun is shadowed; the torus should shadow itself", frame);
         }
+
+        /* Shaded under the sky, diffuse + glossy, on this thread. */
+        ms_far = shade_timed(shader, &view, m, &far_view, sky_sh, &material, lod,
+                             "antumbra_hemi_shader_shade (far mesh)");
+        ms_full = shade_timed(shader, &view, m, NULL, sky_sh, &material, full,
+                              "antumbra_hemi_shader_shade (full mesh)");
+        ms_far_total += ms_far;
+        ms_full_total += ms_full;
+        printf("hemi_shadows: frame %d: shaded (diffuse + glossy, %d SH bands) in %.2f ms (%.1f us per vertex) with "
+               "the far mesh, %.2f ms (%.1f us per vertex) without\n",
+               frame, SH_BANDS, ms_far, 1e3 * ms_far / VERTEX_COUNT, ms_full, 1e3 * ms_full / VERTEX_COUNT);
+        check_plausible(frame, m, exact, s, full, "full mesh");
+        check_plausible(frame, m, exact, s, lod, "far mesh");
+        compare_far(frame, full, lod);
+        if (frame == 0) {
+            check_transfer(shader, &view, m, sky_sh, full, s);
+        }
     }
+    printf("hemi_shadows: shading every vertex on one thread: %.2f ms per frame (%.1f us per vertex) with the far "
+           "mesh, %.2f ms (%.1f us per vertex) without\n",
+           ms_far_total / FRAMES, 1e3 * ms_far_total / FRAMES / VERTEX_COUNT, ms_full_total / FRAMES,
+           1e3 * ms_full_total / FRAMES / VERTEX_COUNT);
+    antumbra_hemi_shader_destroy(shader);
 
     /* The last frame again with the table quality: the library's shared table on
      * its worker threads, and a table of our own (same resolution) on this thread;
@@ -749,13 +1090,16 @@ int main(int argc, char **argv)
         }
     }
 
-    covered = render(m, s, img);
+    covered = render(m, lod->rgb, sun, img);
     write_ppm(path, img);
     printf("hemi_shadows: wrote %s (%dx%d, %d%% covered)\n", path, WIDTH, HEIGHT, 100 * covered / (WIDTH * HEIGHT));
     if (covered < WIDTH * HEIGHT / 10) {
         fail("the torus covers only %d of %d pixels", covered, WIDTH * HEIGHT);
     }
 
+    free(lod);
+    free(full);
+    free(far);
     free(own_table);
     free(table);
     free(exact);

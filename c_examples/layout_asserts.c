@@ -73,6 +73,44 @@ _Static_assert(offsetof(antumbra_hemi_options, table) == 16, "hemi_options.table
 _Static_assert(sizeof(antumbra_hemi_options) == 16 + sizeof(void *), "hemi_options size");
 _Static_assert(alignof(antumbra_hemi_options) == alignof(void *), "hemi_options alignment");
 
+/* ---- antumbra_hemi_shading_options: the raster options, then four 4-byte fields ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, raster, antumbra_hemi_options), "raster type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, bands, uint32_t), "bands type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, method, uint32_t), "method type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, space, uint32_t), "space type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, near_radius, float), "near_radius type");
+_Static_assert(offsetof(antumbra_hemi_shading_options, raster) == 0, "shading_options.raster offset");
+_Static_assert(offsetof(antumbra_hemi_shading_options, bands) == sizeof(antumbra_hemi_options),
+               "shading_options.bands offset");
+_Static_assert(offsetof(antumbra_hemi_shading_options, method) == sizeof(antumbra_hemi_options) + 4,
+               "shading_options.method offset");
+_Static_assert(offsetof(antumbra_hemi_shading_options, space) == sizeof(antumbra_hemi_options) + 8,
+               "shading_options.space offset");
+_Static_assert(offsetof(antumbra_hemi_shading_options, near_radius) == sizeof(antumbra_hemi_options) + 12,
+               "shading_options.near_radius offset");
+_Static_assert(sizeof(antumbra_hemi_shading_options) == sizeof(antumbra_hemi_options) + 16, "shading_options size");
+_Static_assert(alignof(antumbra_hemi_shading_options) == alignof(void *), "shading_options alignment");
+
+/* ---- antumbra_hemi_material: ten floats, then two pointers ---- */
+_Static_assert(sizeof(((antumbra_hemi_material *)0)->albedo) == 3 * sizeof(float), "material.albedo is float[3]");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, albedo[0], float), "albedo element type");
+_Static_assert(sizeof(((antumbra_hemi_material *)0)->specular) == 3 * sizeof(float), "material.specular is float[3]");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, specular[0], float), "specular element type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, exponent, float), "exponent type");
+_Static_assert(sizeof(((antumbra_hemi_material *)0)->eye) == 3 * sizeof(float), "material.eye is float[3]");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, eye[0], float), "eye element type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, vertex_albedo, const float *), "vertex_albedo type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, view_directions, const float *), "view_directions type");
+_Static_assert(offsetof(antumbra_hemi_material, albedo) == 0, "material.albedo offset");
+_Static_assert(offsetof(antumbra_hemi_material, specular) == 12, "material.specular offset");
+_Static_assert(offsetof(antumbra_hemi_material, exponent) == 24, "material.exponent offset");
+_Static_assert(offsetof(antumbra_hemi_material, eye) == 28, "material.eye offset");
+_Static_assert(offsetof(antumbra_hemi_material, vertex_albedo) == 40, "material.vertex_albedo offset");
+_Static_assert(offsetof(antumbra_hemi_material, view_directions) == 40 + sizeof(void *),
+               "material.view_directions offset");
+_Static_assert(sizeof(antumbra_hemi_material) == 40 + 2 * sizeof(void *), "material size");
+_Static_assert(alignof(antumbra_hemi_material) == alignof(void *), "material alignment");
+
 /* ---- Literal numbers for the ABI at hand ---- */
 #if UINTPTR_MAX == UINT64_MAX
 /* LP64 (and LLP64, where the layout of these structs is the same). */
@@ -86,6 +124,11 @@ _Static_assert(sizeof(antumbra_mesh_view) == 40, "LP64 mesh_view size");
 _Static_assert(alignof(antumbra_mesh_view) == 8, "LP64 mesh_view alignment");
 _Static_assert(sizeof(antumbra_hemi_options) == 24, "LP64 hemi_options size");
 _Static_assert(alignof(antumbra_hemi_options) == 8, "LP64 hemi_options alignment");
+_Static_assert(offsetof(antumbra_hemi_shading_options, bands) == 24, "LP64 shading_options.bands");
+_Static_assert(offsetof(antumbra_hemi_shading_options, near_radius) == 36, "LP64 shading_options.near_radius");
+_Static_assert(sizeof(antumbra_hemi_shading_options) == 40, "LP64 shading_options size");
+_Static_assert(offsetof(antumbra_hemi_material, view_directions) == 48, "LP64 material.view_directions");
+_Static_assert(sizeof(antumbra_hemi_material) == 56, "LP64 material size");
 #elif UINTPTR_MAX == UINT32_MAX
 _Static_assert(sizeof(void *) == 4 && sizeof(size_t) == 4, "32-bit guard is honest");
 _Static_assert(offsetof(antumbra_mesh_view, vertex_count) == 4, "ILP32 mesh_view.vertex_count");
@@ -96,6 +139,11 @@ _Static_assert(sizeof(antumbra_mesh_view) == 20, "ILP32 mesh_view size");
 _Static_assert(alignof(antumbra_mesh_view) == 4, "ILP32 mesh_view alignment");
 _Static_assert(sizeof(antumbra_hemi_options) == 20, "ILP32 hemi_options size");
 _Static_assert(alignof(antumbra_hemi_options) == 4, "ILP32 hemi_options alignment");
+_Static_assert(offsetof(antumbra_hemi_shading_options, bands) == 20, "ILP32 shading_options.bands");
+_Static_assert(offsetof(antumbra_hemi_shading_options, near_radius) == 32, "ILP32 shading_options.near_radius");
+_Static_assert(sizeof(antumbra_hemi_shading_options) == 36, "ILP32 shading_options size");
+_Static_assert(offsetof(antumbra_hemi_material, view_directions) == 44, "ILP32 material.view_directions");
+_Static_assert(sizeof(antumbra_hemi_material) == 48, "ILP32 material size");
 #else
 #error "no literal layout written for this pointer width; add one"
 #endif
@@ -125,6 +173,11 @@ _Static_assert(ANTUMBRA_HEMI_VALID_CELL_COUNT == 812, "HEMI_VALID_CELL_COUNT");
 _Static_assert(ANTUMBRA_HEMI_TABLE_DEFAULT_RESOLUTION == 128, "HEMI_TABLE_DEFAULT_RESOLUTION");
 _Static_assert(ANTUMBRA_HEMI_TABLE_MAX_RESOLUTION == 1024, "HEMI_TABLE_MAX_RESOLUTION");
 _Static_assert(ANTUMBRA_SH_MAX_BANDS == 8, "SH_MAX_BANDS");
+_Static_assert(ANTUMBRA_HEMI_METHOD_CELLS == 0, "HEMI_METHOD_CELLS");
+_Static_assert(ANTUMBRA_HEMI_METHOD_LUT == 1, "HEMI_METHOD_LUT");
+_Static_assert(ANTUMBRA_HEMI_METHOD_DOWNSAMPLED == 2, "HEMI_METHOD_DOWNSAMPLED");
+_Static_assert(ANTUMBRA_HEMI_SPACE_WORLD == 0, "HEMI_SPACE_WORLD");
+_Static_assert(ANTUMBRA_HEMI_SPACE_LOCAL == 1, "HEMI_SPACE_LOCAL");
 _Static_assert(_Generic(ANTUMBRA_VERSION, uint32_t: 1, default: 0), "ANTUMBRA_VERSION is a uint32_t");
 _Static_assert(ANTUMBRA_VERSION ==
                    ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR,

@@ -77,6 +77,38 @@
 #define ANTUMBRA_HEMI_TABLE_MAX_RESOLUTION 1024
 
 /**
+ * `antumbra_hemi_shading_options.method`: the full per-cell sum of the exact cell
+ * integrals (the recommended method, the default).
+ */
+#define ANTUMBRA_HEMI_METHOD_CELLS 0
+
+/**
+ * `antumbra_hemi_shading_options.method`: the same sum by byte lookups of
+ * pre-summed weights (equal to the per-cell sum up to float rounding). Its table
+ * (1.2 MB at 3 bands, 8.4 MB at 8) is built on first use and kept until exit.
+ */
+#define ANTUMBRA_HEMI_METHOD_LUT 1
+
+/**
+ * `antumbra_hemi_shading_options.method`: the paper's 4×4 block downsampling (an
+ * 8×8 grid of coverage values); about 1 % from the full sum on average, 4 % at
+ * worst (measured on the bunny). Diffuse only: the glossy term always sums cells.
+ */
+#define ANTUMBRA_HEMI_METHOD_DOWNSAMPLED 2
+
+/**
+ * `antumbra_hemi_shading_options.space`: transfer vectors in world coefficients,
+ * ready to dot with world-space lighting (the default).
+ */
+#define ANTUMBRA_HEMI_SPACE_WORLD 0
+
+/**
+ * `antumbra_hemi_shading_options.space`: transfer vectors in each receiver's
+ * local frame (tangent, bitangent, normal) of `antumbra_frame_from_normal`.
+ */
+#define ANTUMBRA_HEMI_SPACE_LOCAL 1
+
+/**
  * Triangle index reported by a ray that hits nothing.
  */
 #define ANTUMBRA_INVALID_INDEX UINT32_MAX
@@ -85,6 +117,19 @@
  * The most SH bands supported (lmax = 7, 64 coefficients per channel).
  */
 #define ANTUMBRA_SH_MAX_BANDS 8
+
+/**
+ * Shading state for one mesh topology and one configuration, reused every frame.
+ * Opaque; create with `antumbra_hemi_shader_create`, free with
+ * `antumbra_hemi_shader_destroy`.
+ *
+ * It holds the validated options, the triangle clusters of the mesh (and far
+ * mesh) grouped once from the pose given at creation, the per-frame scratch
+ * memory, and the glossy lobe of the last exponent used. Calls on one shader run
+ * one at a time (an internal lock); use one shader per thread to shade several
+ * meshes at once.
+ */
+typedef struct antumbra_hemi_shader antumbra_hemi_shader;
 
 /**
  * A half-space table owned by the caller, for `antumbra_hemi_options.table`:
@@ -201,6 +246,109 @@ typedef struct antumbra_hemi_mask {
    */
   uint32_t rows[32];
 } antumbra_hemi_mask;
+
+/**
+ * Options of the per-vertex entry points. Fill with
+ * `antumbra_hemi_shading_options_init`, then change fields: fields may be added
+ * at the end in later versions, and `options_init` keeps old code correct.
+ *
+ * Layout: the 24-byte `antumbra_hemi_options` (20 on 32-bit targets), then four
+ * 4-byte fields; 40 bytes on 64-bit targets, 36 on 32-bit, no padding.
+ */
+typedef struct antumbra_hemi_shading_options {
+  /**
+   * How the masks are rasterized: quality, back-face culling, normal offset,
+   * parallel (1: vertices are split across the library's worker threads;
+   * results are identical either way) and table, exactly as for
+   * `antumbra_hemi_rasterize`. A caller-owned table given here must outlive
+   * every shader created with these options.
+   */
+  struct antumbra_hemi_options raster;
+  /**
+   * SH bands of the transfer vectors and the lighting: 1 to
+   * `ANTUMBRA_SH_MAX_BANDS` (8); `bands²` coefficients per vector. Default 3.
+   */
+  uint32_t bands;
+  /**
+   * How a mask becomes a transfer vector: `ANTUMBRA_HEMI_METHOD_CELLS` (0, the
+   * default), `ANTUMBRA_HEMI_METHOD_LUT` (1) or
+   * `ANTUMBRA_HEMI_METHOD_DOWNSAMPLED` (2). Every method costs well under a
+   * microsecond per vertex against tens for the mask itself.
+   */
+  uint32_t method;
+  /**
+   * The space of the vectors `antumbra_hemi_transfer` writes:
+   * `ANTUMBRA_HEMI_SPACE_WORLD` (0, the default) or `ANTUMBRA_HEMI_SPACE_LOCAL`
+   * (1). Shading always works in world space and ignores it.
+   */
+  uint32_t space;
+  /**
+   * With a far mesh: the distance from a receiver's vertex (not its lifted
+   * center of projection) within which occluders come from the full mesh. A
+   * full-mesh triangle is rasterized when at least one corner is within the
+   * radius (`|c - p|² <= near_radius²`), a far-mesh triangle when all its corners
+   * are beyond it, so the coarse surface never shadows the fine one near the
+   * receiver. Choose several far-mesh edge lengths. Mesh units, >= 0, or
+   * +INFINITY (the default: the full mesh everywhere, the far mesh unused).
+   * Ignored without a far mesh.
+   */
+  float near_radius;
+} antumbra_hemi_shading_options;
+
+/**
+ * The surface and viewer of `antumbra_hemi_shade`: a Lambertian term plus an
+ * optional normalised modified Phong lobe about the mirror direction of the view
+ * vector. Fill with `antumbra_hemi_material_init`, then change fields (fields may
+ * be added at the end in later versions).
+ *
+ * With incident radiance `L` (the lighting), visibility `V` (the mask), normal
+ * `n` and `r` the mirror direction of the unit vector `v` from the vertex towards
+ * the viewer (`r = 2 (n·v) n - v`), the outgoing radiance of a vertex is
+ *
+ * - diffuse: `albedo/π ∫ L V max(0, n·ω) dω = albedo/π Σ_k T_k l_k`;
+ * - glossy: `∫ L V f_r max(0, n·ω) dω` with
+ *   `f_r(ω) = specular (s + 2)/(2π) max(0, ω·r)^s` and `s = exponent`, so a
+ *   viewer along the normal of an unoccluded vertex under unit radiance sees
+ *   exactly `specular`; 0 when the viewer is behind the surface or at the vertex.
+ *
+ * Layout: ten floats (40 bytes), then two pointers; 56 bytes on 64-bit targets, 48
+ * on 32-bit, no padding.
+ */
+typedef struct antumbra_hemi_material {
+  /**
+   * Diffuse albedo (linear RGB, finite, >= 0) of every vertex unless
+   * `vertex_albedo` is set. Default (1, 1, 1).
+   */
+  float albedo[3];
+  /**
+   * Specular reflectance `ρ_s` (linear RGB, finite, >= 0; at most 1 per channel
+   * conserves energy). (0, 0, 0), the default, turns the glossy term off.
+   */
+  float specular[3];
+  /**
+   * Phong exponent `s` of the glossy lobe (finite, >= 0). Default 16. The lobe is
+   * sampled once per mask cell (cells about 3.6° wide): exponents up to about 64
+   * are resolved well.
+   */
+  float exponent;
+  /**
+   * The viewer's world position, used when `view_directions` is NULL. Finite,
+   * within ±1e12. Default (0, 0, 0).
+   */
+  float eye[3];
+  /**
+   * NULL (the default) or 3 floats per vertex of the mesh: the diffuse albedo of
+   * each vertex (finite, >= 0), replacing `albedo`. Borrowed for the call only.
+   */
+  const float *vertex_albedo;
+  /**
+   * NULL (the default: towards `eye` from each vertex) or 3 floats per vertex of
+   * the mesh: the unit direction from each vertex towards the viewer (finite,
+   * length within 1e-3 of 1), for orthographic or per-vertex views. Borrowed for
+   * the call only.
+   */
+  const float *view_directions;
+} antumbra_hemi_material;
 
 /**
  * The closest hit of one ray.
@@ -507,6 +655,334 @@ antumbra_result antumbra_hemi_cell_direction(uint32_t i,
  * `mask` must be NULL or valid for writing one `antumbra_hemi_mask`.
  */
 ANTUMBRA_NODISCARD antumbra_result antumbra_hemi_valid_mask(struct antumbra_hemi_mask *mask);
+
+/**
+ * Writes the default shading options: the defaults of `antumbra_hemi_options_init`
+ * in `raster` (exact quality, no back-face culling, normal offset 0, on the
+ * calling thread, the shared table), 3 bands, the per-cell method, world space,
+ * near radius +INFINITY.
+ *
+ * @param options the options to fill; every field is written.
+ *
+ * On a NULL or misaligned pointer nothing is written, and the thread's last error
+ * message and the error callback report ANTUMBRA_RESULT_NULL_ARGUMENT or
+ * ANTUMBRA_RESULT_INVALID_ARGUMENT.
+ * Thread safety: safe from any thread.
+ *
+ * # Safety
+ * `options` must be NULL or valid for writing one `antumbra_hemi_shading_options`.
+ */
+void antumbra_hemi_shading_options_init(struct antumbra_hemi_shading_options *options);
+
+/**
+ * Writes the default material: albedo (1, 1, 1), no glossy term (specular 0),
+ * exponent 16, eye at the origin, no per-vertex albedo or view directions.
+ *
+ * @param material the material to fill; every field is written.
+ *
+ * On a NULL or misaligned pointer nothing is written, and the thread's last error
+ * message and the error callback report ANTUMBRA_RESULT_NULL_ARGUMENT or
+ * ANTUMBRA_RESULT_INVALID_ARGUMENT.
+ * Thread safety: safe from any thread.
+ *
+ * # Safety
+ * `material` must be NULL or valid for writing one `antumbra_hemi_material`.
+ */
+void antumbra_hemi_material_init(struct antumbra_hemi_material *material);
+
+/**
+ * Creates a shader for a mesh topology (and optionally a far mesh's) and a
+ * configuration; the per-frame calls then take the current positions.
+ *
+ * @param mesh the full-resolution mesh whose every vertex is a receiver, in the
+ *        pose that groups its triangles into clusters (the rest pose; positions
+ *        are not kept). Its vertex and triangle counts are fixed for the shader's
+ *        life; the same validation as the per-frame calls applies.
+ * @param far_mesh NULL, or the simplified mesh for distant occluders in the same
+ *        pose (its counts are fixed too). A shader created without one cannot
+ *        take one later.
+ * @param options NULL for the defaults (see `antumbra_hemi_shading_options_init`),
+ *        or options as documented on `antumbra_hemi_shading_options`. They are
+ *        copied; a caller-owned table in `options->raster.table` is kept by
+ *        pointer and must outlive the shader.
+ * @param out receives the new shader on success; untouched on failure.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, out, or an array that is NULL
+ *         with a non-zero count); INVALID_ARGUMENT (an option out of its range,
+ *         misaligned array or struct, stride below 12, count overflow, a
+ *         coordinate beyond ±1e12); INDEX_OUT_OF_RANGE (an index of either
+ *         mesh); NON_FINITE (a position, options->raster.normal_offset, a NaN
+ *         options->near_radius); OUT_OF_MEMORY (the per-frame memory or the
+ *         shared half-space table); POISONED (options->raster.table); PANIC.
+ *
+ * Cost: groups the triangles (a sort of their centroids' Morton codes), reserves
+ * 12 + 24 bytes per vertex and about 5 bytes per triangle (both meshes), and builds the shared tables of this configuration on
+ * first use in the process (the SH cell integrals: about 10 ms at 3 bands, 26 ms
+ * at 8; the byte lookup table for ANTUMBRA_HEMI_METHOD_LUT, a few ms more; the
+ * half-space table for the table quality), kept until exit. Apart from the reported cases,
+ * an allocation failure aborts the process, as Rust allocations do.
+ * Ownership: the caller owns `*out` and frees it with
+ * `antumbra_hemi_shader_destroy`; the meshes are borrowed for the call only.
+ * Thread safety: safe from any thread; shaders are independent of each other.
+ *
+ * # Safety
+ * `mesh`, `far_mesh`, `options` and `out` must be NULL or valid; the arrays in the
+ * meshes valid for the counts and strides they give.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_hemi_shader_create(const struct antumbra_mesh_view *mesh,
+                                            const struct antumbra_mesh_view *far_mesh,
+                                            const struct antumbra_hemi_shading_options *options,
+                                            struct antumbra_hemi_shader **out);
+
+/**
+ * Frees a shader. NULL is a no-op.
+ *
+ * Ownership: takes back a shader from `antumbra_hemi_shader_create`; it must not
+ * be used afterwards. A caller-owned half-space table it used may be destroyed
+ * after this call.
+ * Thread safety: needs exclusive access: no call on this shader may be running.
+ *
+ * # Safety
+ * `shader` must be NULL or a live shader from `antumbra_hemi_shader_create`,
+ * destroyed at most once.
+ */
+void antumbra_hemi_shader_destroy(struct antumbra_hemi_shader *shader);
+
+/**
+ * Regroups a shader's triangle clusters from the current pose, for meshes whose
+ * shape changed so much since creation that the rest-pose clusters are no
+ * longer compact (shading gets slower, never different: results do not depend
+ * on the grouping).
+ *
+ * @param shader the shader.
+ * @param mesh the mesh in its current pose, with the shader's counts.
+ * @param far_mesh NULL (the far clusters are kept) or the far mesh in its current
+ *        pose, with the counts given at creation.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (counts differing
+ *         from the shader's, a far mesh for a shader created without one, and
+ *         the mesh checks of `antumbra_hemi_shader_create`); INDEX_OUT_OF_RANGE;
+ *         NON_FINITE; POISONED; PANIC (the shader is poisoned).
+ *
+ * Cost: a sort of the triangles' Morton codes (allocates temporary memory).
+ * Thread safety: calls on one shader run one at a time (an internal lock).
+ *
+ * # Safety
+ * `shader` must be NULL or a live shader; the meshes NULL or valid.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_hemi_shader_regroup(struct antumbra_hemi_shader *shader,
+                                             const struct antumbra_mesh_view *mesh,
+                                             const struct antumbra_mesh_view *far_mesh);
+
+/**
+ * Transfer vectors of every vertex of a mesh in its current pose, through a
+ * shader: as `antumbra_hemi_transfer` with the shader's options, allocating
+ * nothing and skipping whole clusters of triangles below each receiver's
+ * horizon (the results are identical).
+ *
+ * @param shader the shader, created for this mesh's topology.
+ * @param mesh the current pose: the vertex and triangle counts given at creation
+ *        (the indices may differ; they are validated every call).
+ * @param normals NULL (area-weighted normals are computed) or 3 floats per vertex,
+ *        as for `antumbra_hemi_transfer`.
+ * @param far_mesh NULL (no far mesh this frame) or the far mesh's current pose,
+ *        with the counts given at creation.
+ * @param transfer receives `vertex_count * bands²` floats, as for
+ *        `antumbra_hemi_transfer`; untouched on failure.
+ * @return as `antumbra_hemi_transfer`, plus INVALID_ARGUMENT for counts that
+ *         differ from the shader's and for a far mesh given to a shader created
+ *         without one; POISONED (the shader, or its caller-owned table); PANIC
+ *         (the shader and its caller-owned table are poisoned).
+ *
+ * Cost: O(vertices × triangles above each receiver's horizon); no allocation
+ * (rayon's scheduler aside, with options->raster.parallel).
+ * Thread safety: calls on one shader run one at a time (an internal lock:
+ * concurrent calls wait; each already uses every core with parallel = 1). Use
+ * one shader per thread to work on several meshes at once.
+ *
+ * # Safety
+ * `shader` must be NULL or a live shader; the other pointers NULL or valid for
+ * what they describe.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_hemi_shader_transfer(struct antumbra_hemi_shader *shader,
+                                              const struct antumbra_mesh_view *mesh,
+                                              const float *normals,
+                                              const struct antumbra_mesh_view *far_mesh,
+                                              float *transfer);
+
+/**
+ * Shaded colours of every vertex of a mesh in its current pose, through a
+ * shader: as `antumbra_hemi_shade` with the shader's options, allocating nothing
+ * per frame and skipping whole clusters of triangles below each receiver's
+ * horizon (the results are identical).
+ *
+ * @param shader the shader, created for this mesh's topology.
+ * @param mesh the current pose: the vertex and triangle counts given at creation.
+ * @param normals NULL (computed) or 3 floats per vertex, as for
+ *        `antumbra_hemi_shade`.
+ * @param far_mesh NULL (no far mesh this frame) or the far mesh's current pose,
+ *        with the counts given at creation.
+ * @param lighting `3 * bands²` floats of world SH incident radiance (bands of the
+ *        shader's options), as for `antumbra_hemi_shade`.
+ * @param material the material, as for `antumbra_hemi_shade`. The glossy lobe is
+ *        rebuilt (about 80 µs, no allocation) only when the exponent changes.
+ * @param rgb, diffuse, glossy as for `antumbra_hemi_shade`.
+ * @return as `antumbra_hemi_shade`, plus INVALID_ARGUMENT for counts that differ
+ *         from the shader's and for a far mesh given to a shader created without
+ *         one; POISONED (the shader, or its caller-owned table); PANIC (the
+ *         shader and its caller-owned table are poisoned).
+ *
+ * Cost: O(vertices × triangles above each receiver's horizon); no allocation
+ * (rayon's scheduler aside, with options->raster.parallel).
+ * Thread safety: calls on one shader run one at a time (an internal lock).
+ *
+ * # Safety
+ * `shader` must be NULL or a live shader; the other pointers NULL or valid for
+ * what they describe.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_hemi_shader_shade(struct antumbra_hemi_shader *shader,
+                                           const struct antumbra_mesh_view *mesh,
+                                           const float *normals,
+                                           const struct antumbra_mesh_view *far_mesh,
+                                           const float *lighting,
+                                           const struct antumbra_hemi_material *material,
+                                           float *rgb,
+                                           float *diffuse,
+                                           float *glossy);
+
+/**
+ * Spherical-harmonic transfer vectors of every vertex of a mesh, each vertex a
+ * receiver shadowed by the mesh itself (and, beyond `options->near_radius`, by
+ * `far_mesh`).
+ *
+ * For vertex v at position p with unit normal n, the mask of
+ * `antumbra_hemi_rasterize` (center of projection `p + normal_offset * n`, the
+ * options' quality and culling; with a far mesh, the near/far rule of
+ * `antumbra_hemi_shading_options.near_radius`) gives the visibility V, and
+ *
+ * `T_k = ∫ V(ω) y_k(ω) max(0, n·ω) dω`
+ *
+ * summed over the unoccluded cells with their exact integrals (`method`). In
+ * world space (the default) `y_k` are the world SH basis functions, so for world
+ * SH coefficients `l_k` of incident radiance the irradiance is `Σ_k T_k l_k` and a
+ * Lambertian vertex's radiance `albedo/π Σ_k T_k l_k`; in local space they are
+ * taken in the frame (tangent, bitangent, normal) of `antumbra_frame_from_normal`.
+ * An unoccluded vertex gets the clamped cosine about its normal: in local space
+ * its zonal coefficients at the m = 0 indices `l(l+1)` (`T_0 = √π/2 = 0.886227`,
+ * `T_2 = √(π/3) = 1.023327`, `T_6 = 0.495416`, 0 for odd l > 1) and 0 elsewhere;
+ * in world space `T_k = A_l Y_k(n)` (`A_0 = π`, `A_1 = 2π/3`, `A_2 = π/4`, ...).
+ * SH convention as `antumbra_sh_eval`: real, orthonormal, Condon–Shortley phase,
+ * coefficient (l, m) at index `l(l+1) + m`.
+ *
+ * @param mesh the mesh; every vertex is a receiver. Every index < vertex_count;
+ *        every position finite and within ±1e12; position_stride 0 or >= 12. A
+ *        mesh without vertices gives an empty result.
+ * @param normals NULL: area-weighted vertex normals are computed (the normalised
+ *        sum of the unnormalised face normals `(b - a) × (c - a)` around each
+ *        vertex, so counter-clockwise triangles give outward normals; a vertex in
+ *        no triangle, or whose sum is zero, gets (0, 0, 0)). Otherwise 3 floats
+ *        per vertex, finite, each unit length within 1e-3 (used as given) or
+ *        exactly (0, 0, 0). A vertex with a zero normal gets a zero vector.
+ * @param far_mesh NULL, or the simplified mesh for distant occluders, in the same
+ *        space and pose (same checks as `mesh`, only triangle corners range-checked).
+ * @param options NULL for the defaults, or see `antumbra_hemi_shading_options`.
+ * @param transfer receives `vertex_count * bands²` floats: vertex v's coefficients
+ *        at `transfer[v * bands² + l(l+1) + m]`; untouched on failure (except
+ *        after ANTUMBRA_RESULT_PANIC). Must not overlap any input (checked).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, transfer, or an array that is
+ *         NULL with a non-zero count); INVALID_ARGUMENT (an option out of its
+ *         range, misaligned array or struct, stride below 12, count overflow, a
+ *         coordinate beyond ±1e12, a normal that is neither unit nor zero,
+ *         overlapping output); INDEX_OUT_OF_RANGE (an index of either mesh);
+ *         NON_FINITE (a position, a normal, options->raster.normal_offset, a NaN
+ *         near_radius); OUT_OF_MEMORY (scratch memory, or the shared half-space
+ *         table on first use); POISONED (options->raster.table); PANIC (a
+ *         caller-owned table in use is poisoned).
+ *         Messages name the argument and index, e.g.
+ *         `normals[7] has length 0.5, neither 1 (tolerance 0.001) nor exactly 0`.
+ *
+ * Cost: O(vertices × triangles), every triangle read per receiver (a shader also
+ * skips clusters below the horizon); allocates 12 bytes per vertex for the
+ * normals. The first call with a configuration builds the shared tables it reads
+ * (see `antumbra_hemi_shader_create`). With options->raster.parallel = 1 the
+ * vertices are split across the library's worker threads; results are identical.
+ * Ownership: borrows every argument for the call only.
+ * Thread safety: any number of threads may call at once (the inputs and shared
+ * tables are only read).
+ *
+ * # Safety
+ * The arrays in the meshes must be valid for their counts and strides; a non-NULL
+ * `normals` for `3 * vertex_count` floats; `transfer` for
+ * `vertex_count * bands²` floats; `options` NULL or valid.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_hemi_transfer(const struct antumbra_mesh_view *mesh,
+                                       const float *normals,
+                                       const struct antumbra_mesh_view *far_mesh,
+                                       const struct antumbra_hemi_shading_options *options,
+                                       float *transfer);
+
+/**
+ * Diffuse and glossy radiance of every vertex of a mesh under world SH lighting,
+ * each vertex a receiver shadowed by the mesh itself (and, beyond
+ * `options->near_radius`, by `far_mesh`).
+ *
+ * Per vertex with visibility V (the mask, as for `antumbra_hemi_transfer`):
+ * diffuse `albedo/π Σ_k T_k l_k` with `T` the world transfer vector of
+ * `antumbra_hemi_transfer` (the options' method), and glossy
+ * `specular Σ_k G_k l_k` with `G_k = ∫ V(ω) (s + 2)/(2π) max(0, ω·r)^s y_k(ω)
+ * max(0, n·ω) dω` summed per unoccluded cell (the lobe at the cell's center,
+ * whatever the method), for the mirror direction r of the view (see
+ * `antumbra_hemi_material`). Lighting, transfer and colours are linear; no
+ * clamping: SH ringing of a sharp light can make a channel slightly negative.
+ *
+ * @param mesh, normals, far_mesh, options as for `antumbra_hemi_transfer`
+ *        (options->space is ignored). A vertex with a zero normal gets black.
+ * @param lighting `3 * bands²` floats (bands = options->bands): world SH
+ *        coefficients of incident radiance `L(ω)` (radiance arriving from
+ *        direction ω), red then green then blue, the layout
+ *        `antumbra_sh_project_equirect` writes. Finite.
+ * @param material the material and viewer (see `antumbra_hemi_material`).
+ * @param rgb NULL or receives 3 floats per vertex: diffuse + glossy.
+ * @param diffuse NULL or receives 3 floats per vertex: the diffuse term.
+ * @param glossy NULL or receives 3 floats per vertex: the glossy term (0 with
+ *        specular 0).
+ *        At least one of the three must be non-NULL (when there are vertices).
+ *        Untouched on failure (except after ANTUMBRA_RESULT_PANIC). They must
+ *        not overlap each other or any input array (checked).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, lighting, material, all three
+ *         outputs, or an array that is NULL with a non-zero count);
+ *         INVALID_ARGUMENT (as `antumbra_hemi_transfer`, plus a negative albedo or
+ *         specular channel or exponent, an eye beyond ±1e12, a view direction
+ *         that is not unit length, overlapping outputs); INDEX_OUT_OF_RANGE;
+ *         NON_FINITE (as `antumbra_hemi_transfer`, plus a lighting coefficient,
+ *         albedo, specular, exponent, eye or view direction); OUT_OF_MEMORY;
+ *         POISONED; PANIC. Messages name the argument and index, e.g.
+ *         `lighting[10] (channel green, coefficient 1) is nan; it must be finite`.
+ *
+ * Cost: as `antumbra_hemi_transfer`, plus about a microsecond per vertex for the
+ * glossy sum; allocates 36 bytes per vertex and builds the glossy lobe (80 µs) per call
+ * (a shader keeps both).
+ * Ownership: borrows every argument for the call only.
+ * Thread safety: any number of threads may call at once.
+ *
+ * # Safety
+ * As `antumbra_hemi_transfer`; `lighting` NULL or valid for `3 * bands²` floats;
+ * `material` NULL or valid, with its arrays NULL or valid for 3 floats per
+ * vertex; each non-NULL output valid for `3 * vertex_count` floats.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_hemi_shade(const struct antumbra_mesh_view *mesh,
+                                    const float *normals,
+                                    const struct antumbra_mesh_view *far_mesh,
+                                    const struct antumbra_hemi_shading_options *options,
+                                    const float *lighting,
+                                    const struct antumbra_hemi_material *material,
+                                    float *rgb,
+                                    float *diffuse,
+                                    float *glossy);
 
 /**
  * A static, NUL-terminated name for a result code, e.g.

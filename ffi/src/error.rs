@@ -27,7 +27,7 @@ impl Error {
         }
     }
 
-    pub(crate) fn null(argument: &str) -> Self {
+    pub(crate) fn null(argument: impl core::fmt::Display) -> Self {
         Error::new(ANTUMBRA_RESULT_NULL_ARGUMENT, format!("{argument} is NULL"))
     }
 

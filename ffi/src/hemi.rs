@@ -83,8 +83,8 @@ impl From<HemiMask> for antumbra_hemi_mask {
 /// `resolution² × 128` bytes of precomputed masks, immutable once built. Opaque;
 /// create with `antumbra_hemi_table_create`, free with `antumbra_hemi_table_destroy`.
 pub struct antumbra_hemi_table {
-    table: HalfSpaceTable,
-    poisoned: AtomicBool,
+    pub(crate) table: HalfSpaceTable,
+    pub(crate) poisoned: AtomicBool,
 }
 
 // Rasterizations read a table from many threads; keep that true by construction.
@@ -126,7 +126,7 @@ pub struct antumbra_hemi_options {
     pub table: *const antumbra_hemi_table,
 }
 
-const DEFAULT_OPTIONS: antumbra_hemi_options = antumbra_hemi_options {
+pub(crate) const DEFAULT_OPTIONS: antumbra_hemi_options = antumbra_hemi_options {
     quality: ANTUMBRA_HEMI_QUALITY_EXACT,
     cull_backfaces: 0,
     normal_offset: 0.0,
@@ -243,7 +243,7 @@ fn build_table(resolution: u32) -> Result<HalfSpaceTable, Error> {
 
 /// The library's shared table, built by the first call that needs it. A failed
 /// build (out of memory) is not remembered: a later call tries again.
-fn shared_table() -> Result<&'static HalfSpaceTable, Error> {
+pub(crate) fn shared_table() -> Result<&'static HalfSpaceTable, Error> {
     static TABLE: OnceLock<HalfSpaceTable> = OnceLock::new();
     // Serialises the builds so concurrent first calls build one table, not one
     // each (the OnceLock alone cannot report an allocation failure).
@@ -267,7 +267,7 @@ struct Settings<'t> {
     parallel: bool,
 }
 
-fn flag(value: u32, argument: &str) -> Result<bool, Error> {
+pub(crate) fn flag(value: u32, argument: &str) -> Result<bool, Error> {
     match value {
         0 => Ok(false),
         1 => Ok(true),
@@ -292,41 +292,55 @@ unsafe fn read_options<'a>(
         // SAFETY: non-NULL, so by contract a valid options struct.
         *unsafe { raw::reference(options, "options") }?
     };
+    // SAFETY: forwarded contract on `options.table`.
+    let table = unsafe { check_options(&options, "options->") }?;
+    Ok((options, table))
+}
+
+/// Checks every field of `options`, naming them `{prefix}quality`, ... in
+/// messages; returns the user table to use, if any (not the shared one).
+///
+/// # Safety
+/// `options.table` must be NULL or a live table for `'a`.
+pub(crate) unsafe fn check_options<'a>(
+    options: &antumbra_hemi_options,
+    prefix: &str,
+) -> Result<Option<&'a antumbra_hemi_table>, Error> {
     if options.quality > ANTUMBRA_HEMI_QUALITY_TABLE {
         return Err(Error::invalid(format!(
-            "options->quality is {}; expected ANTUMBRA_HEMI_QUALITY_EXACT (0) or \
+            "{prefix}quality is {}; expected ANTUMBRA_HEMI_QUALITY_EXACT (0) or \
              ANTUMBRA_HEMI_QUALITY_TABLE (1)",
             options.quality
         )));
     }
-    flag(options.cull_backfaces, "options->cull_backfaces")?;
-    flag(options.parallel, "options->parallel")?;
+    flag(options.cull_backfaces, &format!("{prefix}cull_backfaces"))?;
+    flag(options.parallel, &format!("{prefix}parallel"))?;
     let offset = options.normal_offset;
     if !offset.is_finite() {
         return Err(Error::new(
             ANTUMBRA_RESULT_NON_FINITE,
-            format!("options->normal_offset is {offset}; it must be finite"),
+            format!("{prefix}normal_offset is {offset}; it must be finite"),
         ));
     }
     if !(0.0..=MAX_COORDINATE).contains(&offset) {
         return Err(Error::invalid(format!(
-            "options->normal_offset is {offset}; expected 0 to {MAX_COORDINATE:e}"
+            "{prefix}normal_offset is {offset}; expected 0 to {MAX_COORDINATE:e}"
         )));
     }
-    let table = if options.quality == ANTUMBRA_HEMI_QUALITY_TABLE && !options.table.is_null() {
+    if options.quality == ANTUMBRA_HEMI_QUALITY_TABLE && !options.table.is_null() {
+        let argument = format!("{prefix}table");
         // SAFETY: non-NULL, so by contract a live table.
-        let table = unsafe { raw::reference(options.table, "options->table") }?;
+        let table = unsafe { raw::reference(options.table, &argument) }?;
         if table.poisoned.load(Ordering::Acquire) {
             return Err(Error::new(
                 ANTUMBRA_RESULT_POISONED,
-                "options->table was poisoned by an earlier internal error; destroy it",
+                format!("{argument} was poisoned by an earlier internal error; destroy it"),
             ));
         }
-        Some(table)
+        Ok(Some(table))
     } else {
-        None
-    };
-    Ok((options, table))
+        Ok(None)
+    }
 }
 
 /// Receivers per rayon task: one receiver costs microseconds (every triangle is
@@ -404,7 +418,7 @@ pub unsafe extern "C" fn antumbra_hemi_rasterize(
         let view = unsafe { raw::reference(mesh, "mesh") }?;
         // SAFETY: as above.
         let mesh = unsafe { mesh_from_c(view, "mesh") }?;
-        check_coordinate_range(&mesh)?;
+        check_coordinate_range(&mesh, "mesh")?;
         // SAFETY: caller contract on the receiver arrays.
         let receivers =
             unsafe { Receivers::new(receiver_positions, receiver_normals, receiver_count) }?;
@@ -436,14 +450,14 @@ pub unsafe extern "C" fn antumbra_hemi_rasterize(
 /// The vertices used by triangles must lie within ±MAX_COORDINATE, so that corner
 /// differences and their cross and triple products stay finite (a non-finite
 /// product would silently cull the triangle).
-fn check_coordinate_range(mesh: &MeshView<'_>) -> Result<(), Error> {
+pub(crate) fn check_coordinate_range(mesh: &MeshView<'_>, argument: &str) -> Result<(), Error> {
     match mesh
         .indices()
         .iter()
         .find(|&&v| mesh.position(v as usize).abs().max_element() > MAX_COORDINATE)
     {
         Some(&vertex) => Err(Error::invalid(format!(
-            "mesh->positions: vertex {vertex} has a coordinate beyond the supported range \
+            "{argument}->positions: vertex {vertex} has a coordinate beyond the supported range \
              of ±{MAX_COORDINATE:e}"
         ))),
         None => Ok(()),
@@ -529,7 +543,7 @@ impl<'a> Receivers<'a> {
     }
 }
 
-fn non_finite(argument: &str, k: usize, v: Vec3) -> Error {
+pub(crate) fn non_finite(argument: &str, k: usize, v: Vec3) -> Error {
     Error::new(
         ANTUMBRA_RESULT_NON_FINITE,
         format!("{argument}[{k}] ({}, {}, {}) is not finite", v.x, v.y, v.z),

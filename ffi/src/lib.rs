@@ -20,6 +20,7 @@ mod boundary;
 mod error;
 mod frame;
 mod hemi;
+mod hemi_shading;
 mod mesh;
 mod raw;
 mod result;
@@ -39,6 +40,14 @@ pub use hemi::{
     antumbra_hemi_options, antumbra_hemi_options_init, antumbra_hemi_rasterize,
     antumbra_hemi_table, antumbra_hemi_table_create, antumbra_hemi_table_destroy,
     antumbra_hemi_valid_mask,
+};
+pub use hemi_shading::{
+    ANTUMBRA_HEMI_METHOD_CELLS, ANTUMBRA_HEMI_METHOD_DOWNSAMPLED, ANTUMBRA_HEMI_METHOD_LUT,
+    ANTUMBRA_HEMI_SPACE_LOCAL, ANTUMBRA_HEMI_SPACE_WORLD, antumbra_hemi_material,
+    antumbra_hemi_material_init, antumbra_hemi_shade, antumbra_hemi_shader,
+    antumbra_hemi_shader_create, antumbra_hemi_shader_destroy, antumbra_hemi_shader_regroup,
+    antumbra_hemi_shader_shade, antumbra_hemi_shader_transfer, antumbra_hemi_shading_options,
+    antumbra_hemi_shading_options_init, antumbra_hemi_transfer,
 };
 pub use mesh::antumbra_mesh_view;
 pub use result::*;

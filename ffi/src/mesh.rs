@@ -56,17 +56,29 @@ pub(crate) unsafe fn mesh_from_c<'a>(
                 ))
             })?,
     };
-    let positions_argument = format!("{argument}->positions");
+    // Names as `format_args!`: formatted only on error, so a valid call allocates
+    // nothing.
     // SAFETY: forwarded contract on `view.positions` for `byte_len` bytes.
-    let bytes = unsafe { raw::slice(view.positions.cast::<u8>(), byte_len, &positions_argument) }?;
+    let bytes = unsafe {
+        raw::slice(
+            view.positions.cast::<u8>(),
+            byte_len,
+            format_args!("{argument}->positions"),
+        )
+    }?;
     let index_count = raw::element_count(
         view.triangle_count,
         3,
-        &format!("{argument}->triangle_count"),
+        format_args!("{argument}->triangle_count"),
     )?;
     // SAFETY: forwarded contract on `view.indices`.
-    let indices =
-        unsafe { raw::slice(view.indices, index_count, &format!("{argument}->indices")) }?;
+    let indices = unsafe {
+        raw::slice(
+            view.indices,
+            index_count,
+            format_args!("{argument}->indices"),
+        )
+    }?;
     MeshView::from_strided_bytes(bytes, view.vertex_count, stride, indices)
         .map_err(|e| mesh_error(e, argument))
 }

@@ -3,12 +3,22 @@
 //! `(NULL, 0)` is an empty slice, `(NULL, n > 0)` is `ANTUMBRA_RESULT_NULL_ARGUMENT`,
 //! a pointer not aligned for its element type or a byte size over `isize::MAX` is
 //! `ANTUMBRA_RESULT_INVALID_ARGUMENT`.
+//!
+//! Argument names are anything `Display` (`"mesh"`, or
+//! `format_args!("{argument}->indices")`), formatted only when there is an error to
+//! report, so validating a call allocates nothing.
+
+use core::fmt::Display;
 
 use crate::error::Error;
 
 /// Number of elements for `count` items of `per_item` elements each, or an error
 /// naming `argument` when it overflows.
-pub(crate) fn element_count(count: usize, per_item: usize, argument: &str) -> Result<usize, Error> {
+pub(crate) fn element_count(
+    count: usize,
+    per_item: usize,
+    argument: impl Display,
+) -> Result<usize, Error> {
     count.checked_mul(per_item).ok_or_else(|| {
         Error::invalid(format!(
             "{argument}: {count} items of {per_item} elements overflow size_t"
@@ -16,7 +26,7 @@ pub(crate) fn element_count(count: usize, per_item: usize, argument: &str) -> Re
     })
 }
 
-fn check_raw<T>(pointer: *const T, len: usize, argument: &str) -> Result<(), Error> {
+fn check_raw<T>(pointer: *const T, len: usize, argument: impl Display) -> Result<(), Error> {
     if pointer.is_null() {
         return Err(Error::new(
             crate::result::ANTUMBRA_RESULT_NULL_ARGUMENT,
@@ -46,7 +56,7 @@ fn check_raw<T>(pointer: *const T, len: usize, argument: &str) -> Result<(), Err
 pub(crate) unsafe fn slice<'a, T>(
     pointer: *const T,
     len: usize,
-    argument: &str,
+    argument: impl Display,
 ) -> Result<&'a [T], Error> {
     if len == 0 {
         return Ok(&[]);
@@ -65,7 +75,7 @@ pub(crate) unsafe fn slice<'a, T>(
 pub(crate) unsafe fn slice_mut<'a, T>(
     pointer: *mut T,
     len: usize,
-    argument: &str,
+    argument: impl Display,
 ) -> Result<&'a mut [T], Error> {
     if len == 0 {
         return Ok(&mut []);
@@ -78,7 +88,11 @@ pub(crate) unsafe fn slice_mut<'a, T>(
 /// Checks `len` writable elements at `pointer` without creating a reference, for
 /// outputs that may legally alias each other or the inputs: write them with
 /// `core::ptr` functions only.
-pub(crate) fn writable<T>(pointer: *mut T, len: usize, argument: &str) -> Result<*mut T, Error> {
+pub(crate) fn writable<T>(
+    pointer: *mut T,
+    len: usize,
+    argument: impl Display,
+) -> Result<*mut T, Error> {
     if len > 0 {
         check_raw(pointer.cast_const(), len, argument)?;
     }
@@ -89,7 +103,10 @@ pub(crate) fn writable<T>(pointer: *mut T, len: usize, argument: &str) -> Result
 ///
 /// # Safety
 /// A non-NULL `pointer` must point to a valid, aligned `T` for `'a`.
-pub(crate) unsafe fn reference<'a, T>(pointer: *const T, argument: &str) -> Result<&'a T, Error> {
+pub(crate) unsafe fn reference<'a, T>(
+    pointer: *const T,
+    argument: impl Display + Copy,
+) -> Result<&'a T, Error> {
     // SAFETY: forwarded contract; a one-element slice applies the same checks.
     let one = unsafe { slice(pointer, 1, argument) }.map_err(|e| {
         if pointer.is_null() {
