@@ -8,6 +8,10 @@
 //!   rasterize every triangle), against the baseline `receiver_bvh_rays`: tracing
 //!   the same 812 valid cell directions from the same centers with `BvhScene`;
 //! - `table_build`: building the default table once.
+//! - `triangle_table_pure` / `receiver_table_pure`: the same with the pure table
+//!   (the paper's method: every plane from the table, no exact edges);
+//!   `receiver_table_sized` / `receiver_table_pure_sized`: per receiver for table
+//!   resolutions 32 to 256 (132 KiB to 8 MiB), default exact edges and pure.
 //!
 //! Integration and shading (masks of the same receivers, built once):
 //!
@@ -234,6 +238,50 @@ fn receiver_bvh_rays(bencher: divan::Bencher<'_, '_>) {
 #[divan::bench(sample_count = 10)]
 fn table_build() -> HalfSpaceTable {
     HalfSpaceTable::new(HalfSpaceTable::DEFAULT_RESOLUTION)
+}
+
+/// Table resolutions timed per receiver: 132 KiB to 8 MiB.
+const TABLE_RESOLUTIONS: [u32; 7] = [32, 45, 64, 91, 128, 181, 256];
+
+/// The pure table (the paper's method): no exact edges.
+fn pure_table(resolution: u32) -> HalfSpaceTable {
+    HalfSpaceTable::new(resolution).with_exact_edges(0.0, f32::INFINITY)
+}
+
+#[divan::bench]
+fn triangle_table_pure(bencher: divan::Bencher<'_, '_>) {
+    let cones = Scene::new().cones();
+    let table = pure_table(HalfSpaceTable::DEFAULT_RESOLUTION);
+    bencher
+        .counter(divan::counter::ItemsCount::new(cones.len()))
+        .bench_local(|| {
+            let mut mask = HemiMask::EMPTY;
+            for cone in &cones {
+                mask |= cone.mask_table(&table);
+            }
+            mask
+        });
+}
+
+#[divan::bench]
+fn receiver_table_pure(bencher: divan::Bencher<'_, '_>) {
+    let scene = Scene::new();
+    let table = pure_table(HalfSpaceTable::DEFAULT_RESOLUTION);
+    receivers_with(bencher, &scene, Quality::Table(&table));
+}
+
+#[divan::bench(args = TABLE_RESOLUTIONS)]
+fn receiver_table_sized(bencher: divan::Bencher<'_, '_>, resolution: u32) {
+    let scene = Scene::new();
+    let table = HalfSpaceTable::new(resolution);
+    receivers_with(bencher, &scene, Quality::Table(&table));
+}
+
+#[divan::bench(args = TABLE_RESOLUTIONS)]
+fn receiver_table_pure_sized(bencher: divan::Bencher<'_, '_>, resolution: u32) {
+    let scene = Scene::new();
+    let table = pure_table(resolution);
+    receivers_with(bencher, &scene, Quality::Table(&table));
 }
 
 // --- integration and shading ---

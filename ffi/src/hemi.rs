@@ -39,15 +39,18 @@ pub const ANTUMBRA_HEMI_VALID_CELL_COUNT: u32 = 812;
 /// as covered). The default.
 pub const ANTUMBRA_HEMI_QUALITY_EXACT: u32 = 0;
 
-/// `antumbra_hemi_options.quality`: half-space masks looked up in a precomputed
-/// table (the paper's method): a few wrong cells along silhouette edges, several
-/// times faster per triangle.
+/// `antumbra_hemi_options.quality`: half-space masks looked up in a precomputed,
+/// octant-folded table (the paper's method) for mid-length edges, while edges too
+/// short or too long for the table's precision are rasterized exactly: >= 99.8 % of
+/// cells agree with Embree on the test meshes, at about 3/4 of the exact mode's time.
 pub const ANTUMBRA_HEMI_QUALITY_TABLE: u32 = 1;
 
-/// Entries per side of the default half-space table (`128² × 128` bytes = 2 MiB).
+/// Grid points per side of the default half-space table's octant of plane normals
+/// (`128 × 129 × 128` bytes, about 2 MiB: each mask is stored with its bit-reversed
+/// mirror image).
 pub const ANTUMBRA_HEMI_TABLE_DEFAULT_RESOLUTION: u32 = 128;
 
-/// Largest accepted table resolution (`1024² × 128` bytes = 128 MiB).
+/// Largest accepted table resolution (`1024 × 1025 × 128` bytes, about 128 MiB).
 pub const ANTUMBRA_HEMI_TABLE_MAX_RESOLUTION: u32 = 1024;
 
 const _: () = {
@@ -80,7 +83,8 @@ impl From<HemiMask> for antumbra_hemi_mask {
 }
 
 /// A half-space table owned by the caller, for `antumbra_hemi_options.table`:
-/// `resolution² × 128` bytes of precomputed masks, immutable once built. Opaque;
+/// `resolution × (resolution + 1) × 128` bytes of precomputed masks, immutable once
+/// built. Opaque;
 /// create with `antumbra_hemi_table_create`, free with `antumbra_hemi_table_destroy`.
 pub struct antumbra_hemi_table {
     pub(crate) table: HalfSpaceTable,
@@ -161,11 +165,12 @@ pub unsafe extern "C" fn antumbra_hemi_options_init(options: *mut antumbra_hemi_
 
 /// Builds a half-space table that the caller owns, for `antumbra_hemi_options.table`.
 ///
-/// @param resolution entries per side: 0 for the default
-///        (`ANTUMBRA_HEMI_TABLE_DEFAULT_RESOLUTION`, 128), or 1 to
-///        `ANTUMBRA_HEMI_TABLE_MAX_RESOLUTION` (1024). The table takes
-///        `resolution² × 128` bytes; wrong cells per half-space mask halve with each
-///        doubling (about 2.3 on average at 128).
+/// @param resolution grid points per side of the octant of plane normals: 0 for
+///        the default (`ANTUMBRA_HEMI_TABLE_DEFAULT_RESOLUTION`, 128), or 1 to
+///        `ANTUMBRA_HEMI_TABLE_MAX_RESOLUTION` (1024; 1 is raised to 2). The table
+///        takes `resolution × (resolution + 1) × 128` bytes; the pure table's wrong
+///        cells per half-space mask halve with each doubling (1.64 on average at
+///        128), and edges whose error would be too large are rasterized exactly.
 /// @param out receives the new table on success; untouched on failure.
 /// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (out); INVALID_ARGUMENT (resolution
 ///         above 1024, misaligned out); OUT_OF_MEMORY (the table's one allocation

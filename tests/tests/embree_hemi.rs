@@ -15,13 +15,17 @@
 //! ≥ 99.99 % of cells, and every disagreement must lie within a tiny angle of an
 //! edge plane of a triangle the direction nearly touches (where rounding of the
 //! corners, the frame or the ray decides, see `near_an_edge`); the default table
-//! (128 × 128) must agree on ≥ 99.5 % on the bunny and the teapot. On the random
-//! soup every edge is a silhouette edge, where the table's quantisation error
-//! shows (in a closed mesh the two sides of a shared edge are exact complements),
-//! and the default table reaches only about 98.7 % there (99.4 % at 256 × 256):
-//! that figure is asserted against 98.5 % so a regression still fails, and the
-//! shortfall against the 99.5 % is reported, not hidden. Other table sizes
-//! are reported, not asserted.
+//! quality (the octant table with its exact short and long edges, see
+//! `HalfSpaceTable`) must agree on ≥ 99.5 % on all four meshes: the bunny, the
+//! teapot (open), the Stanford armadillo (52,000 triangles, most under two
+//! degrees across from its vertices) and a random soup (every edge a
+//! silhouette). Other table sizes, and the pure table (the paper's method, no
+//! exact edges), are reported, not asserted.
+//!
+//! Measured: exact 100 % on all four; the default table (2 MiB) 99.955 % (bunny),
+//! 99.974 % (teapot), 99.966 % (armadillo), 99.866 % (soup); the pure 2 MiB table
+//! 99.79 / 99.87 / 97.49 / 99.08 %. The full table is in
+//! `HalfSpaceTable::DEFAULT_RESOLUTION`'s docs.
 
 use antumbra_core::hemi::{
     HalfSpaceTable, HemiMask, Quality, RasterOptions, Receiver, VALID_CELL_COUNT, cell_directions,
@@ -38,12 +42,11 @@ use rand::rngs::SmallRng;
 const RECEIVERS: usize = 300;
 const EXACT_REQUIRED: f64 = 0.9999;
 const TABLE_REQUIRED: f64 = 0.995;
-/// The default table's floor on the random soup (see the module docs).
-const TABLE_REQUIRED_SOUP: f64 = 0.985;
 /// Angle (radians) from an edge plane within which a disagreement is a rounding tie.
 const EDGE_EPS: f64 = 1e-5;
-/// Table sizes reported besides the default.
-const OTHER_TABLES: [u32; 3] = [32, 64, 256];
+/// Table resolutions reported besides the default, each with its default exact
+/// edges and as a pure table.
+const OTHER_TABLES: [u32; 7] = [32, 45, 64, 91, 128, 181, 256];
 
 /// Area-weighted vertex normals; `None` where they cancel out.
 fn vertex_normals(mesh: &Mesh) -> Vec<Option<Vec3>> {
@@ -99,7 +102,7 @@ impl Agreement {
     }
 }
 
-fn compare(name: &str, mesh: &Mesh, table_required: f64) {
+fn compare(name: &str, mesh: &Mesh) {
     let view = mesh.view();
     let (lo, hi) = mesh.bounds();
     let diag = (hi - lo).length();
@@ -136,9 +139,19 @@ fn compare(name: &str, mesh: &Mesh, table_required: f64) {
         .collect();
 
     let default_table = HalfSpaceTable::default();
-    let other_tables: Vec<HalfSpaceTable> = OTHER_TABLES
+    let other_tables: Vec<(String, HalfSpaceTable)> = OTHER_TABLES
         .iter()
-        .map(|&r| HalfSpaceTable::new(r))
+        .flat_map(|&r| {
+            let table = HalfSpaceTable::new(r);
+            let size = table.size_bytes() as f64 / 1024.0;
+            [
+                (format!("table-{r} ({size:.0} KiB)"), table.clone()),
+                (
+                    format!("pure-table-{r} ({size:.0} KiB)"),
+                    table.with_exact_edges(0.0, f32::INFINITY),
+                ),
+            ]
+        })
         .collect();
     let mut qualities: Vec<(String, Quality<'_>)> = vec![
         ("exact".into(), Quality::Exact),
@@ -147,7 +160,7 @@ fn compare(name: &str, mesh: &Mesh, table_required: f64) {
     qualities.extend(
         other_tables
             .iter()
-            .map(|t| (format!("table-{}", t.resolution()), Quality::Table(t))),
+            .map(|(name, t)| (name.clone(), Quality::Table(t))),
     );
 
     let mut results = Vec::new();
@@ -210,8 +223,8 @@ fn compare(name: &str, mesh: &Mesh, table_required: f64) {
         "{name}: exact disagreements away from every edge plane"
     );
     assert!(
-        table.fraction() >= table_required,
-        "{name}: table ({}) agreement {} below {table_required}",
+        table.fraction() >= TABLE_REQUIRED,
+        "{name}: table ({}) agreement {} below {TABLE_REQUIRED}",
         default_table.resolution(),
         table.fraction()
     );
@@ -219,20 +232,21 @@ fn compare(name: &str, mesh: &Mesh, table_required: f64) {
 
 #[test]
 fn bunny_masks_agree_with_embree() {
-    compare("bunny", &load_obj("bunny.obj"), TABLE_REQUIRED);
+    compare("bunny", &load_obj("bunny.obj"));
 }
 
 #[test]
 fn teapot_masks_agree_with_embree() {
-    compare("teapot", &load_obj("teapot.obj"), TABLE_REQUIRED);
+    compare("teapot", &load_obj("teapot.obj"));
+}
+
+#[test]
+fn armadillo_masks_agree_with_embree() {
+    compare("armadillo", &load_obj("armadillo.obj"));
 }
 
 #[test]
 fn random_soup_masks_agree_with_embree() {
     let mut rng = SmallRng::seed_from_u64(0x4e41);
-    compare(
-        "triangle soup",
-        &triangle_soup(&mut rng, 5000, 0.3),
-        TABLE_REQUIRED_SOUP,
-    );
+    compare("triangle soup", &triangle_soup(&mut rng, 5000, 0.3));
 }

@@ -16,22 +16,25 @@
 //!   every cell is the closed predicate `m·d >= 0` evaluated in one fixed `f32`
 //!   expression ([`half_space_mask`]). A cell is occluded exactly when its direction
 //!   is in the closed cone of some triangle; shared edges leave no pinholes.
-//! - table: the paper's precomputed masks for quantised plane normals
-//!   ([`HalfSpaceTable`]), three lookups and ANDs per triangle. A few wrong cells
-//!   along silhouette edges (the two sides of a shared edge stay exact
-//!   complements); measured figures in [`HalfSpaceTable::DEFAULT_RESOLUTION`].
+//! - table: the paper's precomputed masks for quantised plane normals (one
+//!   octant, [`HalfSpaceTable`]), three lookups and ANDs per triangle, except
+//!   that edges short or long for the table's error are rasterized exactly (a
+//!   rule on the edge alone, so shared edges stay exact complements). A few
+//!   wrong cells along silhouettes; figures in
+//!   [`HalfSpaceTable::DEFAULT_RESOLUTION`].
 //!
 //! Against Embree (tests/tests/embree_hemi.rs, 300 vertex receivers each on the
-//! bunny, the teapot and a 5,000-triangle soup), the exact masks agree on every
-//! cell; the default table on 99.66 % (bunny), 99.80 % (teapot) and 98.72 % (soup).
+//! bunny, the teapot, the armadillo and a 5,000-triangle soup), the exact masks
+//! agree on every cell; the default table on 99.955 % (bunny), 99.974 % (teapot),
+//! 99.966 % (armadillo) and 99.866 % (soup).
 //!
 //! Cost (`cargo bench -p antumbra-core --features bvh --bench hemi`, one thread of
 //! a 2-core VM, 3,712-triangle bumpy sphere): about 120 ns per triangle
-//! rasterized exactly and 30 ns from the table; per receiver 108 µs exact and
-//! 56 µs with the table, against 242 µs for tracing the same 812 rays with
-//! [`BvhScene`](crate::raycast). With the table, most of a receiver's time is
-//! reading and culling every triangle (about 9 ns each; most fall below the
-//! horizon).
+//! rasterized exactly, 88 ns with the default table and 38 ns from the pure table
+//! (no exact edges); per receiver 109 µs exact, 89 µs with the default table and
+//! 60 µs with the pure one, against 238 µs for tracing the same 812 rays with
+//! [`BvhScene`](crate::raycast). Much of a receiver's time is reading and culling
+//! every triangle (about 9 ns each; most fall below the horizon).
 //!
 //! Integration and shading (the rest of the paper's pipeline):
 //! [`TransferTable`] turns a mask into a local SH transfer vector with exact
