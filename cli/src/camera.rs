@@ -91,6 +91,22 @@ impl Camera {
         self.position
     }
 
+    /// Where `point` appears in the image: its image coordinates (see [`Camera`];
+    /// inside the picture when both are in `[0, 1]`) and its depth along the view
+    /// axis. `None` for points at or behind the camera's plane. The inverse of
+    /// [`Camera::direction`].
+    pub fn project(&self, point: Vec3) -> Option<(Vec2, f32)> {
+        let d = point - self.position;
+        let depth = d.dot(self.forward);
+        // Also rejects NaN.
+        if depth.is_nan() || depth <= 0.0 {
+            return None;
+        }
+        let x = d.dot(self.right) / (self.right.length_squared() * depth);
+        let y = d.dot(self.up) / (self.up.length_squared() * depth);
+        Some((Vec2::new(0.5 * (x + 1.0), 0.5 * (1.0 - y)), depth))
+    }
+
     /// Unnormalised direction of the ray through image point `p` (see [`Camera`]).
     pub fn direction(&self, p: Vec2) -> Vec3 {
         let ndc = Vec2::new(2.0 * p.x - 1.0, 1.0 - 2.0 * p.y);
@@ -110,6 +126,28 @@ mod tests {
         // Top of the image is up, left is −X when looking down −Z.
         assert!(camera.direction(Vec2::new(0.5, 0.0)).y > 0.0);
         assert!(camera.direction(Vec2::new(0.0, 0.5)).x < 0.0);
+    }
+
+    #[test]
+    fn projection_inverts_the_ray_directions() {
+        let camera = Camera::look_at(
+            Vec3::new(1.0, 2.0, 5.0),
+            Vec3::new(0.0, 0.5, 0.0),
+            Vec3::Y,
+            0.7,
+            1.5,
+        );
+        for p in [
+            Vec2::new(0.5, 0.5),
+            Vec2::new(0.1, 0.8),
+            Vec2::new(0.9, 0.3),
+        ] {
+            let point = camera.position() + 3.0 * camera.direction(p);
+            let (uv, depth) = camera.project(point).unwrap();
+            assert!((uv - p).abs().max_element() < 1e-5, "{uv} vs {p}");
+            assert!((depth - 3.0).abs() < 1e-4, "{depth}");
+        }
+        assert!(camera.project(camera.position() - camera.forward).is_none());
     }
 
     #[test]

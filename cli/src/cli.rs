@@ -37,8 +37,12 @@ pub enum Command {
     ///
     /// Writes PNG files into the output folder: ray-traced ambient occlusion of
     /// the Stanford bunny on a ground plane, the bunny lit by an HDR sunrise
-    /// environment map with ray-traced shadows, and a preview of that map. Prints
-    /// where each file went, its size and how long it took.
+    /// environment map with ray-traced shadows, and a preview of that map; then,
+    /// without rays, the bunny under the same sky in spherical harmonics,
+    /// shadowed per vertex by hemispherical rasterization, diffuse and glossy,
+    /// and a contact sheet of frames of the bunny twisting, re-shaded every frame
+    /// (with per-frame timings). Prints where each file went, its size and how
+    /// long it took.
     Demo(DemoArgs),
 
     /// Render your own OBJ mesh: ambient occlusion, or lighting from an
@@ -157,7 +161,16 @@ pub enum BenchCommand {
 
     /// Hemispherical rasterization: time per rasterized triangle (exact and table)
     /// and per receiver, against tracing the same cell directions with the BVH and
-    /// with Embree (one thread each), printed as ratios.
+    /// with Embree (one thread each), printed as ratios; then frames per second
+    /// shading every vertex of the deforming mesh.
+    ///
+    /// The frames: each twists the mesh about its vertical axis, recomputes the
+    /// normals and cluster boxes, and shades every vertex (diffuse + glossy, 16 SH
+    /// coefficients of the sunrise sky, Phong exponent 32), with the full mesh as
+    /// the only occluder and with a far mesh (vertex clustering with cells of 1/30
+    /// of the bounding-box diagonal) beyond a near radius of 1/10 of it, on one
+    /// thread and on all cores. Slow frames (large meshes without the far mesh)
+    /// are timed once: the armadillo takes minutes.
     Hemi(BenchHemiArgs),
 }
 
@@ -196,6 +209,10 @@ pub struct BenchHemiArgs {
     /// Skip the Embree figure (it needs the oracle's Python, see `verify hemi`).
     #[arg(long)]
     pub no_embree: bool,
+
+    /// Mask quality of the frames-per-second table.
+    #[arg(long, value_enum, default_value_t = QualityArg::Exact)]
+    pub quality: QualityArg,
 }
 
 /// Arguments of `antumbra verify`: a subcommand, or the ray-caster check's options.
@@ -234,7 +251,8 @@ pub enum VerifyCommand {
 pub enum QualityArg {
     /// Per-row analytic half-space masks, exact at cell centers.
     Exact,
-    /// The paper's precomputed half-space table (128x128 octahedral, 2 MiB).
+    /// The paper's precomputed half-space table (octant-folded, 2 MiB), with edges too
+    /// short or too long for its precision rasterized exactly.
     Table,
 }
 

@@ -12,13 +12,16 @@ mod cli;
 mod commands;
 mod envmap;
 mod error;
+mod hemi_shading;
 mod mesh;
 mod picture;
 mod progress;
+mod raster;
 mod ray_batch;
 mod render;
 mod sampling;
 mod scene;
+mod simplify;
 mod tonemap;
 
 use std::process::ExitCode;

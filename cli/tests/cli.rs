@@ -85,6 +85,9 @@ fn demo_writes_decodable_pictures_with_content() {
         "bunny-ambient-occlusion.png",
         "bunny-sunrise.png",
         "sunrise-environment.png",
+        "bunny-hemi-diffuse.png",
+        "bunny-hemi-glossy.png",
+        "bunny-hemi-twist.png",
     ] {
         let path = dir.join(name);
         assert!(
@@ -94,13 +97,25 @@ fn demo_writes_decodable_pictures_with_content() {
         let picture = image::open(&path)
             .unwrap_or_else(|e| panic!("{} does not decode: {e}", path.display()))
             .into_rgb8();
-        assert_eq!(picture.width(), 32, "{name}");
+        // The twist is a contact sheet of 2x2 frames, each as wide as the others.
+        let frames = if name.ends_with("twist.png") { 2 } else { 1 };
+        assert_eq!(picture.width(), 32 * frames, "{name}");
         let first = picture.get_pixel(0, 0);
         assert!(
             picture.pixels().any(|p| p != first),
             "{name} is all one colour"
         );
     }
+    // The hemi pictures: the diffuse and glossy bunnies differ, and the twist
+    // reports a time for each of its four frames.
+    let diffuse = image::open(dir.join("bunny-hemi-diffuse.png")).unwrap();
+    let glossy = image::open(dir.join("bunny-hemi-glossy.png")).unwrap();
+    assert_ne!(diffuse.as_bytes(), glossy.as_bytes());
+    let twist = summary
+        .lines()
+        .find(|line| line.contains("per frame"))
+        .unwrap_or_else(|| panic!("no per-frame timings:\n{summary}"));
+    assert_eq!(twist.matches(" ms").count(), 4, "{twist}");
 }
 
 #[test]
@@ -270,4 +285,43 @@ fn bench_hemi_reports_ratios_against_the_bvh() {
         "{text}"
     );
     assert!(text.contains("ns per rasterized triangle"), "{text}");
+    // The frames-per-second table: both rows, both thread counts, the far mesh.
+    for needle in [
+        "frames per second shading every vertex",
+        "far mesh: ",
+        "near radius",
+        "1 thread",
+        "far mesh speed-up",
+    ] {
+        assert!(text.contains(needle), "{needle} missing:\n{text}");
+    }
+    for row in ["full mesh ", "full near + far mesh "] {
+        let line = text
+            .lines()
+            .find(|line| line.starts_with(row))
+            .unwrap_or_else(|| panic!("no row {row}:\n{text}"));
+        assert_eq!(line.matches(" fps (").count(), 2, "{line}");
+    }
+}
+
+#[test]
+fn bench_hemi_frames_run_on_another_mesh_with_table_quality() {
+    let output = antumbra(&[
+        "bench",
+        "hemi",
+        "--mesh",
+        &data("teapot.obj"),
+        "--receivers",
+        "5",
+        "--min-time",
+        "1",
+        "--no-embree",
+        "--quality",
+        "table",
+    ]);
+    assert_success(&output);
+    let text = stdout(&output);
+    assert!(text.contains("table masks"), "{text}");
+    assert!(text.contains("triangles of 992"), "{text}");
+    assert!(text.contains("full near + far mesh"), "{text}");
 }

@@ -5,27 +5,33 @@
 //! area-weighted normals; the center of projection is pushed off the surface by
 //! [`OFFSET_OF_DIAGONAL`] of the bounding-box diagonal so that both the rasterizer
 //! and the rays see the surface from the same point.
+//!
+//! `bench hemi` ends with frames per second of a deforming mesh, every vertex
+//! shaded per frame, with and without the far mesh, on a one-thread rayon pool
+//! and on the default pool ([`crate::hemi_shading`] has the choices: SH order,
+//! window, far mesh size, near radius).
 
 use std::hint::black_box;
-use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 use antumbra_core::hemi::{
-    HalfSpaceTable, HemiMask, Quality, RasterOptions, Receiver, cell_direction,
-    rasterize_receiver_with_counts,
+    HemiMask, Material, Quality, RasterOptions, Receiver, TriangleClusters, VertexShading,
+    cell_direction, rasterize_receiver_with_counts,
 };
 use antumbra_core::raycast::BvhScene;
 use antumbra_core::{Ray, RayCaster};
 use antumbra_tests::oracle::{OracleOptions, try_cast};
 use glam::Vec3;
 
+use super::format_duration;
 use crate::builtin;
 use crate::cli::{BenchHemiArgs, QualityArg, VerifyHemiArgs};
 use crate::error::{Error, Result};
+use crate::hemi_shading::{
+    COEFFICIENTS, FAR_CELL_OF_DIAGONAL, LodMesh, NEAR_RADIUS_OF_DIAGONAL, OFFSET_OF_DIAGONAL,
+    PHONG_EXPONENT, Posed, Shader, Twist, half_space_table, sky_lighting,
+};
 use crate::mesh::TriangleMesh;
-
-/// Center of projection offset along the normal, as a fraction of the diagonal.
-const OFFSET_OF_DIAGONAL: f32 = 1e-3;
 
 /// Agreement `verify hemi` requires (the issue's acceptance figures).
 fn required_agreement(quality: QualityArg) -> f64 {
@@ -42,16 +48,10 @@ fn quality_name(quality: QualityArg) -> &'static str {
     }
 }
 
-/// The shared half-space table, built on first use.
-fn table() -> &'static HalfSpaceTable {
-    static TABLE: OnceLock<HalfSpaceTable> = OnceLock::new();
-    TABLE.get_or_init(HalfSpaceTable::default)
-}
-
 fn quality(arg: QualityArg) -> Quality<'static> {
     match arg {
         QualityArg::Exact => Quality::Exact,
-        QualityArg::Table => Quality::Table(table()),
+        QualityArg::Table => Quality::Table(half_space_table()),
     }
 }
 
@@ -168,7 +168,7 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
     let count = chosen.len().max(1) as f64;
     let view = mesh.view();
     let min_time = Duration::from_millis(args.min_time);
-    let _ = table();
+    let _ = half_space_table();
     println!(
         "bench hemi: {} ({} triangles), {} receivers, one thread, each figure repeated for at least {} ms",
         mesh.name(),
@@ -257,5 +257,129 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
         }
         println!();
     }
+    println!();
+    frame_rates(mesh, args.quality, min_time)
+}
+
+/// Twist angles the benchmark's frames cycle through, in degrees.
+const FRAME_TWIST_DEGREES: [f32; 4] = [0.0, 40.0, 80.0, 120.0];
+
+/// Calls `frame(k)` for `k = 0, 1, ...` (each returns its own time) until
+/// `min_time` has passed, the first call a warm-up unless it alone took
+/// `min_time` (then it is the measurement); returns the mean time per frame.
+fn time_frames(
+    min_time: Duration,
+    mut frame: impl FnMut(usize) -> Result<Duration>,
+) -> Result<Duration> {
+    let first = frame(0)?;
+    if first >= min_time {
+        return Ok(first);
+    }
+    let (mut total, mut count) = (Duration::ZERO, 0u32);
+    while count == 0 || total < min_time {
+        total += frame(count as usize + 1)?;
+        count += 1;
+    }
+    Ok(total / count)
+}
+
+/// The frames-per-second table of `bench hemi`: every vertex shaded per frame,
+/// with and without the far mesh, on one thread and on rayon's default pool.
+fn frame_rates(mesh: TriangleMesh, quality_arg: QualityArg, min_time: Duration) -> Result<()> {
+    let triangles = mesh.triangle_count();
+    let diagonal = mesh.bounds().diagonal();
+    let twist = Twist::of_bounds(&mesh.bounds());
+    let lod = LodMesh::new(mesh)?;
+    let shader = Shader::new();
+    let lighting = sky_lighting(&builtin::sunrise()?)?;
+    let center = lod.full.bounds().center();
+    let material = Material {
+        albedo: Vec3::splat(0.4),
+        specular: Vec3::splat(0.5),
+        lobe: Some(shader.lobe()),
+        eye: center + diagonal * Vec3::new(-0.4, 0.5, 1.1),
+    };
+    let quality = match quality_arg {
+        QualityArg::Exact => shader.quality(false),
+        QualityArg::Table => shader.quality(true),
+    };
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| Error::msg(format!("cannot start a one-thread pool: {e}")))?;
+    let threads = rayon::current_num_threads();
+    println!(
+        "frames per second shading every vertex ({} vertices; diffuse + glossy, {COEFFICIENTS} SH coefficients, \
+         Phong exponent {PHONG_EXPONENT}, {} masks, {}-triangle clusters); each frame twists the mesh, \
+         recomputes normals and cluster boxes, and shades",
+        lod.full.vertex_count(),
+        quality_name(quality_arg),
+        TriangleClusters::DEFAULT_SIZE
+    );
+    println!(
+        "far mesh: {} triangles of {triangles} (vertex clustering, cells of {:.4} = diagonal/{:.0}), near radius {:.4} (diagonal/{:.0})",
+        lod.far.triangle_count(),
+        lod.far_cell,
+        1.0 / FAR_CELL_OF_DIAGONAL,
+        lod.near_radius,
+        1.0 / NEAR_RADIUS_OF_DIAGONAL
+    );
+    let mut posed = Posed::new(&lod);
+    let mut out = vec![VertexShading::default(); lod.full.vertex_count()];
+    let mut rates = Vec::new();
+    for use_far in [false, true] {
+        let mut row = Vec::new();
+        for pool in [Some(&one), None] {
+            let mut frame = |k: usize| -> Result<Duration> {
+                let angle = FRAME_TWIST_DEGREES[k % FRAME_TWIST_DEGREES.len()].to_radians();
+                let mut run = || {
+                    posed.frame(
+                        |p| twist.apply(p, angle),
+                        &shader,
+                        quality,
+                        use_far,
+                        &lighting,
+                        &material,
+                        &mut out,
+                    )
+                };
+                let time = match pool {
+                    Some(pool) => pool.install(run)?,
+                    None => run()?,
+                };
+                Ok(time.total())
+            };
+            row.push(time_frames(min_time, &mut frame)?);
+        }
+        rates.push(row);
+    }
+    let cell = |d: Duration| {
+        let fps = 1.0 / d.as_secs_f64().max(1e-9);
+        // Three significant digits, also for the large meshes' fractions of a frame.
+        let digits = (2 - fps.log10().floor() as i32).clamp(1, 6) as usize;
+        format!("{fps:.digits$} fps ({})", format_duration(d))
+    };
+    println!();
+    println!(
+        "{:<24} {:>24} {:>24}",
+        "occluders",
+        "1 thread",
+        format!("{threads} threads")
+    );
+    for (name, row) in ["full mesh", "full near + far mesh"].iter().zip(&rates) {
+        println!("{name:<24} {:>24} {:>24}", cell(row[0]), cell(row[1]));
+    }
+    let speed_up = |k: usize| rates[0][k].as_secs_f64() / rates[1][k].as_secs_f64();
+    println!(
+        "{:<24} {:>24} {:>24}",
+        "far mesh speed-up",
+        format!("{:.2}x", speed_up(0)),
+        format!("{:.2}x", speed_up(1))
+    );
+    println!(
+        "all-core scaling on {threads} threads: full mesh {:.2}x, with the far mesh {:.2}x",
+        rates[0][0].as_secs_f64() / rates[0][1].as_secs_f64(),
+        rates[1][0].as_secs_f64() / rates[1][1].as_secs_f64()
+    );
     Ok(())
 }

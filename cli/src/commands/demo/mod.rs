@@ -3,17 +3,23 @@
 //!
 //! Each picture is a module with a `PICTURE` constant; adding one to the demo is
 //! a new module plus one line in [`PICTURES`]. Shared inputs (the bunny scene, the
-//! sky) are loaded on first use through [`DemoContext`].
+//! sky, the hemispherical-rasterization stage of [`hemi`]) are loaded on first use
+//! through [`DemoContext`].
 
 mod ambient_occlusion;
 mod environment_lighting;
 mod environment_preview;
+mod hemi;
+mod hemi_diffuse;
+mod hemi_glossy;
+mod hemi_twist;
 
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use super::{absolute, format_duration};
+use crate::bounds::Bounds;
 use crate::builtin;
 use crate::camera::{Camera, ViewAngles};
 use crate::cli::DemoArgs;
@@ -27,6 +33,9 @@ const PICTURES: &[DemoPicture] = &[
     ambient_occlusion::PICTURE,
     environment_lighting::PICTURE,
     environment_preview::PICTURE,
+    hemi_diffuse::PICTURE,
+    hemi_glossy::PICTURE,
+    hemi_twist::PICTURE,
 ];
 
 /// Where the bunny is seen from, in degrees around +Y (0 = from +Z): the sunrise
@@ -50,6 +59,7 @@ struct DemoContext {
     size: u32,
     bunny: OnceCell<Scene>,
     sky: OnceCell<(EnvironmentMap, EnvironmentSampler)>,
+    hemi_stage: OnceCell<hemi::HemiStage>,
 }
 
 impl DemoContext {
@@ -58,6 +68,7 @@ impl DemoContext {
             size,
             bunny: OnceCell::new(),
             sky: OnceCell::new(),
+            hemi_stage: OnceCell::new(),
         }
     }
 
@@ -70,18 +81,18 @@ impl DemoContext {
     /// The camera both bunny pictures share: three-quarter view from slightly
     /// above, the bunny filling most of the frame.
     fn bunny_camera(&self, scene: &Scene) -> Camera {
+        self.bunny_camera_for(&scene.object_bounds())
+    }
+
+    /// The bunny pictures' view of an object with these bounds.
+    fn bunny_camera_for(&self, bounds: &Bounds) -> Camera {
         let (width, height) = self.render_size();
         let view = ViewAngles {
             azimuth: BUNNY_VIEW_AZIMUTH_DEG.to_radians(),
             elevation: 22f32.to_radians(),
             vertical_fov: 35f32.to_radians(),
         };
-        Camera::framing(
-            &scene.object_bounds(),
-            view,
-            width as f32 / height as f32,
-            0.08,
-        )
+        Camera::framing(bounds, view, width as f32 / height as f32, 0.08)
     }
 
     /// The built-in bunny on a ground plane, in a BVH.
@@ -91,6 +102,17 @@ impl DemoContext {
         }
         let scene = Scene::new(&builtin::bunny()?, true)?;
         Ok(self.bunny.get_or_init(|| scene))
+    }
+
+    /// The built-in bunny on a ground with its far mesh, the sunrise in SH and the
+    /// shading tables, for the hemispherical-rasterization pictures.
+    fn hemi_stage(&self) -> Result<&hemi::HemiStage> {
+        if let Some(stage) = self.hemi_stage.get() {
+            return Ok(stage);
+        }
+        let (env, _) = self.sky()?;
+        let stage = hemi::HemiStage::new(builtin::bunny()?, env)?;
+        Ok(self.hemi_stage.get_or_init(|| stage))
     }
 
     /// The built-in sunrise sky and its importance sampler.
