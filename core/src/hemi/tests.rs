@@ -249,10 +249,17 @@ proptest! {
 /// A convex planar quad, not seen at a grazing angle from the origin, corners
 /// counter-clockwise or clockwise.
 fn convex_quad() -> impl Strategy<Value = [Vec3; 4]> {
+    convex_quad_sized((0.02f32..3.0, 0.02f32..3.0))
+}
+
+/// [`convex_quad`] with the quad's two half-extents drawn from `sizes`.
+pub(super) fn convex_quad_sized(
+    sizes: impl Strategy<Value = (f32, f32)>,
+) -> impl Strategy<Value = [Vec3; 4]> {
     (
         (-3.0f32..3.0, -3.0f32..3.0, -1.0f32..4.0),
         (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0),
-        (0.02f32..3.0, 0.02f32..3.0),
+        sizes,
         proptest::array::uniform4(-0.6f32..0.6),
         any::<bool>(),
     )
