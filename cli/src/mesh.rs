@@ -142,15 +142,10 @@ impl TriangleMesh {
     /// Area weighting comes for free: the unnormalised cross product is twice the
     /// triangle's area times its unit normal.
     pub fn vertex_normals(&self) -> Vec<Vec3> {
-        let mut sums = vec![Vec3::ZERO; self.positions.len()];
-        for corners in self.indices.chunks_exact(3) {
-            let [a, b, c] = [0, 1, 2].map(|k| Vec3::from(self.positions[corners[k] as usize]));
-            let weighted = (b - a).cross(c - a);
-            for &vertex in corners {
-                sums[vertex as usize] += weighted;
-            }
-        }
-        sums.into_iter().map(Vec3::normalize_or_zero).collect()
+        let mut normals = vec![Vec3::ZERO; self.positions.len()];
+        antumbra_core::hemi::vertex_normals(&self.view(), &mut normals)
+            .expect("one normal per vertex");
+        normals
     }
 }
 
