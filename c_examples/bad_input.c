@@ -527,8 +527,7 @@ static void test_ssv_create(void)
     memcpy(shifted + 1, ssv_light, sizeof ssv_light);
     expect_ssv_create_fails("ssv misaligned light", &mesh, offset_pointer(shifted, 1), 4, ssv_samples, 5, NULL,
                             ANTUMBRA_RESULT_INVALID_ARGUMENT, "light_vertices", "aligned");
-    memcpy(shifted + 2, ssv_samples, 4 * 3 * sizeof(float) > sizeof shifted - 2 ? sizeof shifted - 2
-                                                                                 : 4 * 3 * sizeof(float));
+    memcpy(shifted + 2, ssv_samples, 3 * sizeof(float));
     expect_ssv_create_fails("ssv misaligned samples", &mesh, ssv_light, 4, offset_pointer(shifted, 2), 1, NULL,
                             ANTUMBRA_RESULT_INVALID_ARGUMENT, "samples", "aligned");
 
