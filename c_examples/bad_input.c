@@ -406,6 +406,350 @@ static void test_queries(void)
 }
 
 /* ------------------------------------------------------------------------- */
+/* Soft shadows                                                                */
+/* ------------------------------------------------------------------------- */
+
+/* A unit square light at z = 2 over the square mesh (which lies at z = 0), and
+ * five samples on it: its centre and four points near its corners. */
+static const float ssv_light[4 * 3] = {0.0f, 0.0f, 2.0f, 1.0f, 0.0f, 2.0f, 1.0f, 1.0f, 2.0f, 0.0f, 1.0f, 2.0f};
+static const float ssv_samples[5 * 3] = {0.5f, 0.5f, 2.0f, 0.1f, 0.1f, 2.0f, 0.9f, 0.1f, 2.0f,
+                                         0.9f, 0.9f, 2.0f, 0.1f, 0.9f, 2.0f};
+
+static antumbra_result ssv_create_with(const antumbra_mesh_view *mesh, const float *light, size_t light_count,
+                                       const float *samples, size_t sample_count, const antumbra_ssv_options *options,
+                                       antumbra_ssv **out)
+{
+    return antumbra_ssv_create(mesh, light, light_count, samples, sample_count, options, out);
+}
+
+/* ssv_create fails with the exact code and message; *out stays untouched. */
+static void expect_ssv_create_fails(const char *what, const antumbra_mesh_view *mesh, const float *light,
+                                    size_t light_count, const float *samples, size_t sample_count,
+                                    const antumbra_ssv_options *options, antumbra_result want, const char *fragment,
+                                    const char *fragment2)
+{
+    antumbra_ssv *out;
+    memset(&out, SENTINEL, sizeof out);
+    expect_failure(what, ssv_create_with(mesh, light, light_count, samples, sample_count, options, &out), want,
+                   "antumbra_ssv_create", fragment, fragment2, (const char *)NULL);
+    expect_untouched(what, &out, sizeof out);
+}
+
+static void test_ssv_create(void)
+{
+    antumbra_mesh_view mesh = square_mesh();
+    antumbra_ssv_options options;
+    antumbra_ssv *ssv = NULL;
+    float light[17 * 3];
+    float samples[1025 * 3];
+    unsigned char shifted[sizeof ssv_light + 8];
+    size_t i;
+
+    /* The good call first, so the failures below are failures of validation. */
+    expect_success("ssv create", antumbra_ssv_create(&mesh, ssv_light, 4, ssv_samples, 5, NULL, &ssv));
+    expect(ssv != NULL, "ssv create: OK but NULL handle");
+    antumbra_ssv_destroy(ssv);
+
+    expect_ssv_create_fails("ssv NULL occluders", NULL, ssv_light, 4, ssv_samples, 5, NULL,
+                            ANTUMBRA_RESULT_NULL_ARGUMENT, ": occluders is NULL", NULL);
+    expect_failure("ssv NULL out", antumbra_ssv_create(&mesh, ssv_light, 4, ssv_samples, 5, NULL, NULL),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_ssv_create", ": out is NULL", (const char *)NULL);
+    expect_ssv_create_fails("ssv NULL light", &mesh, NULL, 4, ssv_samples, 5, NULL, ANTUMBRA_RESULT_NULL_ARGUMENT,
+                            "light_vertices is NULL", NULL);
+    expect_ssv_create_fails("ssv NULL samples", &mesh, ssv_light, 4, NULL, 5, NULL, ANTUMBRA_RESULT_NULL_ARGUMENT,
+                            "samples is NULL", NULL);
+    mesh.indices = NULL;
+    expect_ssv_create_fails("ssv NULL mesh indices", &mesh, ssv_light, 4, ssv_samples, 5, NULL,
+                            ANTUMBRA_RESULT_NULL_ARGUMENT, "occluders->indices is NULL", NULL);
+    mesh = square_mesh();
+
+    /* Light vertex counts: 3..16. */
+    expect_ssv_create_fails("ssv 0 light vertices", &mesh, NULL, 0, ssv_samples, 5, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "light_vertex_count is 0", NULL);
+    expect_ssv_create_fails("ssv 2 light vertices", &mesh, ssv_light, 2, ssv_samples, 5, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "light_vertex_count is 2", NULL);
+    /* A 17-gon, convex and planar, is still too many. */
+    for (i = 0; i < 17; ++i) {
+        light[3 * i + 0] = 0.5f + 0.5f * cosf(2.0f * 3.14159265f * (float)i / 17.0f);
+        light[3 * i + 1] = 0.5f + 0.5f * sinf(2.0f * 3.14159265f * (float)i / 17.0f);
+        light[3 * i + 2] = 2.0f;
+    }
+    expect_ssv_create_fails("ssv 17 light vertices", &mesh, light, 17, ssv_samples, 1, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "light_vertex_count is 17", NULL);
+    ssv = NULL;
+    expect_success("ssv 16-gon light", antumbra_ssv_create(&mesh, light, 16, ssv_samples, 1, NULL, &ssv));
+    antumbra_ssv_destroy(ssv);
+
+    /* Non-planar, non-convex, degenerate, NaN lights. */
+    memcpy(light, ssv_light, sizeof ssv_light);
+    light[2 * 3 + 2] = 2.2f;
+    expect_ssv_create_fails("ssv non-planar light", &mesh, light, 4, ssv_samples, 1, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "light_vertices[", "plane");
+    memcpy(light, ssv_light, sizeof ssv_light);
+    light[2 * 3 + 0] = 0.4f; /* (0.4, 0.4) pulls corner 2 inside: a dart, not convex */
+    light[2 * 3 + 1] = 0.4f;
+    expect_ssv_create_fails("ssv non-convex light", &mesh, light, 4, ssv_samples, 1, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "not convex", "light_vertices[");
+    memcpy(light, ssv_light, sizeof ssv_light);
+    memcpy(&light[3], &light[0], 3 * sizeof(float));
+    expect_ssv_create_fails("ssv repeated light vertex", &mesh, light, 4, ssv_samples, 1, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "light_vertices", "degenerate");
+    memcpy(light, ssv_light, sizeof ssv_light);
+    light[3 * 3 + 1] = NAN;
+    expect_ssv_create_fails("ssv NaN light vertex", &mesh, light, 4, ssv_samples, 1, NULL,
+                            ANTUMBRA_RESULT_NON_FINITE, "light_vertices[3]", NULL);
+
+    /* Samples: 1..1024 of them, each on the light. */
+    expect_ssv_create_fails("ssv 0 samples", &mesh, ssv_light, 4, ssv_samples, 0, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "sample_count is 0", NULL);
+    for (i = 0; i < 1025; ++i) {
+        memcpy(&samples[3 * i], &ssv_samples[3 * (i % 5)], 3 * sizeof(float));
+    }
+    expect_ssv_create_fails("ssv 1025 samples", &mesh, ssv_light, 4, samples, 1025, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "sample_count is 1025", NULL);
+    ssv = NULL;
+    expect_success("ssv 1024 samples", antumbra_ssv_create(&mesh, ssv_light, 4, samples, 1024, NULL, &ssv));
+    antumbra_ssv_destroy(ssv);
+    memcpy(samples, ssv_samples, sizeof ssv_samples);
+    samples[3 * 3 + 2] = 2.01f; /* off the light's plane */
+    expect_ssv_create_fails("ssv sample off the plane", &mesh, ssv_light, 4, samples, 5, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "samples[3]", "off the light");
+    memcpy(samples, ssv_samples, sizeof ssv_samples);
+    samples[4 * 3 + 0] = 1.5f; /* on the plane, outside the square */
+    expect_ssv_create_fails("ssv sample outside the light", &mesh, ssv_light, 4, samples, 5, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "samples[4]", "off the light");
+    memcpy(samples, ssv_samples, sizeof ssv_samples);
+    samples[1 * 3 + 0] = INFINITY;
+    expect_ssv_create_fails("ssv infinite sample", &mesh, ssv_light, 4, samples, 5, NULL,
+                            ANTUMBRA_RESULT_NON_FINITE, "samples[1]", NULL);
+
+    /* Misaligned float arrays. */
+    memcpy(shifted + 1, ssv_light, sizeof ssv_light);
+    expect_ssv_create_fails("ssv misaligned light", &mesh, offset_pointer(shifted, 1), 4, ssv_samples, 5, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "light_vertices", "aligned");
+    memcpy(shifted + 2, ssv_samples, 3 * sizeof(float));
+    expect_ssv_create_fails("ssv misaligned samples", &mesh, ssv_light, 4, offset_pointer(shifted, 2), 1, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "samples", "aligned");
+
+    /* A bad mesh is named as the occluders. */
+    mesh = square_mesh();
+    mesh.position_stride = 8;
+    expect_ssv_create_fails("ssv stride 8", &mesh, ssv_light, 4, ssv_samples, 5, NULL,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "occluders->position_stride", NULL);
+    mesh = square_mesh();
+    {
+        uint32_t indices[6];
+        memcpy(indices, square_indices, sizeof indices);
+        indices[4] = 9;
+        mesh.indices = indices;
+        expect_ssv_create_fails("ssv index out of range", &mesh, ssv_light, 4, ssv_samples, 5, NULL,
+                                ANTUMBRA_RESULT_INDEX_OUT_OF_RANGE, "occluders->indices[4]", NULL);
+    }
+
+    /* Options: every field checked. */
+    mesh = square_mesh();
+    antumbra_ssv_options_init(&options);
+    options.structure = 4;
+    expect_ssv_create_fails("ssv structure 4", &mesh, ssv_light, 4, ssv_samples, 5, &options,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->structure is 4", NULL);
+    antumbra_ssv_options_init(&options);
+    options.leaf_edges = 0;
+    expect_ssv_create_fails("ssv leaf_edges 0", &mesh, ssv_light, 4, ssv_samples, 5, &options,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->leaf_edges", NULL);
+    antumbra_ssv_options_init(&options);
+    options.max_depth = ANTUMBRA_SSV_MAX_DEPTH_LIMIT + 1;
+    expect_ssv_create_fails("ssv max_depth too deep", &mesh, ssv_light, 4, ssv_samples, 5, &options,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->max_depth", NULL);
+    antumbra_ssv_options_init(&options);
+    options.hemicube_resolution = 0;
+    expect_ssv_create_fails("ssv hemicube_resolution 0", &mesh, ssv_light, 4, ssv_samples, 5, &options,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->hemicube_resolution", NULL);
+    antumbra_ssv_options_init(&options);
+    options.parallel = 2;
+    expect_ssv_create_fails("ssv parallel 2", &mesh, ssv_light, 4, ssv_samples, 5, &options,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->parallel", NULL);
+    antumbra_ssv_options_init(&options);
+    options.use_root_bounds = 1; /* root_min == root_max == 0: an empty box */
+    expect_ssv_create_fails("ssv empty root box", &mesh, ssv_light, 4, ssv_samples, 5, &options,
+                            ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->root_min", NULL);
+    options.root_max[0] = options.root_max[1] = options.root_max[2] = 1.0f;
+    options.root_min[1] = NAN;
+    expect_ssv_create_fails("ssv NaN root box", &mesh, ssv_light, 4, ssv_samples, 5, &options,
+                            ANTUMBRA_RESULT_NON_FINITE, "options->root_min", NULL);
+    expect_ssv_create_fails("ssv misaligned options", &mesh, ssv_light, 4, ssv_samples, 5,
+                            offset_pointer(&options, 1), ANTUMBRA_RESULT_INVALID_ARGUMENT, "options", "aligned");
+
+    /* options_init on NULL writes nothing and says so. */
+    antumbra_ssv_options_init(NULL);
+    expect_failure("ssv options_init(NULL)", ANTUMBRA_RESULT_NULL_ARGUMENT, ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_ssv_options_init", "options is NULL", (const char *)NULL);
+
+    /* No occluders at all is fine: everything is lit. */
+    mesh = square_mesh();
+    mesh.indices = NULL;
+    mesh.triangle_count = 0;
+    ssv = NULL;
+    expect_success("ssv no occluders", antumbra_ssv_create(&mesh, ssv_light, 4, ssv_samples, 5, NULL, &ssv));
+    if (ssv != NULL) {
+        const float point[3] = {0.5f, 0.5f, -1.0f};
+        uint64_t bits = 0;
+        uint32_t count = 0;
+        expect_success("ssv query, no occluders", antumbra_ssv_query(ssv, point, 1, &bits, &count));
+        expect(bits == 0x1f && count == 5, "no occluders: bits 0x%lx, count %u", (unsigned long)bits,
+               (unsigned)count);
+    }
+    antumbra_ssv_destroy(ssv);
+
+    /* Destroying nothing is allowed. */
+    antumbra_ssv_destroy(NULL);
+    ++checks_run;
+}
+
+/* Both outputs pre-filled with the sentinel; the query fails and writes neither. */
+static void expect_ssv_query_fails(const char *what, const antumbra_ssv *ssv, const float *points, size_t count,
+                                   uint64_t *bits, uint32_t *counts, antumbra_result want, const char *fragment,
+                                   const char *fragment2)
+{
+    expect_failure(what, antumbra_ssv_query(ssv, points, count, bits, counts), want, "antumbra_ssv_query", fragment,
+                   fragment2, (const char *)NULL);
+}
+
+static void test_ssv_query(void)
+{
+    antumbra_mesh_view mesh = square_mesh();
+    antumbra_ssv *ssv = NULL;
+    antumbra_ssv_statistics stats;
+    /* Below the square (z = -1): the square hides the whole light from (0.5, 0.5)
+     * and none of it from (3, 3). */
+    float points[3 * 3] = {0.5f, 0.5f, -1.0f, 3.0f, 3.0f, -1.0f, -3.0f, 0.5f, -1.0f};
+    uint64_t bits[4];
+    uint32_t counts[4];
+    unsigned char shifted[sizeof points + sizeof bits + 8];
+
+    expect_success("ssv create (query)", antumbra_ssv_create(&mesh, ssv_light, 4, ssv_samples, 5, NULL, &ssv));
+    if (ssv == NULL) {
+        return;
+    }
+    memset(bits, SENTINEL, sizeof bits);
+    memset(counts, SENTINEL, sizeof counts);
+    expect_success("ssv query", antumbra_ssv_query(ssv, points, 3, bits, counts));
+    expect(bits[0] == 0 && counts[0] == 0 && bits[1] == 0x1f && counts[1] == 5 && bits[2] == 0x1f && counts[2] == 5,
+           "ssv query: bits %lx %lx %lx, counts %u %u %u", (unsigned long)bits[0], (unsigned long)bits[1],
+           (unsigned long)bits[2], (unsigned)counts[0], (unsigned)counts[1], (unsigned)counts[2]);
+    expect(bits[3] == (uint64_t)0xA5A5A5A5A5A5A5A5u && counts[3] == 0xA5A5A5A5u,
+           "ssv query wrote past point_count");
+    /* visible_counts may be NULL. */
+    memset(bits, SENTINEL, sizeof bits);
+    expect_success("ssv query, NULL counts", antumbra_ssv_query(ssv, points, 3, bits, NULL));
+    expect(bits[1] == 0x1f, "ssv query, NULL counts: bits %lx", (unsigned long)bits[1]);
+    /* An empty batch may be all NULL. */
+    expect_success("ssv query, empty", antumbra_ssv_query(ssv, NULL, 0, NULL, NULL));
+
+    memset(bits, SENTINEL, sizeof bits);
+    memset(counts, SENTINEL, sizeof counts);
+    expect_ssv_query_fails("ssv query NULL handle", NULL, points, 3, bits, counts, ANTUMBRA_RESULT_NULL_ARGUMENT,
+                           "ssv is NULL", NULL);
+    expect_ssv_query_fails("ssv query NULL points", ssv, NULL, 3, bits, counts, ANTUMBRA_RESULT_NULL_ARGUMENT,
+                           "points is NULL", NULL);
+    expect_ssv_query_fails("ssv query NULL bits", ssv, points, 3, NULL, counts, ANTUMBRA_RESULT_NULL_ARGUMENT,
+                           "visibility_bits is NULL", NULL);
+    points[2 * 3 + 1] = NAN;
+    expect_ssv_query_fails("ssv query NaN point", ssv, points, 3, bits, counts, ANTUMBRA_RESULT_NON_FINITE,
+                           "points[2]", "not finite");
+    points[2 * 3 + 1] = 0.5f;
+    points[1 * 3 + 0] = 2e12f;
+    expect_ssv_query_fails("ssv query point out of range", ssv, points, 3, bits, counts,
+                           ANTUMBRA_RESULT_INVALID_ARGUMENT, "points[1]", "range");
+    points[1 * 3 + 0] = 3.0f;
+    expect_ssv_query_fails("ssv query count overflows", ssv, points, SIZE_MAX, bits, counts,
+                           ANTUMBRA_RESULT_INVALID_ARGUMENT, "overflow", NULL);
+    expect_untouched("ssv query failures: bits", bits, sizeof bits);
+    expect_untouched("ssv query failures: counts", counts, sizeof counts);
+
+    /* Misaligned points, bits, counts. */
+    memcpy(shifted + 1, points, sizeof points);
+    expect_ssv_query_fails("ssv query misaligned points", ssv, offset_pointer(shifted, 1), 3, bits, counts,
+                           ANTUMBRA_RESULT_INVALID_ARGUMENT, "points", "aligned");
+    expect_ssv_query_fails("ssv query misaligned bits", ssv, points, 3, (uint64_t *)offset_pointer(shifted, 4),
+                           counts, ANTUMBRA_RESULT_INVALID_ARGUMENT, "visibility_bits", "aligned");
+    expect_ssv_query_fails("ssv query misaligned counts", ssv, points, 3, bits,
+                           (uint32_t *)offset_pointer(shifted, 2), ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                           "visible_counts", "aligned");
+    expect_untouched("ssv query misaligned: bits", bits, sizeof bits);
+    expect_untouched("ssv query misaligned: counts", counts, sizeof counts);
+
+    /* Statistics: NULL arguments, and the queries counted so far (3 + 3 + 0). */
+    memset(&stats, SENTINEL, sizeof stats);
+    expect_failure("ssv statistics NULL handle", antumbra_ssv_get_statistics(NULL, &stats),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_ssv_get_statistics", "ssv is NULL", (const char *)NULL);
+    expect_failure("ssv statistics NULL out", antumbra_ssv_get_statistics(ssv, NULL), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_ssv_get_statistics", "statistics is NULL", (const char *)NULL);
+    expect_failure("ssv statistics misaligned",
+                   antumbra_ssv_get_statistics(ssv, (antumbra_ssv_statistics *)offset_pointer(&stats, 4)),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_ssv_get_statistics", "statistics", (const char *)NULL);
+    expect_untouched("ssv statistics failures", &stats, sizeof stats);
+    expect_success("ssv statistics", antumbra_ssv_get_statistics(ssv, &stats));
+    expect(stats.queries == 6 && stats.sample_count == 5 && stats.words_per_receiver == 1 &&
+               stats.light_vertex_count == 4 && stats.structure == ANTUMBRA_SSV_STRUCTURE_HIERARCHY,
+           "ssv statistics: %lu queries, %u samples", (unsigned long)stats.queries, (unsigned)stats.sample_count);
+
+    antumbra_ssv_destroy(ssv);
+}
+
+static void test_ssv_generate_samples(void)
+{
+    float samples[3 * 8], light[4 * 3];
+    unsigned char shifted[sizeof samples + 8];
+    size_t i;
+
+    memset(samples, SENTINEL, sizeof samples);
+    expect_success("generate samples",
+                   antumbra_ssv_generate_samples(ssv_light, 4, 8, ANTUMBRA_SSV_SAMPLES_STRATIFIED, 1, samples));
+    for (i = 0; i < 8; ++i) {
+        expect(samples[3 * i] >= 0.0f && samples[3 * i] <= 1.0f && samples[3 * i + 1] >= 0.0f &&
+                   samples[3 * i + 1] <= 1.0f && fabsf(samples[3 * i + 2] - 2.0f) < 1e-6f,
+               "generated sample %lu (%g, %g, %g) is off the light", (unsigned long)i, (double)samples[3 * i],
+               (double)samples[3 * i + 1], (double)samples[3 * i + 2]);
+    }
+
+    memset(samples, SENTINEL, sizeof samples);
+    expect_failure("generate NULL light",
+                   antumbra_ssv_generate_samples(NULL, 4, 8, ANTUMBRA_SSV_SAMPLES_JITTERED, 1, samples),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_ssv_generate_samples", "light_vertices is NULL",
+                   (const char *)NULL);
+    expect_failure("generate NULL samples",
+                   antumbra_ssv_generate_samples(ssv_light, 4, 8, ANTUMBRA_SSV_SAMPLES_JITTERED, 1, NULL),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_ssv_generate_samples", "samples is NULL",
+                   (const char *)NULL);
+    expect_failure("generate 0 samples",
+                   antumbra_ssv_generate_samples(ssv_light, 4, 0, ANTUMBRA_SSV_SAMPLES_JITTERED, 1, samples),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_ssv_generate_samples", "sample_count is 0",
+                   (const char *)NULL);
+    expect_failure("generate 1025 samples",
+                   antumbra_ssv_generate_samples(ssv_light, 4, 1025, ANTUMBRA_SSV_SAMPLES_JITTERED, 1, samples),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_ssv_generate_samples", "sample_count is 1025",
+                   (const char *)NULL);
+    expect_failure("generate pattern 2", antumbra_ssv_generate_samples(ssv_light, 4, 8, 2, 1, samples),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_ssv_generate_samples", "pattern is 2",
+                   (const char *)NULL);
+    expect_failure("generate 2 light vertices",
+                   antumbra_ssv_generate_samples(ssv_light, 2, 8, ANTUMBRA_SSV_SAMPLES_JITTERED, 1, samples),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_ssv_generate_samples", "light_vertex_count is 2",
+                   (const char *)NULL);
+    memcpy(light, ssv_light, sizeof light);
+    light[0] = NAN;
+    expect_failure("generate NaN light",
+                   antumbra_ssv_generate_samples(light, 4, 8, ANTUMBRA_SSV_SAMPLES_JITTERED, 1, samples),
+                   ANTUMBRA_RESULT_NON_FINITE, "antumbra_ssv_generate_samples", "light_vertices[0]",
+                   (const char *)NULL);
+    expect_failure("generate misaligned samples",
+                   antumbra_ssv_generate_samples(ssv_light, 4, 8, ANTUMBRA_SSV_SAMPLES_JITTERED, 1,
+                                                 (float *)offset_pointer(shifted, 1)),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_ssv_generate_samples", "samples", (const char *)NULL);
+    expect_untouched("generate failures", samples, sizeof samples);
+}
+
+/* ------------------------------------------------------------------------- */
 /* The last error message                                                      */
 /* ------------------------------------------------------------------------- */
 
@@ -714,6 +1058,9 @@ int main(void)
 
     test_scene_create();
     test_queries();
+    test_ssv_create();
+    test_ssv_query();
+    test_ssv_generate_samples();
     test_last_error();
     test_success_clears_message();
     test_result_str();

@@ -111,6 +111,71 @@ _Static_assert(offsetof(antumbra_hemi_material, view_directions) == 40 + sizeof(
 _Static_assert(sizeof(antumbra_hemi_material) == 40 + 2 * sizeof(void *), "material size");
 _Static_assert(alignof(antumbra_hemi_material) == alignof(void *), "material alignment");
 
+/* ---- antumbra_ssv_options: twelve 4-byte fields, the same on every ABI ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_options, structure, uint32_t), "ssv_options.structure type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_options, leaf_edges, uint32_t), "ssv_options.leaf_edges type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_options, max_depth, uint32_t), "ssv_options.max_depth type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_options, hemicube_resolution, uint32_t),
+               "ssv_options.hemicube_resolution type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_options, parallel, uint32_t), "ssv_options.parallel type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_options, use_root_bounds, uint32_t), "ssv_options.use_root_bounds type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_options, root_min[0], float), "ssv_options.root_min element type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_options, root_max[0], float), "ssv_options.root_max element type");
+_Static_assert(sizeof(((antumbra_ssv_options *)0)->root_min) == 3 * sizeof(float), "ssv_options.root_min is float[3]");
+_Static_assert(sizeof(((antumbra_ssv_options *)0)->root_max) == 3 * sizeof(float), "ssv_options.root_max is float[3]");
+/* `structure` first is fixed: external tools rely on it. */
+_Static_assert(offsetof(antumbra_ssv_options, structure) == 0, "ssv_options.structure offset");
+_Static_assert(offsetof(antumbra_ssv_options, leaf_edges) == 4, "ssv_options.leaf_edges offset");
+_Static_assert(offsetof(antumbra_ssv_options, max_depth) == 8, "ssv_options.max_depth offset");
+_Static_assert(offsetof(antumbra_ssv_options, hemicube_resolution) == 12, "ssv_options.hemicube_resolution offset");
+_Static_assert(offsetof(antumbra_ssv_options, parallel) == 16, "ssv_options.parallel offset");
+_Static_assert(offsetof(antumbra_ssv_options, use_root_bounds) == 20, "ssv_options.use_root_bounds offset");
+_Static_assert(offsetof(antumbra_ssv_options, root_min) == 24, "ssv_options.root_min offset");
+_Static_assert(offsetof(antumbra_ssv_options, root_max) == 36, "ssv_options.root_max offset");
+_Static_assert(sizeof(antumbra_ssv_options) == 48, "ssv_options size");
+_Static_assert(alignof(antumbra_ssv_options) == 4, "ssv_options alignment");
+
+/* ---- antumbra_ssv_statistics: four 4-byte fields, then ten 8-byte ones ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, structure, uint32_t), "ssv_statistics.structure type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, sample_count, uint32_t), "ssv_statistics.sample_count type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, words_per_receiver, uint32_t),
+               "ssv_statistics.words_per_receiver type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, light_vertex_count, uint32_t),
+               "ssv_statistics.light_vertex_count type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, edges, uint64_t), "ssv_statistics.edges type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, potential_edges, uint64_t),
+               "ssv_statistics.potential_edges type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, near_light_triangles, uint64_t),
+               "ssv_statistics.near_light_triangles type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, nodes, uint64_t), "ssv_statistics.nodes type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, bytes, uint64_t), "ssv_statistics.bytes type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, queries, uint64_t), "ssv_statistics.queries type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, candidates, uint64_t), "ssv_statistics.candidates type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, silhouettes, uint64_t), "ssv_statistics.silhouettes type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, rays, uint64_t), "ssv_statistics.rays type");
+_Static_assert(FIELD_TYPE_IS(antumbra_ssv_statistics, candidates_per_query, double),
+               "ssv_statistics.candidates_per_query type");
+_Static_assert(offsetof(antumbra_ssv_statistics, structure) == 0, "ssv_statistics.structure offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, sample_count) == 4, "ssv_statistics.sample_count offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, words_per_receiver) == 8, "ssv_statistics.words_per_receiver offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, light_vertex_count) == 12,
+               "ssv_statistics.light_vertex_count offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, edges) == 16, "ssv_statistics.edges offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, potential_edges) == 24, "ssv_statistics.potential_edges offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, near_light_triangles) == 32,
+               "ssv_statistics.near_light_triangles offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, nodes) == 40, "ssv_statistics.nodes offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, bytes) == 48, "ssv_statistics.bytes offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, queries) == 56, "ssv_statistics.queries offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, candidates) == 64, "ssv_statistics.candidates offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, silhouettes) == 72, "ssv_statistics.silhouettes offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, rays) == 80, "ssv_statistics.rays offset");
+_Static_assert(offsetof(antumbra_ssv_statistics, candidates_per_query) == 88,
+               "ssv_statistics.candidates_per_query offset");
+_Static_assert(sizeof(antumbra_ssv_statistics) == 96, "ssv_statistics size");
+/* 8 on LP64 and LLP64; i386 aligns 8-byte scalars in structs to 4, as Rust does there. */
+_Static_assert(alignof(antumbra_ssv_statistics) == alignof(uint64_t), "ssv_statistics alignment");
+
 /* ---- Literal numbers for the ABI at hand ---- */
 #if UINTPTR_MAX == UINT64_MAX
 /* LP64 (and LLP64, where the layout of these structs is the same). */
@@ -178,6 +243,16 @@ _Static_assert(ANTUMBRA_HEMI_METHOD_LUT == 1, "HEMI_METHOD_LUT");
 _Static_assert(ANTUMBRA_HEMI_METHOD_DOWNSAMPLED == 2, "HEMI_METHOD_DOWNSAMPLED");
 _Static_assert(ANTUMBRA_HEMI_SPACE_WORLD == 0, "HEMI_SPACE_WORLD");
 _Static_assert(ANTUMBRA_HEMI_SPACE_LOCAL == 1, "HEMI_SPACE_LOCAL");
+_Static_assert(ANTUMBRA_SSV_STRUCTURE_HIERARCHY == 0, "SSV_STRUCTURE_HIERARCHY is 0 (fixed)");
+_Static_assert(ANTUMBRA_SSV_STRUCTURE_HEMICUBE == 1, "SSV_STRUCTURE_HEMICUBE is 1 (fixed)");
+_Static_assert(ANTUMBRA_SSV_STRUCTURE_BRUTE_FORCE == 2, "SSV_STRUCTURE_BRUTE_FORCE is 2 (fixed)");
+_Static_assert(ANTUMBRA_SSV_STRUCTURE_RAY_TRACE == 3, "SSV_STRUCTURE_RAY_TRACE is 3 (fixed)");
+_Static_assert(ANTUMBRA_SSV_SAMPLES_JITTERED == 0, "SSV_SAMPLES_JITTERED");
+_Static_assert(ANTUMBRA_SSV_SAMPLES_STRATIFIED == 1, "SSV_SAMPLES_STRATIFIED");
+_Static_assert(ANTUMBRA_SSV_MAX_SAMPLES == 1024, "SSV_MAX_SAMPLES");
+_Static_assert(ANTUMBRA_SSV_MAX_LIGHT_VERTICES == 16, "SSV_MAX_LIGHT_VERTICES");
+_Static_assert(ANTUMBRA_SSV_MAX_DEPTH_LIMIT == 24, "SSV_MAX_DEPTH_LIMIT");
+_Static_assert(ANTUMBRA_SSV_MAX_HEMICUBE_RESOLUTION == 1024, "SSV_MAX_HEMICUBE_RESOLUTION");
 _Static_assert(_Generic(ANTUMBRA_VERSION, uint32_t: 1, default: 0), "ANTUMBRA_VERSION is a uint32_t");
 _Static_assert(ANTUMBRA_VERSION ==
                    ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR,

@@ -13,6 +13,12 @@
 //!   hit), a watertight ray–triangle test, a brute-force caster that is the obviously
 //!   right reference, and, behind the `bvh` feature, a compressed wide BVH ([`raycast::BvhScene`],
 //!   built with obvhs).
+//! - [`hemi`]: hemispherical rasterization of whole meshes per receiver, and the
+//!   spherical-harmonic transfer and shading built on it ([`sh`]).
+//! - [`ssv`]: exact soft shadows from planar area lights (soft shadow volumes with
+//!   the lazily built 3D wedge hierarchy): per receiver, the visibility bits of `N`
+//!   light samples, exactly the answers of `N` shadow rays, from silhouette edges,
+//!   depth complexity and one reference ray ([`ssv::SoftShadows`]).
 //!
 //! ## Example
 //!
@@ -60,6 +66,7 @@ pub mod geom;
 pub mod hemi;
 pub mod raycast;
 pub mod sh;
+pub mod ssv;
 
 pub use geom::{Frame, MeshError, MeshView};
 pub use raycast::{BruteForceCaster, Hit, Ray, RayCaster};

@@ -26,6 +26,7 @@ mod raw;
 mod result;
 mod scene;
 mod sh;
+mod ssv;
 mod version;
 
 pub use error::{
@@ -56,6 +57,15 @@ pub use scene::{
     antumbra_scene_destroy, antumbra_scene_intersect, antumbra_scene_occluded,
 };
 pub use sh::{ANTUMBRA_SH_MAX_BANDS, antumbra_sh_eval, antumbra_sh_project_equirect};
+pub use ssv::{
+    ANTUMBRA_SSV_MAX_DEPTH_LIMIT, ANTUMBRA_SSV_MAX_HEMICUBE_RESOLUTION,
+    ANTUMBRA_SSV_MAX_LIGHT_VERTICES, ANTUMBRA_SSV_MAX_SAMPLES, ANTUMBRA_SSV_SAMPLES_JITTERED,
+    ANTUMBRA_SSV_SAMPLES_STRATIFIED, ANTUMBRA_SSV_STRUCTURE_BRUTE_FORCE,
+    ANTUMBRA_SSV_STRUCTURE_HEMICUBE, ANTUMBRA_SSV_STRUCTURE_HIERARCHY,
+    ANTUMBRA_SSV_STRUCTURE_RAY_TRACE, antumbra_ssv, antumbra_ssv_create, antumbra_ssv_destroy,
+    antumbra_ssv_generate_samples, antumbra_ssv_get_statistics, antumbra_ssv_options,
+    antumbra_ssv_options_init, antumbra_ssv_query, antumbra_ssv_statistics,
+};
 pub use version::{antumbra_version, antumbra_version_string};
 
 /// The crate version's parts, parsed at compile time from `Cargo.toml`; the header's

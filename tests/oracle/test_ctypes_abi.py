@@ -34,6 +34,14 @@ class Hit(C.Structure):
     _fields_ = [("distance", C.c_float), ("triangle", C.c_uint32), ("u", C.c_float), ("v", C.c_float)]
 
 
+class SsvStatistics(C.Structure):
+    _fields_ = [(name, C.c_uint32) for name in
+                ("structure", "sample_count", "words_per_receiver", "light_vertex_count")] + \
+               [(name, C.c_uint64) for name in
+                ("edges", "potential_edges", "near_light_triangles", "nodes", "bytes", "queries",
+                 "candidates", "silhouettes", "rays")] + [("candidates_per_query", C.c_double)]
+
+
 def load_library(path):
     lib = C.CDLL(path)
     lib.antumbra_scene_create.argtypes = [C.POINTER(MeshView), C.POINTER(C.c_void_p)]
@@ -45,6 +53,17 @@ def load_library(path):
     lib.antumbra_scene_intersect.restype = C.c_int32
     lib.antumbra_scene_destroy.argtypes = [C.c_void_p]
     lib.antumbra_scene_destroy.restype = None
+    lib.antumbra_ssv_create.argtypes = [C.POINTER(MeshView), fp, C.c_size_t, fp, C.c_size_t, C.c_void_p,
+                                        C.POINTER(C.c_void_p)]
+    lib.antumbra_ssv_create.restype = C.c_int32
+    lib.antumbra_ssv_query.argtypes = [C.c_void_p, fp, C.c_size_t, C.POINTER(C.c_uint64), C.POINTER(C.c_uint32)]
+    lib.antumbra_ssv_query.restype = C.c_int32
+    lib.antumbra_ssv_get_statistics.argtypes = [C.c_void_p, C.POINTER(SsvStatistics)]
+    lib.antumbra_ssv_get_statistics.restype = C.c_int32
+    lib.antumbra_ssv_generate_samples.argtypes = [fp, C.c_size_t, C.c_size_t, C.c_uint32, C.c_uint64, fp]
+    lib.antumbra_ssv_generate_samples.restype = C.c_int32
+    lib.antumbra_ssv_destroy.argtypes = [C.c_void_p]
+    lib.antumbra_ssv_destroy.restype = None
     lib.antumbra_last_error_message.restype = C.c_char_p
     lib.antumbra_version.restype = C.c_uint32
     return lib
@@ -86,6 +105,69 @@ def ao_rays(rng, verts, tris, count):
     origins = (p + n * radius * 1e-3).astype(np.float32)
     t_max = (radius * rng.uniform(0.05, 2.0, count)).astype(np.float32)
     return origins, np.ascontiguousarray(d, np.float32), t_max
+
+
+def check_ssv(lib, checks, verts, tris):
+    """Soft shadows of the bunny on a plane below it from a square light above it:
+    every bit against an Embree occlusion ray over the same segment."""
+    lo, hi = verts.min(0).astype(np.float64), verts.max(0).astype(np.float64)
+    size = float(np.max(hi - lo))
+    centre = (lo + hi) / 2
+    # y is up: the light 0.6 size above the top, half a size wide; receivers on a
+    # plane 0.05 size below the bottom, over twice the footprint.
+    half = 0.25 * size
+    light = np.array([[centre[0] + dx * half, hi[1] + 0.6 * size, centre[2] + dz * half]
+                      for dx, dz in ((-1, -1), (-1, 1), (1, 1), (1, -1))], np.float32)
+    n_samples = 64
+    samples = np.full((n_samples, 3), 7.0, np.float32)
+    r = lib.antumbra_ssv_generate_samples(ptr(light, C.c_float), 4, n_samples, 0, 11, ptr(samples, C.c_float))
+    checks.check("ssv_generate_samples", r == OK and np.all(np.abs(samples[:, 1] - light[0, 1]) < 1e-4 * size))
+    view = MeshView(ptr(verts, C.c_float), len(verts), 0, ptr(tris, C.c_uint32), len(tris))
+    ssv = C.c_void_p()
+    r = lib.antumbra_ssv_create(C.byref(view), ptr(light, C.c_float), 4, ptr(samples, C.c_float), n_samples,
+                                None, C.byref(ssv))
+    checks.check("ssv_create", r == OK, lib.antumbra_last_error_message().decode())
+    if r != OK:
+        return
+    side = 40
+    xs = np.linspace(lo[0] - 0.5 * (hi[0] - lo[0]), hi[0] + 0.5 * (hi[0] - lo[0]), side)
+    zs = np.linspace(lo[2] - 0.5 * (hi[2] - lo[2]), hi[2] + 0.5 * (hi[2] - lo[2]), side)
+    gx, gz = np.meshgrid(xs, zs)
+    points = np.stack([gx.ravel(), np.full(gx.size, lo[1] - 0.05 * size), gz.ravel()], 1).astype(np.float32)
+    count = len(points)
+    bits = np.full(count, 0xA5A5A5A5A5A5A5A5, np.uint64)
+    visible = np.zeros(count, np.uint32)
+    r = lib.antumbra_ssv_query(ssv, ptr(points, C.c_float), count, ptr(bits, C.c_uint64), ptr(visible, C.c_uint32))
+    checks.check("ssv_query", r == OK, lib.antumbra_last_error_message().decode())
+    ours = ((bits[:, None] >> np.arange(n_samples, dtype=np.uint64)[None, :]) & np.uint64(1)).astype(bool)
+    checks.check("ssv visible_counts are the bits set", (ours.sum(1) == visible).all())
+    # Embree: one ray per (receiver, sample), origin the receiver, direction the
+    # segment, t in (0, 1) (the light is not in the scene, so the end is free).
+    origins = np.repeat(points, n_samples, 0)
+    dirs = (np.tile(samples, (count, 1)).astype(np.float64) - origins).astype(np.float32)
+    embree = rtcore_scene.EmbreeScene(robust=True)
+    TriangleMesh(embree, verts, tris.astype(np.int32))
+    emb_visible = (embree.run(origins, dirs, dists=np.ones(len(origins), np.float32), query="OCCLUDED") != 0)
+    emb_visible = emb_visible.reshape(count, n_samples)
+    mismatches = int(np.sum(ours != emb_visible))
+    shadowed = float(np.mean(~ours))
+    checks.check("ssv bits agree with Embree occlusion rays (<= 1e-4 of bits)",
+                 mismatches <= 1e-4 * ours.size and 0.02 < shadowed < 0.9,
+                 f"{mismatches} of {ours.size} bits differ; {100 * shadowed:.1f} % of bits shadowed")
+    stats = SsvStatistics()
+    r = lib.antumbra_ssv_get_statistics(ssv, C.byref(stats))
+    checks.check("ssv_get_statistics", r == OK and stats.queries == count and stats.sample_count == n_samples
+                 and stats.words_per_receiver == 1 and stats.nodes > 0,
+                 f"{stats.candidates_per_query:.1f} candidates per query of {stats.potential_edges} edges, "
+                 f"{stats.nodes} nodes")
+    nan_points = points[:3].copy()
+    nan_points[1, 2] = np.nan
+    out = np.full(3, 5, np.uint64)
+    r = lib.antumbra_ssv_query(ssv, ptr(nan_points, C.c_float), 3, ptr(out, C.c_uint64), None)
+    msg = lib.antumbra_last_error_message().decode()
+    checks.check("ssv NaN point", r == NON_FINITE and "points[1]" in msg and (out == 5).all(), msg)
+    lib.antumbra_ssv_destroy(ssv)
+    lib.antumbra_ssv_destroy(None)
 
 
 class Checks:
@@ -163,6 +245,7 @@ def main():
                                     ptr(t_max, C.c_float), 4, ptr(out, C.c_uint8))
     msg = lib.antumbra_last_error_message().decode()
     checks.check("NaN origin", r == NON_FINITE and "origins[2]" in msg and (out == 9).all(), msg)
+    check_ssv(lib, checks, verts, tris)
     v = lib.antumbra_version()
     checks.check("version", v >> 16 == 0 and v > 0, hex(v))
 

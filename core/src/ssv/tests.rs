@@ -1,0 +1,528 @@
+//! Soft shadow bits against the exact oracle (every triangle against every
+//! segment with [`segment_meets_triangle`]) on the scene families of ssv.md, the
+//! structures against each other bit for bit, and the hierarchy's work against
+//! brute force.
+
+use alloc::vec;
+use alloc::vec::Vec;
+use glam::Vec3;
+use proptest::prelude::*;
+
+use super::*;
+
+/// An owned triangle soup.
+#[derive(Clone, Debug, Default)]
+struct Soup {
+    positions: Vec<[f32; 3]>,
+    indices: Vec<u32>,
+}
+
+impl Soup {
+    fn view(&self) -> MeshView<'_> {
+        MeshView::new(&self.positions, &self.indices).unwrap()
+    }
+
+    fn push(&mut self, [a, b, c]: [Vec3; 3]) {
+        let base = self.positions.len() as u32;
+        self.positions
+            .extend([a.to_array(), b.to_array(), c.to_array()]);
+        self.indices.extend([base, base + 1, base + 2]);
+    }
+
+    fn append(&mut self, other: &Soup) {
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.indices.extend(other.indices.iter().map(|i| i + base));
+    }
+
+    fn triangles(&self) -> Vec<[Vec3; 3]> {
+        self.view().triangles().collect()
+    }
+
+    /// The same triangles, every one with its own three vertices.
+    fn unwelded(&self) -> Soup {
+        let mut out = Soup::default();
+        for t in self.triangles() {
+            out.push(t);
+        }
+        out
+    }
+
+    fn transformed(&self, f: impl Fn(Vec3) -> Vec3) -> Soup {
+        Soup {
+            positions: self
+                .positions
+                .iter()
+                .map(|&p| f(Vec3::from(p)).to_array())
+                .collect(),
+            indices: self.indices.clone(),
+        }
+    }
+}
+
+/// A `(u, v)` grid surface `f(u, v)`, `u, v` in `[0, 1]`, two triangles a cell.
+fn grid(nu: usize, nv: usize, f: impl Fn(f32, f32) -> Vec3) -> Soup {
+    let mut s = Soup::default();
+    for j in 0..=nv {
+        for i in 0..=nu {
+            s.positions
+                .push(f(i as f32 / nu as f32, j as f32 / nv as f32).to_array());
+        }
+    }
+    let at = |i: usize, j: usize| (j * (nu + 1) + i) as u32;
+    for j in 0..nv {
+        for i in 0..nu {
+            s.indices.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+            s.indices.extend([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    s
+}
+
+fn sphere(center: Vec3, r: f32, n: usize) -> Soup {
+    use core::f32::consts::{PI, TAU};
+    // Poles collapse to one position per pole after welding; those rows'
+    // degenerate triangles are dropped consistently.
+    grid(2 * n, n, |u, v| {
+        let (t, p) = (u * TAU, v * PI);
+        center
+            + r * Vec3::new(
+                libm::sinf(p) * libm::cosf(t),
+                libm::sinf(p) * libm::sinf(t),
+                libm::cosf(p),
+            )
+    })
+}
+
+fn torus(center: Vec3, big: f32, small: f32, n: usize) -> Soup {
+    use core::f32::consts::TAU;
+    grid(2 * n, n, |u, v| {
+        let (a, b) = (u * TAU, v * TAU);
+        let ring = big + small * libm::cosf(b);
+        center
+            + Vec3::new(
+                ring * libm::cosf(a),
+                ring * libm::sinf(a),
+                small * libm::sinf(b),
+            )
+    })
+}
+
+fn cube(center: Vec3, h: f32) -> Soup {
+    let mut s = Soup::default();
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let face = grid(2, 2, |u, v| {
+                let mut p = [0.0; 3];
+                p[axis] = sign * h;
+                p[(axis + 1) % 3] = (2.0 * u - 1.0) * h * sign;
+                p[(axis + 2) % 3] = (2.0 * v - 1.0) * h;
+                center + Vec3::from(p)
+            });
+            s.append(&face);
+        }
+    }
+    s
+}
+
+fn quad_light(center: Vec3, half: f32) -> LightPolygon {
+    LightPolygon::new(&[
+        center + Vec3::new(-half, -half, 0.0),
+        center + Vec3::new(half, -half, 0.0),
+        center + Vec3::new(half, half, 0.0),
+        center + Vec3::new(-half, half, 0.0),
+    ])
+    .unwrap()
+}
+
+fn oracle(tris: &[[Vec3; 3]], p: Vec3, samples: &[Vec3]) -> Vec<u64> {
+    let mut bits = vec![0u64; samples.len().div_ceil(64)];
+    for (i, &s) in samples.iter().enumerate() {
+        if !tris
+            .iter()
+            .any(|&[a, b, c]| segment_meets_triangle(p, s, a, b, c))
+        {
+            bits[i / 64] |= 1 << (i % 64);
+        }
+    }
+    bits
+}
+
+const ALL: [Structure; 4] = [
+    Structure::Hierarchy,
+    Structure::Hemicube,
+    Structure::BruteForce,
+    Structure::RayTrace,
+];
+
+fn build(soup: &Soup, light: &LightPolygon, samples: &[Vec3], structure: Structure) -> SoftShadows {
+    let options = SsvOptions {
+        structure,
+        leaf_edges: 8,
+        ..SsvOptions::default()
+    };
+    SoftShadows::new(&soup.view(), light.clone(), samples, options).unwrap()
+}
+
+/// Every structure against the oracle at every receiver; returns the bits of the
+/// brute force, receiver after receiver, and the total mismatch count is 0.
+fn check(soup: &Soup, light: &LightPolygon, samples: &[Vec3], receivers: &[Vec3]) -> Vec<u64> {
+    let tris = soup.triangles();
+    let expected: Vec<Vec<u64>> = receivers
+        .iter()
+        .map(|&p| oracle(&tris, p, samples))
+        .collect();
+    let mut brute = Vec::new();
+    for structure in ALL {
+        let ss = build(soup, light, samples, structure);
+        let words = ss.words_per_receiver();
+        for (r, &p) in receivers.iter().enumerate() {
+            let mut bits = vec![0u64; words];
+            let visible = ss.query(p, &mut bits).unwrap();
+            assert_eq!(
+                bits, expected[r],
+                "{structure:?}: receiver {r} at {p:?} differs from the exact oracle"
+            );
+            assert_eq!(visible, bits.iter().map(|w| w.count_ones()).sum::<u32>());
+            if structure == Structure::BruteForce {
+                brute.extend_from_slice(&bits);
+            }
+        }
+    }
+    brute
+}
+
+fn receivers_box(lo: Vec3, hi: Vec3, n: usize, seed: u64) -> Vec<Vec3> {
+    let mut rng = SplitMix64::new(seed);
+    (0..n)
+        .map(|_| {
+            let t = Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32);
+            lo + (hi - lo) * t
+        })
+        .collect()
+}
+
+#[test]
+fn closed_meshes_over_a_floor() {
+    let mut soup = sphere(Vec3::new(0.0, 0.0, 1.5), 0.8, 8);
+    soup.append(&torus(Vec3::new(1.5, 0.5, 1.0), 0.6, 0.2, 8));
+    soup.append(&cube(Vec3::new(-1.5, -0.5, 1.0), 0.4));
+    let floor = grid(6, 6, |u, v| Vec3::new(8.0 * u - 4.0, 8.0 * v - 4.0, 0.0));
+    soup.append(&floor);
+    let light = quad_light(Vec3::new(0.3, 0.2, 4.0), 0.7);
+    let samples = light.samples(64, SamplePattern::Jittered, 3);
+    // Free space, and exactly on the floor (z = 0, a surface).
+    let mut receivers = receivers_box(Vec3::new(-3.0, -3.0, 0.01), Vec3::new(3.0, 3.0, 3.5), 40, 1);
+    receivers.extend(receivers_box(
+        Vec3::new(-3.0, -3.0, 0.0),
+        Vec3::new(3.0, 3.0, 0.0),
+        40,
+        2,
+    ));
+    // At mesh vertices (on the surfaces; triangles through p are edge-on).
+    receivers.extend(soup.positions.iter().step_by(7).map(|&p| Vec3::from(p)));
+    let bits = check(&soup, &light, &samples, &receivers);
+    let visible: u32 = bits.iter().map(|w| w.count_ones()).sum();
+    let total = 64 * receivers.len() as u32;
+    // A scene with real penumbrae: neither all lit nor all dark.
+    assert!(
+        visible > total / 10 && visible < total * 9 / 10,
+        "{visible} of {total}"
+    );
+}
+
+#[test]
+fn open_folded_and_non_manifold() {
+    // An open wavy sheet, a sheet folded onto itself, and a fan of five
+    // triangles around one edge.
+    let mut soup = grid(6, 6, |u, v| {
+        Vec3::new(
+            3.0 * u - 1.5,
+            3.0 * v - 1.5,
+            1.0 + 0.3 * libm::sinf(5.0 * u) * libm::cosf(4.0 * v),
+        )
+    });
+    soup.append(&grid(4, 2, |u, v| {
+        let x = 2.0 * u;
+        let fold = if x < 1.0 { x } else { 2.0 - x };
+        Vec3::new(fold - 2.0, v - 0.5, 2.0 + 0.4 * x)
+    }));
+    let (a, b) = (Vec3::new(1.0, -0.5, 2.2), Vec3::new(1.0, 0.5, 2.2));
+    for k in 0..5 {
+        let ang = k as f32 * 1.1;
+        soup.push([
+            a,
+            b,
+            a + Vec3::new(libm::cosf(ang), 0.3, libm::sinf(ang)) * 0.6,
+        ]);
+    }
+    let light = quad_light(Vec3::new(0.0, 0.0, 4.0), 1.0);
+    let samples = light.samples(256, SamplePattern::Jittered, 9);
+    let mut receivers = receivers_box(Vec3::new(-2.5, -2.5, -1.0), Vec3::new(2.5, 2.5, 3.5), 40, 3);
+    receivers.extend(soup.positions.iter().step_by(5).map(|&p| Vec3::from(p)));
+    check(&soup, &light, &samples, &receivers);
+    // Unwelded copy: identical bits for every structure.
+    let welded = check(&soup, &light, &samples, &receivers);
+    let unwelded = check(&soup.unwelded(), &light, &samples, &receivers);
+    assert_eq!(welded, unwelded);
+}
+
+#[test]
+fn thin_triangles_behind_receivers_and_crossing_the_light_plane() {
+    let mut soup = Soup::default();
+    // Long thin slivers.
+    for k in 0..12 {
+        let y = -1.0 + k as f32 * 0.17;
+        soup.push([
+            Vec3::new(-3.0, y, 1.0 + 0.05 * k as f32),
+            Vec3::new(3.0, y + 0.01, 1.2),
+            Vec3::new(3.0, y + 0.03, 1.21),
+        ]);
+    }
+    // Triangles crossing the light's plane (z = 3) outside the light.
+    soup.push([
+        Vec3::new(2.0, -1.0, 2.0),
+        Vec3::new(2.5, 1.0, 4.0),
+        Vec3::new(3.0, 0.0, 2.5),
+    ]);
+    soup.push([
+        Vec3::new(-2.5, -2.0, 4.0),
+        Vec3::new(-2.0, 2.0, 2.0),
+        Vec3::new(-3.0, 0.0, 3.5),
+    ]);
+    // Geometry below every receiver, i.e. behind p as seen from the light.
+    soup.append(&grid(3, 3, |u, v| {
+        Vec3::new(4.0 * u - 2.0, 4.0 * v - 2.0, -1.0 + u * v)
+    }));
+    // The emitter itself as occluder triangles: never blocks.
+    let light = quad_light(Vec3::new(0.0, 0.0, 3.0), 0.8);
+    let v = light.vertices();
+    soup.push([v[0], v[1], v[2]]);
+    soup.push([v[0], v[2], v[3]]);
+    let samples = light.samples(16, SamplePattern::Stratified, 0);
+    let receivers = receivers_box(Vec3::new(-2.0, -2.0, 0.0), Vec3::new(2.0, 2.0, 2.5), 60, 4);
+    check(&soup, &light, &samples, &receivers);
+    // Receivers above the light (the other side of its plane) and on its plane.
+    let above = receivers_box(Vec3::new(-2.0, -2.0, 3.5), Vec3::new(2.0, 2.0, 5.0), 20, 5);
+    check(&soup, &light, &samples, &above);
+    let on_plane = receivers_box(Vec3::new(-2.0, -2.0, 3.0), Vec3::new(2.0, 2.0, 3.0), 10, 6);
+    check(&soup, &light, &samples, &on_plane);
+}
+
+#[test]
+fn light_sizes_and_sample_counts() {
+    let mut soup = sphere(Vec3::new(0.0, 0.0, 1.2), 0.5, 6);
+    soup.append(&grid(4, 4, |u, v| {
+        Vec3::new(4.0 * u - 2.0, 4.0 * v - 2.0, 0.0)
+    }));
+    let receivers = receivers_box(Vec3::new(-1.5, -1.5, 0.0), Vec3::new(1.5, 1.5, 0.0), 12, 7);
+    for (half, n) in [(0.05, 16), (0.5, 64), (2.0, 256), (1.0, 1024)] {
+        let light = quad_light(Vec3::new(0.2, -0.1, 3.0), half);
+        let samples = light.samples(n, SamplePattern::Jittered, n as u64);
+        check(&soup, &light, &samples, &receivers);
+    }
+    // A tilted hexagonal light.
+    let hex: Vec<Vec3> = (0..6)
+        .map(|i| {
+            let a = i as f32 * core::f32::consts::TAU / 6.0;
+            Vec3::new(
+                libm::cosf(a),
+                libm::sinf(a) * 0.8,
+                3.0 + 0.6 * libm::sinf(a),
+            )
+        })
+        .collect();
+    let light = LightPolygon::new(&hex).unwrap();
+    check(
+        &soup,
+        &light,
+        &light.samples(100, SamplePattern::Jittered, 1),
+        &receivers,
+    );
+}
+
+#[test]
+fn errors() {
+    let soup = cube(Vec3::ZERO, 1.0);
+    let light = quad_light(Vec3::new(0.0, 0.0, 3.0), 1.0);
+    let samples = light.samples(70, SamplePattern::Jittered, 0);
+    let ss =
+        SoftShadows::new(&soup.view(), light.clone(), &samples, SsvOptions::default()).unwrap();
+    assert_eq!(ss.words_per_receiver(), 2);
+    let mut one = [0u64; 1];
+    assert_eq!(
+        ss.query(Vec3::ZERO, &mut one),
+        Err(SsvError::BitsTooShort { needed: 2, got: 1 })
+    );
+    let mut bits = [u64::MAX; 3];
+    assert_eq!(
+        ss.query(Vec3::splat(f32::NAN), &mut bits),
+        Err(SsvError::NonFiniteReceiver)
+    );
+    // Far above everything: all 70 visible, the unused high bits and the extra
+    // word untouched / cleared as documented.
+    assert_eq!(ss.query(Vec3::new(0.0, 0.0, 10.0), &mut bits), Ok(70));
+    assert_eq!(bits, [u64::MAX, (1 << 6) - 1, u64::MAX]);
+    // Inside the closed cube: all blocked.
+    assert_eq!(ss.query(Vec3::new(0.1, 0.2, 0.3), &mut bits), Ok(0));
+    let off = [Vec3::new(5.0, 0.0, 3.0)];
+    assert!(matches!(
+        SoftShadows::new(&soup.view(), light.clone(), &off, SsvOptions::default()),
+        Err(SsvError::Light(LightError::SampleOffLight { index: 0 }))
+    ));
+    assert!(matches!(
+        SoftShadows::new(&soup.view(), light.clone(), &[], SsvOptions::default()),
+        Err(SsvError::SampleCount { count: 0 })
+    ));
+    let bad = SsvOptions {
+        leaf_edges: 0,
+        ..SsvOptions::default()
+    };
+    assert_eq!(
+        SoftShadows::new(&soup.view(), light, &samples, bad).err(),
+        Some(SsvError::InvalidOptions)
+    );
+}
+
+/// The hierarchy's point: far fewer candidates than brute force per query.
+#[test]
+fn hierarchy_does_less_work_than_brute_force() {
+    let mut soup = Soup::default();
+    for k in 0..6 {
+        soup.append(&sphere(
+            Vec3::new(-2.5 + k as f32, 0.3 * k as f32 - 1.0, 1.0 + 0.1 * k as f32),
+            0.4,
+            8,
+        ));
+    }
+    soup.append(&grid(10, 10, |u, v| {
+        Vec3::new(10.0 * u - 5.0, 10.0 * v - 5.0, 0.0)
+    }));
+    let light = quad_light(Vec3::new(0.0, 0.0, 5.0), 0.5);
+    let samples = light.samples(64, SamplePattern::Jittered, 0);
+    let receivers = receivers_box(
+        Vec3::new(-4.5, -4.5, 0.0),
+        Vec3::new(4.5, 4.5, 0.0),
+        200,
+        11,
+    );
+    let mut totals = [0u64; 3];
+    let mut bits = [[0u64; 1]; 3];
+    let structures = [
+        Structure::Hierarchy,
+        Structure::Hemicube,
+        Structure::BruteForce,
+    ];
+    let sets: Vec<SoftShadows> = structures
+        .iter()
+        .map(|&s| {
+            SoftShadows::new(
+                &soup.view(),
+                light.clone(),
+                &samples,
+                SsvOptions {
+                    structure: s,
+                    ..SsvOptions::default()
+                },
+            )
+            .unwrap()
+        })
+        .collect();
+    for &p in &receivers {
+        for (k, ss) in sets.iter().enumerate() {
+            totals[k] += u64::from(ss.query_detailed(p, &mut bits[k]).unwrap().candidates);
+        }
+        assert_eq!(bits[0], bits[2]);
+        assert_eq!(bits[1], bits[2]);
+    }
+    let stats = sets[0].statistics();
+    assert!(stats.nodes > 1 && stats.bytes > 0);
+    // Brute force hands over every potential edge; the hierarchy a small
+    // fraction (wedges of a small light are thin; the floor's flat edges are
+    // gone everywhere).
+    assert_eq!(
+        totals[2],
+        receivers.len() as u64 * stats.potential_edges as u64
+    );
+    assert!(
+        totals[0] * 5 < totals[2],
+        "hierarchy {} vs brute {}",
+        totals[0],
+        totals[2]
+    );
+    assert!(
+        totals[1] < totals[2],
+        "hemicube {} vs brute {}",
+        totals[1],
+        totals[2]
+    );
+}
+
+#[cfg(feature = "std")]
+#[test]
+fn concurrent_queries_build_the_same_hierarchy() {
+    let mut soup = torus(Vec3::new(0.0, 0.0, 1.0), 1.0, 0.3, 12);
+    soup.append(&grid(6, 6, |u, v| {
+        Vec3::new(6.0 * u - 3.0, 6.0 * v - 3.0, 0.0)
+    }));
+    let light = quad_light(Vec3::new(0.0, 0.0, 4.0), 1.0);
+    let samples = light.samples(128, SamplePattern::Jittered, 5);
+    let receivers = receivers_box(Vec3::new(-2.5, -2.5, 0.0), Vec3::new(2.5, 2.5, 0.5), 64, 8);
+    let serial = build(&soup, &light, &samples, Structure::Hierarchy);
+    let expected: Vec<[u64; 2]> = receivers
+        .iter()
+        .map(|&p| {
+            let mut b = [0u64; 2];
+            serial.query(p, &mut b).unwrap();
+            b
+        })
+        .collect();
+    let shared = build(&soup, &light, &samples, Structure::Hierarchy);
+    std::thread::scope(|scope| {
+        for t in 0..4 {
+            let (shared, receivers, expected) = (&shared, &receivers, &expected);
+            scope.spawn(move || {
+                for (i, &p) in receivers.iter().enumerate().skip(t) {
+                    let mut b = [0u64; 2];
+                    shared.query(p, &mut b).unwrap();
+                    assert_eq!(b, expected[i]);
+                }
+            });
+        }
+    });
+    assert_eq!(shared.statistics().nodes, serial.statistics().nodes);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Random soups (a triangle's corners near a random centre) under a random
+    /// light, receivers anywhere: every structure equals the exact oracle.
+    #[test]
+    fn random_soups(seed in any::<u64>(), count in 5usize..60, half in 0.05f32..2.0, n in prop::sample::select(vec![16usize, 64, 200])) {
+        let mut rng = SplitMix64::new(seed);
+        let mut u = || rng.unit() as f32;
+        let mut soup = Soup::default();
+        for _ in 0..count {
+            let c = Vec3::new(4.0 * u() - 2.0, 4.0 * u() - 2.0, 3.0 * u());
+            let mut corner = || c + Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5) * 1.5;
+            soup.push([corner(), corner(), corner()]);
+        }
+        let tilt = u() - 0.5;
+        let light = LightPolygon::new(&[
+            Vec3::new(-half, -half, 3.5 + tilt),
+            Vec3::new(half, -half, 3.5 - tilt),
+            Vec3::new(half, half, 3.5 - tilt),
+            Vec3::new(-half, half, 3.5 + tilt),
+        ]).unwrap();
+        let samples = light.samples(n, SamplePattern::Jittered, seed ^ 1);
+        let receivers = receivers_box(Vec3::new(-3.0, -3.0, -1.0), Vec3::new(3.0, 3.0, 3.0), 12, seed ^ 2);
+        let welded = check(&soup, &light, &samples, &receivers);
+        // Welded (shared vertices by position) vs the soup as given.
+        let mut shuffled = soup.unwelded();
+        shuffled.indices.reverse();
+        let again = check(&shuffled.transformed(|p| p), &light, &samples, &receivers);
+        // Reversing the index list reverses triangle order and winding: same bits.
+        prop_assert_eq!(welded, again);
+    }
+}

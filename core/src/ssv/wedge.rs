@@ -1,0 +1,162 @@
+//! Penumbra wedges and silhouette regions, as conservative tests against
+//! axis-aligned boxes (a point is a box of zero extent).
+//!
+//! The penumbra wedge of an edge `e` for the convex light `L` is
+//! `W = { p : conv({p} ∪ L) meets e }`. Writing a point of the pyramid as
+//! `x = (p + t l) / (1 + t)` gives `W = { x + t (x - l) : x ∈ e, l ∈ L, t >= 0 }`,
+//! which is convex (an affine image of a convex set, followed by a union of rays
+//! that preserves convexity because the parametrisation is jointly convex in
+//! `(x, l)` over the segment and the polygon). An edge can change the depth
+//! complexity of a receiver `p` over the light only if `p ∈ W` (the triangle
+//! `(p, c, s)` swept by the integration lies in `conv({p} ∪ L)`).
+//!
+//! Along a direction `n`, `W`'s extent is `[lo, hi]` with
+//! `hi = max_e n·x` when `max_e n·x <= min_L n·l` and `+∞` otherwise (a ray
+//! `x + t (x - l)` then climbs without bound), and symmetrically for `lo`. A box
+//! whose extent along `n` is disjoint from that interval (beyond a relative
+//! margin that covers `f64` rounding) is separated from the wedge. The directions
+//! tried are the planes bounding the wedge: the three axes, the light's normal,
+//! the planes through the edge and each light vertex (the two tangent ones among
+//! them), and the planes through each endpoint and each light edge.
+//!
+//! The silhouette region of the edge: the weight (sum over adjacent triangles of
+//! the orientation of the third vertex against the plane through `p` and the edge)
+//! changes sign only across the triangles' planes. A box strictly on one side of
+//! every adjacent triangle's plane has one constant weight; when that weight is
+//! zero no point of the box sees the edge as a silhouette.
+
+use glam::DVec3;
+
+use super::edges::{Edge, EdgeGraph};
+
+/// An axis-aligned box in `f64`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Aabb {
+    pub min: DVec3,
+    pub max: DVec3,
+}
+
+impl Aabb {
+    pub fn center(&self) -> DVec3 {
+        0.5 * (self.min + self.max)
+    }
+
+    pub fn half(&self) -> DVec3 {
+        0.5 * (self.max - self.min)
+    }
+
+    /// Child `i` of the octree split at the centre (bit 0: x, 1: y, 2: z).
+    pub fn octant(&self, i: usize) -> Aabb {
+        let c = self.center();
+        let pick = |bit: usize, lo: f64, mid: f64, hi: f64| {
+            if i >> bit & 1 == 0 {
+                (lo, mid)
+            } else {
+                (mid, hi)
+            }
+        };
+        let (x0, x1) = pick(0, self.min.x, c.x, self.max.x);
+        let (y0, y1) = pick(1, self.min.y, c.y, self.max.y);
+        let (z0, z1) = pick(2, self.min.z, c.z, self.max.z);
+        Aabb {
+            min: DVec3::new(x0, y0, z0),
+            max: DVec3::new(x1, y1, z1),
+        }
+    }
+
+    /// Which octant holds `p` (points on a split plane go to the upper child).
+    pub fn octant_of(&self, p: DVec3) -> usize {
+        let c = self.center();
+        usize::from(p.x >= c.x) | usize::from(p.y >= c.y) << 1 | usize::from(p.z >= c.z) << 2
+    }
+
+    pub fn contains(&self, p: DVec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+}
+
+/// Relative slack of every conservative test: far above `f64` rounding of the
+/// few operations involved, far below any geometric feature that matters.
+const SLACK: f64 = 1e-9;
+
+/// The light as the wedge tests need it.
+#[derive(Clone, Debug)]
+pub(crate) struct LightShape {
+    pub vertices: alloc::vec::Vec<DVec3>,
+    pub normal: DVec3,
+    /// Absolute slack for samples off the polygon (the light's tolerance).
+    pub tolerance: f64,
+}
+
+/// Whether the box may meet the wedge of `(a, b)` (false: provably not).
+pub(crate) fn box_meets_wedge(light: &LightShape, a: DVec3, b: DVec3, bx: &Aabb) -> bool {
+    let (c, h) = (bx.center(), bx.half());
+    let scale = a.abs().max(b.abs()).max(c.abs() + h).max_element().max(
+        light
+            .vertices
+            .iter()
+            .fold(0.0f64, |m, v| m.max(v.abs().max_element())),
+    );
+    let separated = |n: DVec3| -> bool {
+        let len = n.length();
+        if len.is_nan() || len <= 0.0 {
+            return false;
+        }
+        let n = n / len;
+        let slack = SLACK * scale + light.tolerance;
+        let (ea, eb) = (n.dot(a), n.dot(b));
+        let (emin, emax) = (ea.min(eb), ea.max(eb));
+        let (mut lmin, mut lmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in &light.vertices {
+            let d = n.dot(*v);
+            lmin = lmin.min(d);
+            lmax = lmax.max(d);
+        }
+        let (bmid, brad) = (n.dot(c), n.abs().dot(h));
+        // Upper end of the wedge: finite only when the edge is entirely below the
+        // light along n (every recession direction x - l points down or flat).
+        if emax < lmin - slack && bmid - brad > emax + slack {
+            return true;
+        }
+        emin > lmax + slack && bmid + brad < emin - slack
+    };
+    if separated(DVec3::X) || separated(DVec3::Y) || separated(DVec3::Z) || separated(light.normal)
+    {
+        return false;
+    }
+    let k = light.vertices.len();
+    for i in 0..k {
+        let (l0, l1) = (light.vertices[i], light.vertices[(i + 1) % k]);
+        if separated((b - a).cross(l0 - a))
+            || separated((l1 - l0).cross(a - l0))
+            || separated((l1 - l0).cross(b - l0))
+        {
+            return false;
+        }
+    }
+    true
+}
+
+/// Whether some point of the box may have a non-zero weight for `edge` (false:
+/// the box is strictly on one side of every adjacent plane and the weight there
+/// is zero).
+pub(crate) fn box_may_see_silhouette(graph: &EdgeGraph, edge: &Edge, bx: &Aabb) -> bool {
+    let p = |i: u32| graph.positions[i as usize].as_dvec3();
+    let (a, b) = (p(edge.a), p(edge.b));
+    let (c, h) = (bx.center(), bx.half());
+    let mut weight = 0i32;
+    for &v in graph.third_of(edge) {
+        let n = (b - a).cross(p(v) - a);
+        let mid = n.dot(c - a);
+        let rad = n.abs().dot(h);
+        let slack = SLACK * n.abs().dot((c - a).abs() + h + b.abs() + a.abs());
+        if mid - rad > slack {
+            weight += 1;
+        } else if mid + rad < -slack {
+            weight -= 1;
+        } else {
+            return true;
+        }
+    }
+    weight != 0
+}
