@@ -332,8 +332,8 @@ impl SoftShadows {
     /// within [`LightPolygon::tolerance`], 1 to [`MAX_SAMPLES`] of them; make them
     /// with [`LightPolygon::samples`]).
     ///
-    /// With the `bvh` feature the reference caster is an owned
-    /// [`BvhScene`](crate::raycast::BvhScene); without it a brute-force loop over
+    /// With the `bvh` feature the reference caster is an owned `BvhScene`
+    /// (obvhs); without it a brute-force loop over
     /// the triangles (correct, but linear per query).
     pub fn new(
         occluders: &MeshView<'_>,

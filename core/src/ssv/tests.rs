@@ -444,8 +444,11 @@ fn hierarchy_does_less_work_than_brute_force() {
         totals[2],
         receivers.len() as u64 * stats.potential_edges as u64
     );
+    // Lazy (std) subdivision goes as deep as the queries need; the eager no_std
+    // octree stops at depth NO_STD_EAGER_DEPTH.
+    let factor = if cfg!(feature = "std") { 5 } else { 2 };
     assert!(
-        totals[0] * 5 < totals[2],
+        totals[0] * factor < totals[2],
         "hierarchy {} vs brute {}",
         totals[0],
         totals[2]
