@@ -320,6 +320,17 @@ pub struct SoftShadows {
     band_half_width: f64,
     hierarchy: Option<Hierarchy>,
     hemicube: Option<Box<Hemicube>>,
+    /// Sample indices by pseudo-angle about the centroid in the light's plane;
+    /// samples closer to the centroid than `angle_radius` come last.
+    order: Vec<u32>,
+    /// Pseudo-angles of the first `angles.len()` samples of `order`.
+    angles: Vec<f64>,
+    u_axis: DVec3,
+    v_axis: DVec3,
+    angle_radius: f64,
+    /// Largest distance of a sample from the light's plane.
+    sample_offset: f64,
+    shape_diameter: f64,
 }
 
 const _: () = {
@@ -437,7 +448,32 @@ impl SoftShadows {
             normal: plane_normal,
             tolerance,
         };
+        // Angular order of the samples about the centroid (receiver-independent).
+        let angle_radius = 1e-3 * f64::from(light.diameter());
+        let mut keyed: Vec<(f64, u32)> = Vec::with_capacity(samples.len());
+        let mut central: Vec<u32> = Vec::new();
+        let mut sample_offset: f64 = 0.0;
+        for (i, s) in samples.iter().enumerate() {
+            let d = s.as_dvec3() - plane_point;
+            sample_offset = sample_offset.max(d.dot(plane_normal).abs());
+            let (x, y) = (d.dot(u_axis), d.dot(v_axis));
+            if libm::hypot(x, y) < angle_radius {
+                central.push(i as u32);
+            } else {
+                keyed.push((pseudo_angle(x, y), i as u32));
+            }
+        }
+        keyed.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+        let angles: Vec<f64> = keyed.iter().map(|k| k.0).collect();
+        let order: Vec<u32> = keyed.iter().map(|k| k.1).chain(central).collect();
         let mut this = SoftShadows {
+            order,
+            angles,
+            u_axis,
+            v_axis,
+            angle_radius,
+            sample_offset,
+            shape_diameter: f64::from(light.diameter()),
             centroid: light.centroid(),
             light,
             samples: samples.to_vec(),
@@ -639,10 +675,12 @@ impl SoftShadows {
             .min_by_key(|&(_, &r)| r)
             .expect("at least one sample");
         info.rays = 1;
-        if self.reference_blocked(p, self.samples[min_index]) {
+        if self.reference_blocked(p, self.samples[self.order[min_index] as usize]) {
             return Ok(info);
         }
-        for (i, &r) in counters.iter().enumerate() {
+        // Counters are in angular order; bits in the caller's order.
+        for (k, &r) in counters.iter().enumerate() {
+            let i = self.order[k] as usize;
             if r == min && !self.near_blocked(p, self.samples[i]) {
                 bits[i / 64] |= 1 << (i % 64);
                 info.visible += 1;
@@ -724,8 +762,8 @@ impl Kernel {
             light_count: ss.shape.vertices.len(),
             toward: ss.plane_normal * (ss.plane_point - pw).dot(ss.plane_normal).signum(),
         };
-        for (i, s) in ss.samples.iter().enumerate() {
-            let d = s.as_dvec3() - pw;
+        for (i, &o) in ss.order.iter().enumerate() {
+            let d = ss.samples[o as usize].as_dvec3() - pw;
             k.sx[i] = d.x;
             k.sy[i] = d.y;
             k.sz[i] = d.z;
@@ -827,19 +865,19 @@ impl Kernel {
         };
         // Rounding of the four-term sum, on top of each term's own bound.
         const SUM_BOUND: f64 = 4.0 * f64::EPSILON;
-        for (i, counter) in counters.iter_mut().enumerate() {
+        let test = |i: usize| -> bool {
             let (x, y, z) = (self.sx[i], self.sy[i], self.sz[i]);
             let vs = nrm.x * x + nrm.y * y + nrm.z * z;
             let fs = sign(vs, err_n);
             if fs == Some(!want) {
-                continue;
+                return false;
             }
             let va = amat.x * x + amat.y * y + amat.z * z;
             let vb = bmat.x * x + bmat.y * y + bmat.z * z;
             let fa = sign(va, err_a);
             let fb = sign(vb, err_b);
             if fa.is_some() && fa == fb {
-                continue;
+                return false;
             }
             let vo = det - vs + va - vb;
             let err_o = err_c
@@ -849,10 +887,10 @@ impl Kernel {
                 + SUM_BOUND * (det.abs() + vs.abs() + va.abs() + vb.abs());
             let fo = sign(vo, err_o);
             if fo == Some(!want) {
-                continue;
+                return false;
             }
             if fs.is_none() || fa.is_none() || fb.is_none() || fo.is_none() {
-                let s = wide(ss.samples[i]);
+                let s = wide(ss.samples[ss.order[i] as usize]);
                 let pp = wide(self.p);
                 let cc = wide(ss.centroid);
                 let exact_pos =
@@ -864,11 +902,107 @@ impl Kernel {
                 let pb = exact_pos(fb, wide(b), cc, s, pp);
                 let po = exact_pos(fo, wide(a), wide(b), cc, s);
                 if ps != want || pa == pb || po != want {
-                    continue;
+                    return false;
                 }
             }
-            *counter += contribution;
+            true
+        };
+        let n = counters.len();
+        match self.arc(ss, aw, bw) {
+            None => {
+                for (i, counter) in counters.iter_mut().enumerate() {
+                    if test(i) {
+                        *counter += contribution;
+                    }
+                }
+            }
+            Some((lo, hi)) => {
+                // Samples by pseudo-angle about the centroid: those in the arc
+                // (a cyclic range), then those too close to the centroid for an
+                // angle (always tested).
+                let angled = ss.angles.len();
+                let first = ss.angles.partition_point(|&t| t < lo);
+                let last = ss.angles.partition_point(|&t| t <= hi);
+                let mut visit = |i: usize| {
+                    if test(i) {
+                        counters[i] += contribution;
+                    }
+                };
+                if lo <= hi {
+                    (first..last).for_each(&mut visit);
+                } else {
+                    (first..angled).for_each(&mut visit);
+                    (0..last).for_each(&mut visit);
+                }
+                (angled..n).for_each(&mut visit);
+            }
         }
         true
+    }
+
+    /// The pseudo-angle range `[lo, hi]` (cyclic: `lo > hi` wraps past 4) about
+    /// the centroid in the light's plane that holds every sample `s` for which
+    /// the segment from the centroid to `s` can cross the edge's projection from
+    /// the receiver, grown by a margin far above the rounding of the projection;
+    /// `None` (test every sample) when the projection is ill-conditioned (an
+    /// endpoint nearly level with or behind the receiver, an endpoint projecting
+    /// near the centroid, or the edge's projection nearly through it).
+    fn arc(&self, ss: &SoftShadows, aw: DVec3, bw: DVec3) -> Option<(f64, f64)> {
+        let hc = self.cp.dot(self.toward);
+        let (ha, hb) = (aw.dot(self.toward), bw.dot(self.toward));
+        if !(ha > 1e-3 * hc && hb > 1e-3 * hc) {
+            return None;
+        }
+        let project = |w: DVec3, h: f64| {
+            let q = w * (hc / h) - self.cp;
+            let err = 1e-12 * (w.length() * (hc / h) + self.cp.length());
+            (q.dot(ss.u_axis), q.dot(ss.v_axis), err)
+        };
+        let (xa, ya, ea) = project(aw, ha);
+        let (xb, yb, eb) = project(bw, hb);
+        let (ra, rb) = (libm::hypot(xa, ya), libm::hypot(xb, yb));
+        if ra < 1e4 * ea || rb < 1e4 * eb {
+            return None;
+        }
+        let cross = xa * yb - ya * xb;
+        if cross.abs() < 1e-6 * ra * rb {
+            return None;
+        }
+        // Samples are on the plane only up to rounding (or the tolerance of
+        // user samples): seen from p, a sample at height e off the plane shifts
+        // by up to |s - p| e / hc, an angle of that over its distance from the
+        // centroid (at least `angle_radius`).
+        let sample_shift =
+            (self.cp.length() + ss.shape_diameter) * ss.sample_offset / hc / ss.angle_radius;
+        if sample_shift > 0.25 {
+            return None;
+        }
+        let margin = 4.0 * (ea / ra + eb / rb) + 2.0 * sample_shift + 1e-9;
+        let (pa, pb) = (pseudo_angle(xa, ya), pseudo_angle(xb, yb));
+        // Counter-clockwise from the first to the second is the short way.
+        let (from, to) = if cross > 0.0 { (pa, pb) } else { (pb, pa) };
+        let wrap = |t: f64| {
+            if t < 0.0 {
+                t + 4.0
+            } else if t >= 4.0 {
+                t - 4.0
+            } else {
+                t
+            }
+        };
+        Some((wrap(from - margin), wrap(to + margin)))
+    }
+}
+
+/// A cheap angle substitute, monotone in the angle of `(x, y)` about the origin,
+/// in `[0, 4)`, changing by at most one unit per radian (so an angle margin is
+/// also a pseudo-angle margin).
+#[inline]
+fn pseudo_angle(x: f64, y: f64) -> f64 {
+    let t = y / (x.abs() + y.abs());
+    if x >= 0.0 {
+        if t >= 0.0 { t } else { 4.0 + t }
+    } else {
+        2.0 - t
     }
 }
