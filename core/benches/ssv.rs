@@ -2,8 +2,9 @@
 //! the same run, same samples, one thread.
 //!
 //! Scene: a bumpy closed sphere (40 × 80 grid, 6,240 triangles, radius ~1) one
-//! unit above a 20 × 20 floor (800 triangles), a 1 × 1 quad light 4 units above
-//! the floor, tilted by 0.3 rad; 256 jittered samples. Receivers: a 16 × 16 grid on
+//! unit above a 20 × 20 floor (800 triangles), a 1 × 1 quad light 5 units above
+//! the floor, tilted about the y axis by 0, 0.7 or 1.4 rad (the bench argument:
+//! light orientation); 256 jittered samples. Receivers: a 16 × 16 grid on
 //! the floor around the sphere's shadow (a penumbra-heavy set).
 //!
 //! - `receiver::<S>`: microseconds per receiver for `Hierarchy`, `Hemicube`,
@@ -33,7 +34,7 @@ struct Scene {
 }
 
 impl Scene {
-    fn new() -> Self {
+    fn new(tilt: f32) -> Self {
         let (rings, segments) = (40u32, 80u32);
         let mut positions = Vec::new();
         let mut indices = Vec::new();
@@ -79,7 +80,7 @@ impl Scene {
                 indices.extend([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
             }
         }
-        let (c, s) = (0.3f32.cos(), 0.3f32.sin());
+        let (c, s) = (tilt.cos(), tilt.sin());
         let corner = |x: f32, y: f32| Vec3::new(0.8 + x * c, 0.3 + y, 5.0 + x * s);
         let light = LightPolygon::new(&[
             corner(-0.5, -0.5),
@@ -127,10 +128,19 @@ const STRUCTURES: [Structure; 4] = [
     Structure::RayTrace,
 ];
 
+const TILTS: [f32; 3] = [0.0, 0.7, 1.4];
+
 fn main() {
-    let scene = Scene::new();
+    for tilt in TILTS {
+        report(tilt);
+    }
+    divan::main();
+}
+
+fn report(tilt: f32) {
+    let scene = Scene::new(tilt);
     println!(
-        "ssv scene: {} triangles, {} samples, {} receivers",
+        "ssv scene (light tilt {tilt} rad): {} triangles, {} samples, {} receivers",
         scene.indices.len() / 3,
         SAMPLES,
         scene.receivers.len()
@@ -171,12 +181,11 @@ fn main() {
             }
         }
     }
-    divan::main();
 }
 
-#[divan::bench(types = [HierarchyS, HemicubeS, BruteForceS, RayTraceS])]
-fn receiver<S: Pick>(bencher: divan::Bencher<'_, '_>) {
-    let scene = Scene::new();
+#[divan::bench(types = [HierarchyS, HemicubeS, BruteForceS, RayTraceS], args = TILTS)]
+fn receiver<S: Pick>(bencher: divan::Bencher<'_, '_>, tilt: f32) {
+    let scene = Scene::new(tilt);
     let ss = scene.build(S::STRUCTURE);
     let mut bits = [0u64; SAMPLES / 64];
     for &p in &scene.receivers {
@@ -189,9 +198,9 @@ fn receiver<S: Pick>(bencher: divan::Bencher<'_, '_>) {
     });
 }
 
-#[divan::bench]
-fn bvh_rays(bencher: divan::Bencher<'_, '_>) {
-    let scene = Scene::new();
+#[divan::bench(args = TILTS)]
+fn bvh_rays(bencher: divan::Bencher<'_, '_>, tilt: f32) {
+    let scene = Scene::new(tilt);
     let bvh = BvhScene::new(&scene.view()).unwrap();
     let mut k = 0;
     bencher.bench_local(|| {

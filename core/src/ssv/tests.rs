@@ -173,8 +173,22 @@ fn check(soup: &Soup, light: &LightPolygon, samples: &[Vec3], receivers: &[Vec3]
         .map(|&p| oracle(&tris, p, samples))
         .collect();
     let mut brute = Vec::new();
-    for structure in ALL {
-        let ss = build(soup, light, samples, structure);
+    // The four structures, plus a hierarchy whose root box misses most receivers
+    // (they fall back to every potential edge) and cuts through the mesh.
+    let small_root = SsvOptions {
+        structure: Structure::Hierarchy,
+        leaf_edges: 4,
+        root_bounds: Some([Vec3::new(-0.5, -0.5, 0.0), Vec3::new(0.7, 0.6, 1.5)]),
+        ..SsvOptions::default()
+    };
+    let sets = ALL
+        .iter()
+        .map(|&s| (s, build(soup, light, samples, s)))
+        .chain([(
+            Structure::Hierarchy,
+            SoftShadows::new(&soup.view(), light.clone(), samples, small_root).unwrap(),
+        )]);
+    for (structure, ss) in sets {
         let words = ss.words_per_receiver();
         for (r, &p) in receivers.iter().enumerate() {
             let mut bits = vec![0u64; words];
@@ -365,6 +379,16 @@ fn errors() {
     assert_eq!(bits, [u64::MAX, (1 << 6) - 1, u64::MAX]);
     // Inside the closed cube: all blocked.
     assert_eq!(ss.query(Vec3::new(0.1, 0.2, 0.3), &mut bits), Ok(0));
+    // No occluders at all: everything visible.
+    let empty = Soup::default();
+    let open = SoftShadows::new(
+        &empty.view(),
+        light.clone(),
+        &samples,
+        SsvOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(open.query(Vec3::ZERO, &mut bits), Ok(70));
     let off = [Vec3::new(5.0, 0.0, 3.0)];
     assert!(matches!(
         SoftShadows::new(&soup.view(), light.clone(), &off, SsvOptions::default()),
