@@ -655,20 +655,7 @@ impl SoftShadows {
         }
         let mut counters = [0i32; MAX_SAMPLES];
         let counters = &mut counters[..n];
-        let mut kernel = Kernel::new(self, p);
-        let mut visit = |e: u32| {
-            info.candidates += 1;
-            if kernel.add_edge(self, &self.graph.edges[e as usize], counters) {
-                info.silhouettes += 1;
-            }
-        };
-        match (&self.hierarchy, &self.hemicube) {
-            (Some(h), _) => {
-                h.for_each_candidate(&self.graph, &self.shape, p.as_dvec3(), &mut visit)
-            }
-            (_, Some(c)) => c.for_each_candidate(p.as_dvec3(), &mut visit),
-            _ => self.potential.iter().for_each(|&e| visit(e)),
-        }
+        self.sweep(p, counters, &mut info);
         let (min_index, &min) = counters
             .iter()
             .enumerate()
@@ -687,6 +674,148 @@ impl SoftShadows {
             }
         }
         Ok(info)
+    }
+
+    /// The relative depth complexity `R(s)` of every sample, in angular order
+    /// (`counters[k]` belongs to sample `order[k]`), from the structure's
+    /// candidates (every potential edge for [`Structure::RayTrace`]).
+    fn sweep(&self, p: Vec3, counters: &mut [i32], info: &mut QueryInfo) {
+        let mut kernel = Kernel::new(self, p);
+        let mut visit = |e: u32| {
+            info.candidates += 1;
+            if kernel.add_edge(self, &self.graph.edges[e as usize], counters) {
+                info.silhouettes += 1;
+            }
+        };
+        match (&self.hierarchy, &self.hemicube) {
+            (Some(h), _) => {
+                h.for_each_candidate(&self.graph, &self.shape, p.as_dvec3(), &mut visit)
+            }
+            (_, Some(c)) => c.for_each_candidate(p.as_dvec3(), &mut visit),
+            _ => self.potential.iter().for_each(|&e| visit(e)),
+        }
+    }
+
+    /// The depth complexity of every sample relative to the least:
+    /// `out[i] = D(p, s_i) - min_j D(p, s_j)`, where `D` counts the triangles
+    /// meeting the open segment (as [`segment_meets_triangle`] decides), from
+    /// the silhouette sweep (no ray). This is what an any-hit tracer counting
+    /// every hit along each segment gives, up to one constant per receiver.
+    /// `out` needs [`SoftShadows::sample_count`] entries (more are untouched).
+    pub fn relative_depth_complexity(&self, p: Vec3, out: &mut [i32]) -> Result<(), SsvError> {
+        let n = self.samples.len();
+        if out.len() < n {
+            return Err(SsvError::BitsTooShort {
+                needed: n,
+                got: out.len(),
+            });
+        }
+        if !p.is_finite() {
+            return Err(SsvError::NonFiniteReceiver);
+        }
+        let out = &mut out[..n];
+        let count = |tris: &[[Vec3; 3]], s: Vec3| {
+            tris.iter()
+                .filter(|&&[a, b, c]| segment_meets_triangle(p, s, a, b, c))
+                .count() as i32
+        };
+        let height = (p.as_dvec3() - self.plane_point).dot(self.plane_normal);
+        if height.abs() <= self.band_half_width {
+            for (o, &s) in out.iter_mut().zip(&self.samples) {
+                *o = count(&self.band, s);
+            }
+        } else {
+            let mut counters = [0i32; MAX_SAMPLES];
+            let counters = &mut counters[..n];
+            self.sweep(p, counters, &mut QueryInfo::default());
+            for (k, &r) in counters.iter().enumerate() {
+                let i = self.order[k] as usize;
+                out[i] = r + count(&self.near_light, self.samples[i]);
+            }
+        }
+        let min = out.iter().copied().min().unwrap_or(0);
+        out.iter_mut().for_each(|o| *o -= min);
+        Ok(())
+    }
+
+    /// Queries every point: receiver `r`'s bits go to
+    /// `bits[r * words_per_receiver()..][..words_per_receiver()]`, its visible
+    /// count to `visible[r]` when given. Every point is checked before any is
+    /// computed. With the `parallel` feature the points are spread over rayon's
+    /// pool (same results).
+    pub fn query_batch(
+        &self,
+        points: &[Vec3],
+        bits: &mut [u64],
+        visible: Option<&mut [u32]>,
+    ) -> Result<(), SsvError> {
+        let words = self.words_per_receiver();
+        let needed = points.len() * words;
+        if bits.len() < needed {
+            return Err(SsvError::BitsTooShort {
+                needed,
+                got: bits.len(),
+            });
+        }
+        if let Some(v) = &visible
+            && v.len() < points.len()
+        {
+            return Err(SsvError::BitsTooShort {
+                needed: points.len(),
+                got: v.len(),
+            });
+        }
+        if points.iter().any(|p| !p.is_finite()) {
+            return Err(SsvError::NonFiniteReceiver);
+        }
+        let bits = &mut bits[..needed];
+        let one = |p: Vec3, out: &mut [u64]| self.query(p, out).unwrap_or(0);
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            let chunks = bits.par_chunks_mut(words.max(1)).zip(points.par_iter());
+            match visible {
+                Some(v) => chunks
+                    .zip(v[..points.len()].par_iter_mut())
+                    .for_each(|((out, &p), v)| *v = one(p, out)),
+                None => chunks.for_each(|(out, &p)| {
+                    one(p, out);
+                }),
+            }
+        }
+        #[cfg(not(feature = "parallel"))]
+        {
+            let mut visible = visible;
+            for (r, (out, &p)) in bits.chunks_mut(words.max(1)).zip(points).enumerate() {
+                let count = one(p, out);
+                if let Some(v) = visible.as_deref_mut() {
+                    v[r] = count;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The Monte Carlo estimate, from a receiver's bits, of
+    /// `∫_L V(p, s) cos θ_p cos θ_s / |s - p|² dA(s)` (thesis Eq. 1.16 per unit
+    /// emitted radiance: multiply by the light's radiance for irradiance):
+    /// `area / N · Σ_visible max(0, n·d) |n_L·d| / |d|⁴` with `d = s - p`, the
+    /// receiver's unit normal `n` and the light's normal `n_L` (two-sided light).
+    pub fn irradiance(&self, p: Vec3, normal: Vec3, bits: &[u64]) -> f32 {
+        let light_normal = self.light.normal();
+        let mut sum = 0.0f64;
+        for (i, &s) in self.samples.iter().enumerate() {
+            if bits.get(i / 64).is_some_and(|w| w >> (i % 64) & 1 == 1) {
+                let d = (s - p).as_dvec3();
+                let r2 = d.length_squared();
+                if r2 > 0.0 {
+                    let cos_p = normal.as_dvec3().dot(d).max(0.0);
+                    let cos_l = light_normal.as_dvec3().dot(d).abs();
+                    sum += cos_p * cos_l / (r2 * r2);
+                }
+            }
+        }
+        (sum * f64::from(self.light.area()) / self.samples.len() as f64) as f32
     }
 
     /// The reference ray over the open segment `p → s`, through the caster.

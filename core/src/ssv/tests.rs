@@ -553,3 +553,63 @@ proptest! {
         prop_assert_eq!(welded, again);
     }
 }
+
+/// The relative depth complexity equals the oracle's exact counts up to the
+/// per-receiver constant, for every structure; the batch query equals single
+/// queries; the irradiance estimate of a fully visible light matches the
+/// analytic point-source limit for a far small light.
+#[test]
+fn depth_complexity_batch_and_irradiance() {
+    let mut soup = sphere(Vec3::new(0.0, 0.0, 1.5), 0.8, 6);
+    soup.append(&torus(Vec3::new(0.3, 0.2, 2.2), 0.6, 0.15, 6));
+    soup.append(&grid(3, 3, |u, v| {
+        Vec3::new(4.0 * u - 2.0, 4.0 * v - 2.0, 0.0)
+    }));
+    let light = quad_light(Vec3::new(0.1, 0.2, 4.0), 1.0);
+    let samples = light.samples(64, SamplePattern::Jittered, 4);
+    let tris = soup.triangles();
+    let mut receivers = receivers_box(Vec3::new(-2.0, -2.0, 0.0), Vec3::new(2.0, 2.0, 1.0), 24, 13);
+    receivers.push(Vec3::new(0.0, 0.0, 4.0)); // in the light's plane
+    for structure in ALL {
+        let ss = build(&soup, &light, &samples, structure);
+        for &p in &receivers {
+            let mut got = [0i32; 64];
+            ss.relative_depth_complexity(p, &mut got).unwrap();
+            let exact: Vec<i32> = samples
+                .iter()
+                .map(|&s| {
+                    tris.iter()
+                        .filter(|&&[a, b, c]| segment_meets_triangle(p, s, a, b, c))
+                        .count() as i32
+                })
+                .collect();
+            let min = *exact.iter().min().unwrap();
+            let exact: Vec<i32> = exact.iter().map(|d| d - min).collect();
+            assert_eq!(&got[..], &exact[..], "{structure:?} at {p:?}");
+        }
+        let mut batch = vec![0u64; receivers.len()];
+        let mut counts = vec![0u32; receivers.len()];
+        ss.query_batch(&receivers, &mut batch, Some(&mut counts))
+            .unwrap();
+        for (r, &p) in receivers.iter().enumerate() {
+            let mut one = [0u64; 1];
+            assert_eq!(ss.query(p, &mut one), Ok(counts[r]));
+            assert_eq!(one[0], batch[r]);
+        }
+    }
+    // A small light far above an empty scene: E = A cos cos / r^2.
+    let small = quad_light(Vec3::new(0.0, 0.0, 100.0), 0.01);
+    let ss = SoftShadows::new(
+        &Soup::default().view(),
+        small.clone(),
+        &small.samples(16, SamplePattern::Stratified, 0),
+        SsvOptions::default(),
+    )
+    .unwrap();
+    let mut bits = [0u64; 1];
+    assert_eq!(ss.query(Vec3::ZERO, &mut bits), Ok(16));
+    let e = ss.irradiance(Vec3::ZERO, Vec3::Z, &bits);
+    let expected = small.area() / (100.0 * 100.0);
+    assert!((e / expected - 1.0).abs() < 1e-4, "{e} vs {expected}");
+    assert_eq!(ss.irradiance(Vec3::ZERO, -Vec3::Z, &bits), 0.0);
+}
