@@ -58,8 +58,9 @@
 //!
 //! ## Structures ([`Structure`])
 //!
-//! All four give the same bits (the first three bit for bit, always; ray tracing
-//! on non-degenerate inputs):
+//! All four give the same bits on non-degenerate inputs (the first three share
+//! every exact test and differ only in conservative culling, so they also agree
+//! in every tie the culling cannot reach; tests check them bit for bit):
 //!
 //! - [`Structure::Hierarchy`] (default): the 2006 structure, an octree over the
 //!   receivers' space whose nodes keep the edges whose wedge and silhouette region
@@ -79,6 +80,17 @@
 //! surface is not shadowed by that surface through `f32` rounding (the same holds
 //! for [`Structure::RayTrace`]'s rays).
 //!
+//! Measured (`cargo bench -p antumbra-core --features bvh --bench ssv`, one
+//! thread of a shared 2-core VM, 7,040-triangle bumpy sphere over a floor, 1 × 1
+//! quad light, N = 256, 256 floor receivers in and around the penumbra, medians):
+//! hierarchy 8–12 µs per receiver over light tilts 0, 0.7, 1.4 rad (51.9, 45.8
+//! and 43.7 candidate edges per query, 2–3.4 MB of nodes built lazily), the
+//! hemicube 26–62 µs (994–2,459 candidates, 53–71 MB), brute force 139–221 µs
+//! (all 9,520 potential edges), and tracing the 256 rays with `BvhScene`
+//! 110–119 µs: the hierarchy is 10–13× faster than the rays, 3.2–5.1× faster
+//! than the hemicube, and varies by 1.5× with the light's orientation. All four
+//! structures gave identical bits on this scene.
+//!
 //! Queries allocate nothing: per-sample counters live on the stack (at most
 //! [`MAX_SAMPLES`] samples, about 28 KiB of stack per query).
 
@@ -94,6 +106,7 @@ mod tests;
 
 use alloc::boxed::Box;
 use alloc::vec::Vec;
+use core::sync::atomic::{AtomicUsize, Ordering};
 use glam::{DVec3, Vec3};
 
 use crate::geom::MeshView;
@@ -188,6 +201,21 @@ pub enum SsvError {
     },
 }
 
+impl TryFrom<u32> for Structure {
+    type Error = SsvError;
+
+    /// The C ABI's numbering (`ANTUMBRA_SSV_STRUCTURE_*`).
+    fn try_from(value: u32) -> Result<Self, SsvError> {
+        match value {
+            0 => Ok(Structure::Hierarchy),
+            1 => Ok(Structure::Hemicube),
+            2 => Ok(Structure::BruteForce),
+            3 => Ok(Structure::RayTrace),
+            _ => Err(SsvError::InvalidOptions),
+        }
+    }
+}
+
 impl From<LightError> for SsvError {
     fn from(e: LightError) -> Self {
         SsvError::Light(e)
@@ -232,6 +260,11 @@ pub struct SsvStatistics {
     pub nodes: usize,
     /// Bytes held by the structure's node or cell lists (not the caster).
     pub bytes: usize,
+    /// Queries answered so far (all threads; wraps at `usize::MAX`).
+    pub queries: usize,
+    /// Candidate edges handed to the exact tests over those queries (wraps);
+    /// `candidates / queries` is the mean per query.
+    pub candidates: usize,
 }
 
 /// What one query did, beside its bits.
@@ -243,9 +276,9 @@ pub struct QueryInfo {
     pub candidates: u32,
     /// Candidates with a non-zero silhouette weight at the receiver.
     pub silhouettes: u32,
-    /// Rays cast (1 for the wedge structures, 0 when the receiver is in the
-    /// light's plane band or every candidate was decided without one... which
-    /// never happens: see the module docs; `N` for ray tracing).
+    /// Reference rays cast: 1 for the wedge structures, `N` for ray tracing, 0
+    /// for a receiver in the band around the light's plane (answered by exact
+    /// segment tests, module docs).
     pub rays: u32,
 }
 
@@ -320,6 +353,8 @@ pub struct SoftShadows {
     band_half_width: f64,
     hierarchy: Option<Hierarchy>,
     hemicube: Option<Box<Hemicube>>,
+    queries: AtomicUsize,
+    candidates: AtomicUsize,
     /// Sample indices by pseudo-angle about the centroid in the light's plane;
     /// samples closer to the centroid than `angle_radius` come last.
     order: Vec<u32>,
@@ -489,6 +524,8 @@ impl SoftShadows {
             band_half_width,
             hierarchy: None,
             hemicube: None,
+            queries: AtomicUsize::new(0),
+            candidates: AtomicUsize::new(0),
         };
         match options.structure {
             Structure::Hierarchy => {
@@ -601,6 +638,8 @@ impl SoftShadows {
             near_light_triangles: self.near_light.len(),
             nodes,
             bytes,
+            queries: self.queries.load(Ordering::Relaxed),
+            candidates: self.candidates.load(Ordering::Relaxed),
         }
     }
 
@@ -613,6 +652,14 @@ impl SoftShadows {
 
     /// [`SoftShadows::query`] with the work it did.
     pub fn query_detailed(&self, p: Vec3, bits: &mut [u64]) -> Result<QueryInfo, SsvError> {
+        let info = self.query_uncounted(p, bits)?;
+        self.queries.fetch_add(1, Ordering::Relaxed);
+        self.candidates
+            .fetch_add(info.candidates as usize, Ordering::Relaxed);
+        Ok(info)
+    }
+
+    fn query_uncounted(&self, p: Vec3, bits: &mut [u64]) -> Result<QueryInfo, SsvError> {
         let words = self.words_per_receiver();
         if bits.len() < words {
             return Err(SsvError::BitsTooShort {

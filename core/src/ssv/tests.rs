@@ -461,6 +461,10 @@ fn hierarchy_does_less_work_than_brute_force() {
     }
     let stats = sets[0].statistics();
     assert!(stats.nodes > 1 && stats.bytes > 0);
+    assert_eq!(stats.queries, receivers.len());
+    assert_eq!(stats.candidates as u64, totals[0]);
+    assert_eq!(Structure::try_from(1), Ok(Structure::Hemicube));
+    assert_eq!(Structure::try_from(4), Err(SsvError::InvalidOptions));
     // Brute force hands over every potential edge; the hierarchy a small
     // fraction (wedges of a small light are thin; the floor's flat edges are
     // gone everywhere).
