@@ -617,3 +617,57 @@ fn depth_complexity_batch_and_irradiance() {
     assert!((e / expected - 1.0).abs() < 1e-4, "{e} vs {expected}");
     assert_eq!(ss.irradiance(Vec3::ZERO, -Vec3::Z, &bits), 0.0);
 }
+
+/// Coplanar neighbours (a flat triangulated plate: its interior edges never
+/// count), a coplanar overlapping duplicate plate (counts twice), and the same
+/// scene far from the origin, where `f32` spacing is coarse (the margins of the
+/// culling tests are relative).
+#[test]
+fn coplanar_neighbours_and_far_from_the_origin() {
+    let mut soup = grid(5, 5, |u, v| Vec3::new(2.0 * u - 1.0, 2.0 * v - 1.0, 1.0));
+    soup.append(&grid(2, 3, |u, v| {
+        Vec3::new(1.2 * u - 0.2, 1.1 * v - 0.5, 1.0)
+    }));
+    soup.append(&sphere(Vec3::new(-0.6, 0.7, 2.0), 0.3, 5));
+    soup.append(&grid(4, 4, |u, v| {
+        Vec3::new(6.0 * u - 3.0, 6.0 * v - 3.0, 0.0)
+    }));
+    let light = quad_light(Vec3::new(0.2, 0.1, 3.5), 0.9);
+    let samples = light.samples(64, SamplePattern::Jittered, 21);
+    let mut receivers = receivers_box(Vec3::new(-2.5, -2.5, 0.0), Vec3::new(2.5, 2.5, 0.0), 30, 17);
+    // In the plate's plane (edge-on to it) and at its vertices.
+    receivers.extend(receivers_box(
+        Vec3::new(-1.5, -1.5, 1.0),
+        Vec3::new(1.5, 1.5, 1.0),
+        15,
+        18,
+    ));
+    receivers.extend(
+        soup.positions
+            .iter()
+            .take(36)
+            .step_by(5)
+            .map(|&p| Vec3::from(p)),
+    );
+    check(&soup, &light, &samples, &receivers);
+    let ss = build(&soup, &light, &samples, Structure::Hierarchy);
+    let stats = ss.statistics();
+    assert!(
+        stats.potential_edges < stats.edges,
+        "flat edges are left out"
+    );
+
+    let offset = Vec3::new(1024.0, -2048.0, 512.0);
+    let far = soup.transformed(|p| p + offset);
+    let far_light = LightPolygon::new(
+        &light
+            .vertices()
+            .iter()
+            .map(|&v| v + offset)
+            .collect::<Vec<_>>(),
+    )
+    .unwrap();
+    let far_samples: Vec<Vec3> = samples.iter().map(|&s| s + offset).collect();
+    let far_receivers: Vec<Vec3> = receivers.iter().map(|&p| p + offset).collect();
+    check(&far, &far_light, &far_samples, &far_receivers);
+}
