@@ -192,11 +192,13 @@ pub enum SsvError {
     Caster,
     /// A receiver point is not finite.
     NonFiniteReceiver,
-    /// The output slice is shorter than [`SoftShadows::words_per_receiver`].
+    /// An output slice is too short: bits need
+    /// [`SoftShadows::words_per_receiver`] words per receiver, visible counts
+    /// one entry per receiver, depth complexities one per sample.
     BitsTooShort {
-        /// Words needed.
+        /// Entries needed.
         needed: usize,
-        /// Words given.
+        /// Entries given.
         got: usize,
     },
 }
@@ -236,7 +238,7 @@ impl core::fmt::Display for SsvError {
             SsvError::Caster => write!(f, "the reference ray caster could not be built"),
             SsvError::NonFiniteReceiver => write!(f, "receiver point is not finite"),
             SsvError::BitsTooShort { needed, got } => {
-                write!(f, "visibility needs {needed} words per receiver, got {got}")
+                write!(f, "output needs {needed} entries, got {got}")
             }
         }
     }
