@@ -12,7 +12,12 @@
 //!
 //! Along a direction `n`, `W`'s extent is `[lo, hi]` with
 //! `hi = max_e n·x` when `max_e n·x <= min_L n·l` and `+∞` otherwise (a ray
-//! `x + t (x - l)` then climbs without bound), and symmetrically for `lo`. A box
+//! `x + t (x - l)` then climbs without bound), and symmetrically for `lo`. Within
+//! a box the rays are short: heights above the light's plane grow by `1 + t`, so
+//! for an edge strictly on one side of that plane `t` is bounded by the box's
+//! largest height over the edge's smallest, and `hi <= max_e n·x + t_max ·
+//! max(0, max_e n·x - min_L n·l)`. That makes the wedge's own faces (where the
+//! two sides are equal up to rounding) usable as separating planes. A box
 //! whose extent along `n` is disjoint from that interval (beyond a relative
 //! margin that covers `f64` rounding) is separated from the wedge. The directions
 //! tried are the planes bounding the wedge: the three axes, the light's normal,
@@ -97,6 +102,20 @@ pub(crate) fn box_meets_wedge(light: &LightShape, a: DVec3, b: DVec3, bx: &Aabb)
             .iter()
             .fold(0.0f64, |m, v| m.max(v.abs().max_element())),
     );
+    // How far along its ray `x + t (x - l)` a wedge point inside the box can be:
+    // heights above the light's plane scale by `1 + t`, so with the edge
+    // strictly on one side, `t <= (box's largest height) / (edge's smallest)`.
+    let plane_slack = SLACK * scale + light.tolerance;
+    let l0 = light.vertices[0];
+    let (ha, hb) = (light.normal.dot(a - l0), light.normal.dot(b - l0));
+    let (hbox_mid, hbox_rad) = (light.normal.dot(c - l0), light.normal.abs().dot(h));
+    let reach = if ha > plane_slack && hb > plane_slack {
+        (hbox_mid + hbox_rad).max(0.0) / ha.min(hb)
+    } else if ha < -plane_slack && hb < -plane_slack {
+        (-(hbox_mid - hbox_rad)).max(0.0) / (-ha.max(hb))
+    } else {
+        f64::INFINITY
+    };
     let separated = |n: DVec3| -> bool {
         let len = n.length();
         if len.is_nan() || len <= 0.0 {
@@ -113,12 +132,21 @@ pub(crate) fn box_meets_wedge(light: &LightShape, a: DVec3, b: DVec3, bx: &Aabb)
             lmax = lmax.max(d);
         }
         let (bmid, brad) = (n.dot(c), n.abs().dot(h));
-        // Upper end of the wedge: finite only when the edge is entirely below the
-        // light along n (every recession direction x - l points down or flat).
-        if emax < lmin - slack && bmid - brad > emax + slack {
-            return true;
-        }
-        emin > lmax + slack && bmid + brad < emin - slack
+        // The wedge's extent along n: a ray x + t (x - l) climbs at rate
+        // n·(x - l) <= emax - lmin (plus rounding) for at most `reach`.
+        let climb = (emax - lmin + slack).max(0.0);
+        let hi = if climb == 0.0 {
+            emax
+        } else {
+            emax + reach * climb
+        };
+        let fall = (lmax - emin + slack).max(0.0);
+        let lo = if fall == 0.0 {
+            emin
+        } else {
+            emin - reach * fall
+        };
+        bmid - brad > hi + slack || bmid + brad < lo - slack
     };
     if separated(DVec3::X) || separated(DVec3::Y) || separated(DVec3::Z) || separated(light.normal)
     {
