@@ -13,6 +13,10 @@
 //!   hit), a watertight ray–triangle test, a brute-force caster that is the obviously
 //!   right reference, and, behind the `bvh` feature, a compressed wide BVH ([`raycast::BvhScene`],
 //!   built with obvhs).
+//! - [`transfer`]: precomputed radiance transfer (P1, P2): one bake engine whose
+//!   configurations are diffuse PRT, glossy SH transfer and matrix radiance transfer
+//!   ([`transfer::bake`]), their run-time shading, PCA compression of MRT, and a
+//!   versioned, checksummed bake file format ([`transfer::TransferSet`]).
 //!
 //! ## Example
 //!
@@ -60,6 +64,7 @@ pub mod geom;
 pub mod hemi;
 pub mod raycast;
 pub mod sh;
+pub mod transfer;
 
 pub use geom::{Frame, MeshError, MeshView};
 pub use raycast::{BruteForceCaster, Hit, Ray, RayCaster};
