@@ -377,7 +377,7 @@ impl TransferSet {
         let normals = to_vec3(take(3 * v, "normals")?);
         for (i, n) in normals.iter().enumerate() {
             let len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-            if !((len2 - 1.0).abs() < 2e-3) {
+            if (len2 - 1.0).abs() >= 2e-3 {
                 return Err(FormatError::Value {
                     field: "normals",
                     index: i as u64,

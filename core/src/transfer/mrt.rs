@@ -197,7 +197,7 @@ pub fn node_direction(grid: u32, i: u32, j: u32) -> Vec3 {
 /// not finite.
 #[inline]
 pub fn mrt_tap(grid: u32, local: Vec3) -> Option<MrtTap> {
-    if !(local.z > 0.0) {
+    if local.z.is_nan() || local.z <= 0.0 {
         return None;
     }
     let (a, b) = hemi_oct_encode(local)?;

@@ -394,7 +394,10 @@ impl TransferSet {
                         err += orig
                             .iter()
                             .zip(&block)
-                            .map(|(a, b)| (f64::from(*a) - f64::from(*b)).powi(2))
+                            .map(|(a, b)| {
+                                let e = f64::from(*a) - f64::from(*b);
+                                e * e
+                            })
                             .sum::<f64>();
                     }
                     let bytes = pca.bytes_at(k);

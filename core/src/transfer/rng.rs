@@ -180,7 +180,9 @@ mod tests {
             mean_z += f64::from(c.z);
         }
         let pi = core::f64::consts::PI;
-        assert!((acc * 2.0 * pi / 4096.0 - pi).abs() < 1e-3);
+        let est = acc * 2.0 * pi / 4096.0;
+        // Jittered strata: the estimate's σ is 2π/(4096·√12) ≈ 4.4e-4; allow 5σ.
+        assert!((est - pi).abs() < 2.2e-3, "{est}");
         // E[cos θ] under cos θ / π is 2/3.
         assert!((mean_z / 4096.0 - 2.0 / 3.0).abs() < 1e-3);
     }
