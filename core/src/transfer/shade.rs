@@ -10,10 +10,10 @@ use core::fmt;
 
 use glam::Vec3;
 
-use super::mrt::mrt_tap;
+use super::mrt::{MrtTap, mrt_tap};
 use super::{Payload, TransferKind, TransferSet};
 use crate::geom::Frame;
-use crate::sh::{MAX_COEFFS, ShRgb, ZonalKernel, eval_basis_into};
+use crate::sh::{MAX_COEFFS, ShRgb, ZonalKernel, eval_basis, eval_basis_into};
 
 /// RGB lighting coefficients of an [`ShRgb`], coefficient-major.
 pub fn lighting_from_sh_rgb<const N: usize>(sh: &ShRgb<N>) -> [[f32; 3]; N] {
@@ -100,17 +100,48 @@ pub fn shade_glossy_sh(
     let Some(r) = mirror(normal, to_eye) else {
         return Vec3::ZERO;
     };
-    let mut y = [0.0f32; MAX_COEFFS];
-    let _ = eval_basis_into(r, &mut y[..n]);
-    let mut u = [0.0f32; MAX_COEFFS];
-    for i in 0..n {
+    with_coeff_count!(n, glossy_n, (matrix, lobe, lighting, r))
+}
+
+/// Calls `$f::<N>($args)` for the square coefficient count `$n`, so each kernel is
+/// compiled with fixed-size, unrolled loops; zero for other counts.
+macro_rules! with_coeff_count {
+    ($n:expr, $f:ident, ($($arg:expr),*)) => {
+        match $n {
+            1 => $f::<1>($($arg),*),
+            4 => $f::<4>($($arg),*),
+            9 => $f::<9>($($arg),*),
+            16 => $f::<16>($($arg),*),
+            25 => $f::<25>($($arg),*),
+            36 => $f::<36>($($arg),*),
+            49 => $f::<49>($($arg),*),
+            64 => $f::<64>($($arg),*),
+            _ => Vec3::ZERO,
+        }
+    };
+}
+use with_coeff_count;
+
+#[inline(always)]
+fn glossy_n<const N: usize>(
+    matrix: &[f32],
+    lobe: &GlossyLobe,
+    lighting: &[[f32; 3]],
+    r: Vec3,
+) -> Vec3 {
+    let (Some(matrix), Some(lighting)) = (matrix.get(..N * N), lighting.get(..N)) else {
+        return Vec3::ZERO;
+    };
+    let y = eval_basis::<N>(r);
+    let mut u = [0.0f32; N];
+    for (i, row) in matrix.chunks_exact(N).enumerate() {
         let w = lobe.factors[i] * y[i];
-        for (uj, t) in u[..n].iter_mut().zip(&matrix[i * n..(i + 1) * n]) {
+        for (uj, t) in u.iter_mut().zip(row) {
             *uj += w * t;
         }
     }
     let mut acc = Vec3::ZERO;
-    for (uj, l) in u[..n].iter().zip(lighting) {
+    for (uj, l) in u.iter().zip(lighting) {
         acc += *uj * rgb(l);
     }
     acc
@@ -148,8 +179,8 @@ pub fn shade_glossy_sh_reference(
 /// MRT (P2 §3): the view in the vertex frame selects four nodes of the `grid × grid`
 /// hemi-octahedral basis; their rows of `matrix` (`grid² × n`, row-major) are
 /// blended bilinearly and dotted with the lighting, `7n` multiply-adds. `n` is
-/// `lighting.len()`. Zero for a viewer behind the surface or a matrix shorter than
-/// `grid² · n`.
+/// `lighting.len()`, a square from 1 to 64. Zero for a viewer behind the surface,
+/// another coefficient count, or a matrix shorter than `grid² · n`.
 #[inline]
 pub fn shade_mrt(
     matrix: &[f32],
@@ -159,24 +190,33 @@ pub fn shade_mrt(
     to_eye: Vec3,
 ) -> Vec3 {
     let n = lighting.len();
-    if grid < 2 || matrix.len() < (grid * grid) as usize * n {
+    if grid < 2 || n > MAX_COEFFS || matrix.len() < (grid * grid) as usize * n {
         return Vec3::ZERO;
     }
     let Some(tap) = mrt_tap(grid, frame.to_local(to_eye)) else {
         return Vec3::ZERO;
     };
-    let [a, b, c, d] = tap.nodes.map(|g| g as usize * n);
+    with_coeff_count!(n, mrt_n, (matrix, lighting, tap))
+}
+
+#[inline(always)]
+fn mrt_n<const N: usize>(matrix: &[f32], lighting: &[[f32; 3]], tap: MrtTap) -> Vec3 {
+    let rows = tap
+        .nodes
+        .map(|g| matrix.get(g as usize * N..g as usize * N + N));
+    let ([Some(ra), Some(rb), Some(rc), Some(rd)], Some(lighting)) = (rows, lighting.get(..N))
+    else {
+        return Vec3::ZERO;
+    };
     let [wa, wb, wc, wd] = tap.weights;
-    let (ra, rb, rc, rd) = (
-        &matrix[a..a + n],
-        &matrix[b..b + n],
-        &matrix[c..c + n],
-        &matrix[d..d + n],
-    );
+    // Blend the rows first (4N, vectorises), then one row dotted with RGB (3N).
+    let mut row = [0.0f32; N];
+    for (j, m) in row.iter_mut().enumerate() {
+        *m = wa * ra[j] + wb * rb[j] + wc * rc[j] + wd * rd[j];
+    }
     let mut acc = Vec3::ZERO;
-    for j in 0..n {
-        let m = wa * ra[j] + wb * rb[j] + wc * rc[j] + wd * rd[j];
-        acc += m * rgb(&lighting[j]);
+    for (m, l) in row.iter().zip(lighting) {
+        acc += *m * rgb(l);
     }
     acc
 }
@@ -191,7 +231,7 @@ pub fn shade_mrt_reference(
     to_eye: Vec3,
 ) -> Vec3 {
     let n = lighting.len();
-    if grid < 2 || matrix.len() < (grid * grid) as usize * n {
+    if grid < 2 || n > MAX_COEFFS || matrix.len() < (grid * grid) as usize * n {
         return Vec3::ZERO;
     }
     let Some(tap) = mrt_tap(grid, frame.to_local(to_eye)) else {
