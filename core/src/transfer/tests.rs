@@ -89,7 +89,7 @@ fn options(measurement: Measurement<'_>, bands: u32, rays: u32) -> BakeOptions<'
 /// `(cos θ, φ)` grid of the whole sphere in world coordinates (no vertex frame, no
 /// stratification, no importance sampling), one occlusion ray per cell.
 fn reference_diffuse(caster: &dyn RayCaster, origin: Vec3, normal: Vec3, n: usize) -> Vec<f64> {
-    let (mz, mphi) = (600usize, 1200usize);
+    let (mz, mphi) = (400usize, 800usize);
     let mut acc = vec![0.0f64; n];
     let mut y = [0.0f32; 64];
     let cell = 4.0 * core::f64::consts::PI / (mz * mphi) as f64;
@@ -132,8 +132,11 @@ fn diffuse_transfer_converges_to_the_brute_force_reference() {
     let bands = 4u32;
     let n = 16;
     let offset = BakeOptions::new(Measurement::Diffuse).ray_offset;
-    let reference: Vec<f64> = (0..GROUND)
-        .flat_map(|v| {
+    // Every other ground vertex (13 of 25): those under and around the box.
+    let compared: Vec<usize> = (0..GROUND).step_by(2).collect();
+    let reference: Vec<f64> = compared
+        .iter()
+        .flat_map(|&v| {
             let origin = Vec3::from_array(scene.positions[v]) + scene.normals[v] * offset;
             reference_diffuse(&caster, origin, scene.normals[v], n)
         })
@@ -147,8 +150,11 @@ fn diffuse_transfer_converges_to_the_brute_force_reference() {
             &options(Measurement::Diffuse, bands, rays),
         )
         .unwrap();
-        let got = &set.dense_data().unwrap()[..GROUND * n];
-        let e = relative_rms(got, &reference);
+        let got: Vec<f32> = compared
+            .iter()
+            .flat_map(|&v| set.vertex_block(v).unwrap().iter().copied())
+            .collect();
+        let e = relative_rms(&got, &reference);
         println!(
             "diffuse transfer, 0 bounces, {rays:5} rays: relative RMS error {:.4} %",
             e * 100.0
@@ -298,7 +304,7 @@ fn furnace_cavity_matches_the_geometric_series() {
     // is a 32-gon, which moves the view factors by about 1 % after two bounces
     // (-1.04 % measured); the fine mesh below (the acceptance check, with the BVH)
     // is within 0.5 %.
-    furnace(&scene, &BruteForceCaster::new(mesh), 128, 0.02);
+    furnace(&scene, &BruteForceCaster::new(mesh), 64, 0.02);
 }
 
 #[cfg(feature = "bvh")]
