@@ -158,6 +158,18 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
             grid,
         ),
     };
+    // The BRDF matrix first: it is cheap next to the rays, and a BRDF that gives
+    // non-finite values is refused before any ray is cast.
+    let brdf_nodes = match options.measurement {
+        Measurement::Mrt { grid, brdf } => {
+            let b = brdf_matrix(brdf, grid, coeffs);
+            if !b.iter().all(|x| x.is_finite()) {
+                return Err(BakeError::BrdfNotFinite);
+            }
+            b
+        }
+        _ => Vec::new(),
+    };
     let gathered = match projection {
         Projection::None => coeffs,
         _ => coeffs * coeffs,
@@ -206,8 +218,8 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
         }
         previous = irradiance;
     }
-    let data = if let Measurement::Mrt { grid, brdf } = options.measurement {
-        let b = brdf_matrix(brdf, grid, coeffs);
+    let data = if let Measurement::Mrt { grid, .. } = options.measurement {
+        let b = &brdf_nodes;
         let rows = (grid * grid) as usize;
         let mut out = vec![0.0f32; vertices * rows * coeffs];
         let apply = |v: usize, dst: &mut [f32]| {

@@ -269,6 +269,9 @@ pub enum BakeError {
     },
     /// More vertices than a file can address.
     TooManyVertices(usize),
+    /// The MRT BRDF's kernel gave a non-finite value, so its node matrix is not
+    /// finite.
+    BrdfNotFinite,
 }
 
 impl fmt::Display for BakeError {
@@ -287,6 +290,7 @@ impl fmt::Display for BakeError {
                 write!(f, "normals[{index}] is not a finite unit vector")
             }
             BakeError::TooManyVertices(n) => write!(f, "{n} vertices is more than 2^32 - 1"),
+            BakeError::BrdfNotFinite => f.write_str("brdf.kernel returned a non-finite value"),
         }
     }
 }

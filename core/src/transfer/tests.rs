@@ -701,6 +701,22 @@ fn bad_options_are_refused() {
         }),
         BakeError::Grid(1)
     );
+    struct NanBrdf;
+    impl Brdf for NanBrdf {
+        fn kernel(&self, _: Vec3, _: Vec3) -> f32 {
+            f32::NAN
+        }
+    }
+    assert_eq!(
+        run(&BakeOptions {
+            measurement: Measurement::Mrt {
+                grid: 2,
+                brdf: &NanBrdf
+            },
+            ..base
+        }),
+        BakeError::BrdfNotFinite
+    );
     let mut normals = scene.normals.clone();
     normals[7] = Vec3::new(0.0, 0.0, 2.0);
     assert_eq!(
