@@ -38,6 +38,42 @@
 //! precision; between nodes the difference is the bilinear interpolation error
 //! (measured in the tests, `mrt_matches_glossy_sh_within_interpolation_error`).
 //!
+//! ```
+//! use antumbra_core::{BruteForceCaster, MeshView};
+//! use antumbra_core::glam::Vec3;
+//! use antumbra_core::transfer::{
+//!     BakeOptions, Material, Measurement, PhongBrdf, TransferSet, View, bake,
+//! };
+//!
+//! // A floor quad; any RayCaster over the same triangles works (BvhScene with `bvh`).
+//! let positions = [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]];
+//! let indices = [0, 1, 2, 0, 2, 3];
+//! let normals = [Vec3::Z; 4];
+//! let mesh = MeshView::new(&positions, &indices)?;
+//! let caster = BruteForceCaster::new(mesh);
+//!
+//! let brdf = PhongBrdf::new(16.0).unwrap();
+//! let options = BakeOptions {
+//!     bands: 3,
+//!     rays: 64,
+//!     ..BakeOptions::new(Measurement::Mrt { grid: 8, brdf: &brdf })
+//! };
+//! let set = bake(&mesh, &normals, &caster, &options)?;
+//! let compressed = set.compress(2)?;
+//!
+//! // Save and load (validated), then relight: constant white sky, l_0 = 2√π.
+//! let loaded = TransferSet::from_bytes(&compressed.to_bytes())?;
+//! let mut lighting = [[0.0f32; 3]; 9];
+//! lighting[0] = [2.0 * core::f32::consts::PI.sqrt(); 3];
+//! let mut rgb = vec![[0.0f32; 3]; loaded.vertex_count()];
+//! loaded.shade(&lighting, View::Eye([0.0, 0.5, 3.0]), &Material::default(), None, &mut rgb)?;
+//! // A normalised Phong lobe under unit radiance reflects 1; with 3 bands the SH
+//! // projection of radiance that stops at the horizon overshoots near the normal
+//! // (1.25 at the pole for the band-limited step), so expect 1.0 to 1.25.
+//! assert!(rgb.iter().all(|c| c[0] > 1.0 && c[0] < 1.25));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! Invariants: a bake is deterministic for a seed, and identical serial or parallel
 //! (per-vertex random streams, [`rng`]); the vertex frame is
 //! [`Frame::from_normal`](crate::Frame::from_normal) of the stored normal; shading
