@@ -364,11 +364,29 @@ impl fmt::Display for ShadeError {
 
 impl core::error::Error for ShadeError {}
 
+/// `out[v] = f(v)` for every vertex, spread over rayon's pool with the `parallel`
+/// feature (each vertex is independent, so the result is the same).
+fn for_each_vertex(out: &mut [[f32; 3]], f: &(dyn Fn(usize) -> Vec3 + Sync)) {
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        out.par_iter_mut()
+            .with_min_len(256)
+            .enumerate()
+            .for_each(|(v, o)| *o = f(v).to_array());
+    }
+    #[cfg(not(feature = "parallel"))]
+    for (v, o) in out.iter_mut().enumerate() {
+        *o = f(v).to_array();
+    }
+}
+
 impl TransferSet {
     /// Relights every vertex into `out` (RGB radiance toward the viewer). For an
     /// MRT set compressed with PCA, `components` (clamped to the baked count; `None`
     /// = all) selects how many are used. Allocates one per-frame buffer for the
-    /// compressed form, nothing per vertex. On error `out` is untouched.
+    /// compressed form, nothing per vertex; vertices run on rayon's pool with the
+    /// `parallel` feature. On error `out` is untouched.
     pub fn shade(
         &self,
         lighting: &[[f32; 3]],
@@ -414,9 +432,9 @@ impl TransferSet {
         match (&self.payload, self.kind) {
             (Payload::Dense(data), TransferKind::Diffuse) => {
                 let albedo = Vec3::from_array(material.diffuse) / core::f32::consts::PI;
-                for (v, o) in out.iter_mut().enumerate() {
-                    *o = (albedo * shade_diffuse(&data[v * n..(v + 1) * n], lighting)).to_array();
-                }
+                for_each_vertex(out, &|v| {
+                    albedo * shade_diffuse(&data[v * n..(v + 1) * n], lighting)
+                });
             }
             (Payload::Dense(data), TransferKind::GlossySh) => {
                 let lobe = GlossyLobe::phong(self.bands, material.phong_exponent).ok_or(
@@ -425,43 +443,30 @@ impl TransferSet {
                     },
                 )?;
                 let len = n * n;
-                for (v, o) in out.iter_mut().enumerate() {
+                for_each_vertex(out, &|v| {
                     let normal = Vec3::from_array(self.normals[v]);
-                    let c = shade_glossy_sh(
-                        &data[v * len..(v + 1) * len],
-                        &lobe,
-                        lighting,
-                        normal,
-                        to_eye(v),
-                    );
-                    *o = (specular * c).to_array();
-                }
+                    let block = &data[v * len..(v + 1) * len];
+                    specular * shade_glossy_sh(block, &lobe, lighting, normal, to_eye(v))
+                });
             }
             (Payload::Dense(data), TransferKind::Mrt) => {
                 let len = self.block_len();
-                for (v, o) in out.iter_mut().enumerate() {
+                for_each_vertex(out, &|v| {
                     let frame = Frame::from_normal(Vec3::from_array(self.normals[v]));
-                    let c = shade_mrt(
-                        &data[v * len..(v + 1) * len],
-                        self.grid,
-                        lighting,
-                        &frame,
-                        to_eye(v),
-                    );
-                    *o = (specular * c).to_array();
-                }
+                    let block = &data[v * len..(v + 1) * len];
+                    specular * shade_mrt(block, self.grid, lighting, &frame, to_eye(v))
+                });
             }
             (Payload::Pca(pca), _) => {
                 let k = components.unwrap_or(usize::MAX).min(pca.components());
                 let mut terms = vec![[0.0f32; 3]; pca.frame_terms_len(k)];
                 pca.frame_terms(lighting, k, &mut terms);
                 let baked = pca.components();
-                for (v, o) in out.iter_mut().enumerate() {
+                for_each_vertex(out, &|v| {
                     let frame = Frame::from_normal(Vec3::from_array(self.normals[v]));
                     let w = &pca.weights()[v * baked..v * baked + k];
-                    let c = shade_mrt_pca(w, &terms, k, self.grid, &frame, to_eye(v));
-                    *o = (specular * c).to_array();
-                }
+                    specular * shade_mrt_pca(w, &terms, k, self.grid, &frame, to_eye(v))
+                });
             }
         }
         Ok(())
