@@ -177,13 +177,16 @@ impl TransferKind {
         }
     }
 
-    /// Values per vertex for `bands` and `grid` (`grid` ignored unless MRT).
+    /// Values per vertex for `bands` and `grid` (`grid` ignored unless MRT);
+    /// saturates at `usize::MAX` instead of overflowing.
     pub fn block_len(self, bands: u32, grid: u32) -> usize {
-        let n = (bands * bands) as usize;
+        let n = (bands as usize).saturating_mul(bands as usize);
         match self {
             TransferKind::Diffuse => n,
-            TransferKind::GlossySh => n * n,
-            TransferKind::Mrt => (grid * grid) as usize * n,
+            TransferKind::GlossySh => n.saturating_mul(n),
+            TransferKind::Mrt => (grid as usize)
+                .saturating_mul(grid as usize)
+                .saturating_mul(n),
         }
     }
 }

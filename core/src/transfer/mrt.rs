@@ -188,16 +188,17 @@ pub fn hemi_oct_decode(a: f32, b: f32) -> Vec3 {
 /// The local direction of node `(i, j)` of a `grid × grid` basis.
 #[inline]
 pub fn node_direction(grid: u32, i: u32, j: u32) -> Vec3 {
-    let step = 2.0 / (grid - 1) as f32;
+    // grid < 2 has no nodes to speak of; max(1) keeps the division finite.
+    let step = 2.0 / grid.saturating_sub(1).max(1) as f32;
     hemi_oct_decode(-1.0 + step * i as f32, -1.0 + step * j as f32)
 }
 
 /// The hat functions of a `grid × grid` basis (`grid ≥ 2`) at the local direction
-/// `local`; `None` when `local.z ≤ 0` (a viewer behind the surface) or the vector is
-/// not finite.
+/// `local`; `None` when `local.z ≤ 0` (a viewer behind the surface), the vector is
+/// not finite, or `grid` is outside `2..=65,535` (node indices must fit `u32`).
 #[inline]
 pub fn mrt_tap(grid: u32, local: Vec3) -> Option<MrtTap> {
-    if local.z.is_nan() || local.z <= 0.0 {
+    if !(2..=0xFFFF).contains(&grid) || local.z.is_nan() || local.z <= 0.0 {
         return None;
     }
     let (a, b) = hemi_oct_encode(local)?;
@@ -348,6 +349,10 @@ mod tests {
             assert!((a - hemi_oct_encode(d).unwrap().0).abs() < 1e-5);
         }
         assert!(mrt_tap(grid, Vec3::new(0.0, 0.3, -0.1)).is_none());
+        assert!(mrt_tap(1, Vec3::Z).is_none() && mrt_tap(0, Vec3::Z).is_none());
+        assert!(mrt_tap(u32::MAX, Vec3::Z).is_none());
+        assert!(mrt_tap(0xFFFF, Vec3::new(0.3, 0.2, 0.9).normalize()).is_some());
+        assert!(mrt_tap(grid, Vec3::new(f32::INFINITY, 0.0, 1.0)).is_none());
     }
 
     #[test]

@@ -20,6 +20,14 @@ pub fn lighting_from_sh_rgb<const N: usize>(sh: &ShRgb<N>) -> [[f32; 3]; N] {
     core::array::from_fn(|i| [sh.r.coeffs[i], sh.g.coeffs[i], sh.b.coeffs[i]])
 }
 
+/// `grid² · per_node`, saturating (a huge `grid` then fails every length check).
+#[inline(always)]
+fn node_values(grid: u32, per_node: usize) -> usize {
+    (grid as usize)
+        .saturating_mul(grid as usize)
+        .saturating_mul(per_node)
+}
+
 #[inline(always)]
 fn rgb(c: &[f32; 3]) -> Vec3 {
     Vec3::from_array(*c)
@@ -190,7 +198,7 @@ pub fn shade_mrt(
     to_eye: Vec3,
 ) -> Vec3 {
     let n = lighting.len();
-    if grid < 2 || n > MAX_COEFFS || matrix.len() < (grid * grid) as usize * n {
+    if grid < 2 || n > MAX_COEFFS || matrix.len() < node_values(grid, n) {
         return Vec3::ZERO;
     }
     let Some(tap) = mrt_tap(grid, frame.to_local(to_eye)) else {
@@ -231,7 +239,7 @@ pub fn shade_mrt_reference(
     to_eye: Vec3,
 ) -> Vec3 {
     let n = lighting.len();
-    if grid < 2 || n > MAX_COEFFS || matrix.len() < (grid * grid) as usize * n {
+    if grid < 2 || n > MAX_COEFFS || matrix.len() < node_values(grid, n) {
         return Vec3::ZERO;
     }
     let Some(tap) = mrt_tap(grid, frame.to_local(to_eye)) else {
@@ -260,9 +268,8 @@ pub fn shade_mrt_pca(
     frame: &Frame,
     to_eye: Vec3,
 ) -> Vec3 {
-    let stride = components + 1;
-    if grid < 2 || weights.len() < components || frame_terms.len() < (grid * grid) as usize * stride
-    {
+    let stride = components.saturating_add(1);
+    if grid < 2 || weights.len() < components || frame_terms.len() < node_values(grid, stride) {
         return Vec3::ZERO;
     }
     let Some(tap) = mrt_tap(grid, frame.to_local(to_eye)) else {

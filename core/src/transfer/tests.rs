@@ -949,3 +949,51 @@ fn shading_validates_its_arguments() {
     ));
     assert!(out.iter().all(|o| *o == [7.0; 3]));
 }
+
+mod kernel_inputs {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn any_f32() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            -2.0f32..2.0,
+            Just(f32::NAN),
+            Just(f32::INFINITY),
+            Just(0.0),
+            Just(-0.0)
+        ]
+    }
+
+    fn any_vec3() -> impl Strategy<Value = Vec3> {
+        (any_f32(), any_f32(), any_f32()).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+    }
+
+    proptest! {
+        /// The public kernels take caller slices and numbers as they come: any
+        /// lengths, grids and directions give a value (maybe 0 or NaN), never a panic.
+        #[test]
+        fn kernels_never_panic(
+            grid in prop_oneof![0u32..20, Just(0xFFFF), Just(0x1_0000), Just(u32::MAX)],
+            coeffs in 0usize..70,
+            matrix_len in 0usize..3000,
+            components in prop_oneof![0usize..6, Just(usize::MAX)],
+            normal in any_vec3(),
+            to_eye in any_vec3(),
+            bands in 0u32..10,
+        ) {
+            let matrix = vec![0.5f32; matrix_len];
+            let lighting = vec![[1.0f32; 3]; coeffs];
+            let frame = Frame::from_normal(normal);
+            let _ = shade_diffuse(&matrix, &lighting);
+            let _ = shade_mrt(&matrix, grid, &lighting, &frame, to_eye);
+            let _ = shade_mrt_reference(&matrix, grid, &lighting, &frame, to_eye);
+            let _ = shade_mrt_pca(&matrix, &lighting, components, grid, &frame, to_eye);
+            if let Some(lobe) = GlossyLobe::phong(bands, 8.0) {
+                let _ = shade_glossy_sh(&matrix, &lobe, &lighting, normal, to_eye);
+                let _ = shade_glossy_sh_reference(&matrix, &lobe, &lighting, normal, to_eye);
+            }
+            let _ = mrt_tap(grid, to_eye);
+            let _ = TransferKind::Mrt.block_len(bands.wrapping_mul(0x1000_0000), grid);
+        }
+    }
+}
