@@ -19,6 +19,10 @@
 //!   the lazily built 3D wedge hierarchy): per receiver, the visibility bits of `N`
 //!   light samples, exactly the answers of `N` shadow rays, from silhouette edges,
 //!   depth complexity and one reference ray ([`ssv::SoftShadows`]).
+//! - [`transfer`]: precomputed radiance transfer (P1, P2): one bake engine whose
+//!   configurations are diffuse PRT, glossy SH transfer and matrix radiance transfer
+//!   ([`transfer::bake`]), their run-time shading, PCA compression of MRT, and a
+//!   versioned, checksummed bake file format ([`transfer::TransferSet`]).
 //!
 //! ## Example
 //!
@@ -67,6 +71,7 @@ pub mod hemi;
 pub mod raycast;
 pub mod sh;
 pub mod ssv;
+pub mod transfer;
 
 pub use geom::{Frame, MeshError, MeshView};
 pub use raycast::{BruteForceCaster, Hit, Ray, RayCaster};

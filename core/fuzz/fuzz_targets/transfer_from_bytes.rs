@@ -1,0 +1,38 @@
+//! Fuzzes the bake file loader: any input must give `Ok` or a `FormatError`, never
+//! a panic, and whatever loads must write back to the same bytes and shade without
+//! panicking.
+//!
+//! Each input is tried twice: as it is (so the checksums themselves are fuzzed),
+//! and with both CRC-32 fields recomputed (otherwise almost every mutation stops at
+//! the header checksum, and the field and payload validation behind it would never
+//! be reached).
+#![no_main]
+
+use antumbra_core::transfer::format::{HEADER_LEN, crc32};
+use antumbra_core::transfer::{Material, TransferSet, View};
+use libfuzzer_sys::fuzz_target;
+
+fn check(data: &[u8]) {
+    let Ok(set) = TransferSet::from_bytes(data) else {
+        return;
+    };
+    assert_eq!(set.to_bytes(), data, "a loaded file must round-trip");
+    let lighting = vec![[0.5f32, 0.25, 0.125]; set.coeff_count()];
+    let mut out = vec![[0.0f32; 3]; set.vertex_count()];
+    set.shade(&lighting, View::Eye([0.3, 2.0, 1.0]), &Material::default(), None, &mut out)
+        .expect("valid arguments");
+    set.shade(&lighting, View::Eye([0.3, 2.0, 1.0]), &Material::default(), Some(1), &mut out)
+        .expect("valid arguments");
+}
+
+fuzz_target!(|data: &[u8]| {
+    check(data);
+    if data.len() >= HEADER_LEN {
+        let mut fixed = data.to_vec();
+        let payload_crc = crc32(&fixed[HEADER_LEN..]);
+        fixed[64..68].copy_from_slice(&payload_crc.to_le_bytes());
+        let header_crc = crc32(&fixed[..68]);
+        fixed[68..72].copy_from_slice(&header_crc.to_le_bytes());
+        check(&fixed);
+    }
+});

