@@ -1562,6 +1562,32 @@ antumbra_result antumbra_transfer_describe(const struct antumbra_transfer *trans
                                            struct antumbra_transfer_info *info);
 
 /**
+ * Copies the vertex positions and unit normals a set was baked with (world
+ * frame; each vertex's shading frame is `antumbra_frame_from_normal` of its
+ * normal), for drawing a loaded set or computing view directions.
+ *
+ * @param transfer the set.
+ * @param positions NULL (not wanted) or room for 3 floats per vertex.
+ * @param normals NULL (not wanted) or room for 3 floats per vertex.
+ * @param vertex_count the number of vertices the arrays hold; must equal the
+ *        set's (`antumbra_transfer_describe`'s `vertex_count`).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (transfer); INVALID_ARGUMENT
+ *         (vertex_count not the set's, misaligned array); POISONED; PANIC.
+ *         Outputs are untouched on failure.
+ *
+ * Thread safety: any number of threads may use the same set at once.
+ *
+ * # Safety
+ * `transfer` must be NULL or a live set; each non-NULL array valid for `3 *
+ * vertex_count` floats and not overlapping the other.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_transfer_geometry(const struct antumbra_transfer *transfer,
+                                           float *positions,
+                                           float *normals,
+                                           size_t vertex_count);
+
+/**
  * Writes a transfer set as a bake file (core's version-1 format: a 72-byte
  * header with magic, version, kind, bands, grid, K, counts and CRC-32 checksums,
  * then little-endian floats) into a caller buffer.

@@ -64,10 +64,10 @@ pub use transfer::{
     ANTUMBRA_TRANSFER_KIND_GLOSSY_SH, ANTUMBRA_TRANSFER_KIND_MRT, ANTUMBRA_TRANSFER_MAX_BOUNCES,
     ANTUMBRA_TRANSFER_MAX_GRID, ANTUMBRA_TRANSFER_MAX_RAYS, antumbra_transfer,
     antumbra_transfer_bake, antumbra_transfer_compress, antumbra_transfer_describe,
-    antumbra_transfer_destroy, antumbra_transfer_info, antumbra_transfer_load,
-    antumbra_transfer_material, antumbra_transfer_material_init, antumbra_transfer_options,
-    antumbra_transfer_options_init, antumbra_transfer_progress_fn, antumbra_transfer_save,
-    antumbra_transfer_shade,
+    antumbra_transfer_destroy, antumbra_transfer_geometry, antumbra_transfer_info,
+    antumbra_transfer_load, antumbra_transfer_material, antumbra_transfer_material_init,
+    antumbra_transfer_options, antumbra_transfer_options_init, antumbra_transfer_progress_fn,
+    antumbra_transfer_save, antumbra_transfer_shade,
 };
 pub use version::{antumbra_version, antumbra_version_string};
 

@@ -700,6 +700,62 @@ pub unsafe extern "C" fn antumbra_transfer_describe(
     })
 }
 
+/// Copies the vertex positions and unit normals a set was baked with (world
+/// frame; each vertex's shading frame is `antumbra_frame_from_normal` of its
+/// normal), for drawing a loaded set or computing view directions.
+///
+/// @param transfer the set.
+/// @param positions NULL (not wanted) or room for 3 floats per vertex.
+/// @param normals NULL (not wanted) or room for 3 floats per vertex.
+/// @param vertex_count the number of vertices the arrays hold; must equal the
+///        set's (`antumbra_transfer_describe`'s `vertex_count`).
+/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (transfer); INVALID_ARGUMENT
+///         (vertex_count not the set's, misaligned array); POISONED; PANIC.
+///         Outputs are untouched on failure.
+///
+/// Thread safety: any number of threads may use the same set at once.
+///
+/// # Safety
+/// `transfer` must be NULL or a live set; each non-NULL array valid for `3 *
+/// vertex_count` floats and not overlapping the other.
+#[must_use]
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn antumbra_transfer_geometry(
+    transfer: *const antumbra_transfer,
+    positions: *mut f32,
+    normals: *mut f32,
+    vertex_count: usize,
+) -> antumbra_result {
+    with_transfer("antumbra_transfer_geometry", transfer, |t| {
+        let set = &t.set;
+        if vertex_count != set.vertex_count() {
+            return Err(Error::invalid(format!(
+                "vertex_count is {vertex_count}; the set has {} vertices",
+                set.vertex_count()
+            )));
+        }
+        let xyz = raw::element_count(vertex_count, 3, "vertex_count")?;
+        let targets = [
+            (positions, set.positions(), "positions"),
+            (normals, set.normals(), "normals"),
+        ];
+        for (pointer, _, name) in targets {
+            if !pointer.is_null() {
+                raw::writable(pointer, xyz, name)?;
+            }
+        }
+        for (pointer, values, _) in targets {
+            if !pointer.is_null() {
+                let flat: &[f32] = bytemuck::cast_slice(values);
+                // SAFETY: non-NULL, aligned and sized (checked above); the caller
+                // promises validity and no overlap with the set's own memory.
+                unsafe { core::ptr::copy_nonoverlapping(flat.as_ptr(), pointer, flat.len()) };
+            }
+        }
+        Ok(())
+    })
+}
+
 /// Writes a transfer set as a bake file (core's version-1 format: a 72-byte
 /// header with magic, version, kind, bands, grid, K, counts and CRC-32 checksums,
 /// then little-endian floats) into a caller buffer.
