@@ -23,7 +23,7 @@
  * the same bytes and shades bit for bit like the original; PCA with all
  * components reproduces uncompressed MRT to float precision (and is closer than
  * one component); relighting moves the light (frames differ); with the
- * sun overhead the ground under the sphere is darker than the open ground; the
+ * sun high the ground in the sphere's shadow is darker than the open ground; the
  * bake's progress callback counts every vertex pass.
  *
  * Usage: prt_relight [--small] [-o OUT_PREFIX] [BAKE_FILE]
@@ -812,14 +812,20 @@ int main(int argc, char **argv)
     int set_count = 0, frames = a.small ? 2 : 4, repeats = a.small ? 1 : 20;
     uint32_t bands;
     float *base, *lighting, *rgb, *previous_rgb;
-    vec3 sun = v3(0.2f, 0.95f, 0.25f);
+    vec3 sun = v3(0.45f, 0.85f, 0.3f);
     float sun_len = sqrtf(dot(sun, sun));
     static image img;
     int f, i;
 
     check_version();
     sun = v3(sun.x / sun_len, sun.y / sun_len, sun.z / sun_len);
-    CAMERA_DIR = v3(0.0f, 0.8f, 0.6f);
+    /* Looking down from the side the shadow falls towards, so it is not hidden
+     * behind the sphere in the images. */
+    CAMERA_DIR = v3(-0.45f, 1.0f, -0.3f);
+    {
+        float l = sqrtf(dot(CAMERA_DIR, CAMERA_DIR));
+        CAMERA_DIR = v3(CAMERA_DIR.x / l, CAMERA_DIR.y / l, CAMERA_DIR.z / l);
+    }
     memset(&s, 0, sizeof s);
 
     if (a.bake_file) {
@@ -885,12 +891,17 @@ int main(int argc, char **argv)
                      kind_name(r->info.kind), f, f - 1);
             }
             if (f == 0 && !a.bake_file && r->info.kind == ANTUMBRA_TRANSFER_KIND_DIFFUSE) {
-                /* Ground under the sphere vs a ground corner, sun nearly overhead. */
-                size_t side = s.ground_side, centre = (side / 2) * side + side / 2, corner = 0;
-                float lc = rgb[3 * centre + 1], lo = rgb[3 * corner + 1];
-                printf("  ground under the sphere %.3f, open ground %.3f\n", lc, lo);
-                if (!(lc < 0.8f * lo)) {
-                    fail("the sphere casts no shadow: under it %.3f, open ground %.3f", lc, lo);
+                /* The ground vertex where the sphere's centre casts its shadow vs a
+                 * ground corner in the open. */
+                float t = SPHERE_Y / sun.y, sx = -sun.x * t, sz = -sun.z * t;
+                size_t side = s.ground_side, corner = side - 1;
+                size_t ix = (size_t)((sx + 2.0f) / 4.0f * (float)(side - 1) + 0.5f);
+                size_t iz = (size_t)((sz + 2.0f) / 4.0f * (float)(side - 1) + 0.5f);
+                size_t shadowed = iz * side + ix;
+                float ls = rgb[3 * shadowed + 1], lo = rgb[3 * corner + 1];
+                printf("  ground in the sphere's shadow %.3f, open ground %.3f\n", ls, lo);
+                if (!(ls < 0.8f * lo)) {
+                    fail("the sphere casts no shadow: in it %.3f, open ground %.3f", ls, lo);
                 }
             }
             memcpy(previous_rgb, rgb, n * sizeof(float));
