@@ -522,7 +522,10 @@ fn check_out(out: *mut *mut antumbra_transfer) -> Result<*mut *mut antumbra_tran
 ///         naming it; no triangles; an unused vertex without given normals; a
 ///         normal not unit length; misaligned pointer; coordinate beyond ±1e12);
 ///         INDEX_OUT_OF_RANGE (mesh->indices); NON_FINITE (positions, normals,
-///         albedo, ray_offset, BRDF parameters); OUT_OF_MEMORY; PANIC.
+///         albedo, ray_offset, BRDF parameters); OUT_OF_MEMORY (the normals or
+///         the BVH's triangle arrays could not be reserved; the bake's result
+///         arrays, sized below, abort the process on exhaustion, as Rust
+///         allocations do); PANIC.
 ///
 /// Cost: vertices × (1 + bounces) × rays rays; memory per vertex `4 bands²` bytes
 /// (diffuse), `4 bands⁴` (glossy SH), `4 grid² bands²` (MRT).
