@@ -496,7 +496,10 @@ fn result_strings_and_version() {
     assert_eq!(name(ANTUMBRA_RESULT_OK), "ANTUMBRA_RESULT_OK");
     assert_eq!(name(ANTUMBRA_RESULT_POISONED), "ANTUMBRA_RESULT_POISONED");
     assert_eq!(name(-3), "ANTUMBRA_RESULT_UNKNOWN");
-    assert_eq!(name(ANTUMBRA_RESULT_INVALID_DATA + 1), "ANTUMBRA_RESULT_UNKNOWN");
+    assert_eq!(
+        name(ANTUMBRA_RESULT_INVALID_DATA + 1),
+        "ANTUMBRA_RESULT_UNKNOWN"
+    );
     let codes = [
         ANTUMBRA_RESULT_OK,
         ANTUMBRA_RESULT_NULL_ARGUMENT,
