@@ -7,7 +7,8 @@
  * argument, and that every output was left byte-for-byte untouched (outputs are
  * pre-filled with a sentinel and compared afterwards). It also covers the error
  * plumbing: message copying, the error callback, per-thread messages, result
- * names, and antumbra_frame_from_normal.
+ * names, and antumbra_frame_from_normal; and the precomputed-transfer entry
+ * points, including loading every truncation and many bit flips of a bake file.
  *
  * Every check runs even after one fails; the exit status is 1 if any failed.
  */
@@ -847,7 +848,8 @@ static void test_result_str(void)
         {ANTUMBRA_RESULT_UNSUPPORTED, "ANTUMBRA_RESULT_UNSUPPORTED"},
         {ANTUMBRA_RESULT_PANIC, "ANTUMBRA_RESULT_PANIC"},
         {ANTUMBRA_RESULT_POISONED, "ANTUMBRA_RESULT_POISONED"},
-        {10, "ANTUMBRA_RESULT_UNKNOWN"},
+        {ANTUMBRA_RESULT_INVALID_DATA, "ANTUMBRA_RESULT_INVALID_DATA"},
+        {11, "ANTUMBRA_RESULT_UNKNOWN"},
         {-1, "ANTUMBRA_RESULT_UNKNOWN"},
         {INT32_MAX, "ANTUMBRA_RESULT_UNKNOWN"},
         {INT32_MIN, "ANTUMBRA_RESULT_UNKNOWN"},
@@ -1045,6 +1047,366 @@ static void test_thread_local_message(void)
            "another thread's failure changed this thread's message to \"%s\"", antumbra_last_error_message());
 }
 
+/* ------------------------------------------------------------------------- */
+/* Precomputed transfer: bake, describe, save, load, compress, shade           */
+/* ------------------------------------------------------------------------- */
+
+/* Square normals: +Z, packed. */
+static float square_normals[4 * 3] = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
+
+static antumbra_transfer_options small_options(uint32_t kind)
+{
+    antumbra_transfer_options o;
+    antumbra_transfer_options_init(&o);
+    o.kind = kind;
+    o.bands = 2;
+    o.grid = 2;
+    o.rays = 8;
+    return o;
+}
+
+/* A bake that must fail with `want`, leave `out` untouched and name `fragment`. */
+static void expect_bake_fails(const char *what, const antumbra_mesh_view *mesh, const float *normals,
+                              const antumbra_transfer_options *options, antumbra_result want, const char *fragment)
+{
+    antumbra_transfer *out;
+    antumbra_result r;
+    memset(&out, SENTINEL, sizeof out);
+    r = antumbra_transfer_bake(mesh, normals, options, NULL, NULL, &out);
+    expect_failure(what, r, want, "antumbra_transfer_bake", fragment, NULL);
+    expect_untouched(what, &out, sizeof out);
+}
+
+static void test_transfer_bake(void)
+{
+    antumbra_mesh_view mesh = square_mesh();
+    antumbra_mesh_view bad = square_mesh();
+    antumbra_transfer_options o = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    float normals[12];
+    uint32_t bad_indices[6] = {0, 1, 2, 0, 2, 4};
+    antumbra_transfer *out = NULL;
+
+    /* The init functions tolerate NULL and say so. */
+    antumbra_transfer_options_init(NULL);
+    expect(strstr(antumbra_last_error_message(), "antumbra_transfer_options_init: options") != NULL,
+           "options_init(NULL) message is \"%s\"", antumbra_last_error_message());
+    antumbra_transfer_material_init(NULL);
+    expect(strstr(antumbra_last_error_message(), "antumbra_transfer_material_init: material") != NULL,
+           "material_init(NULL) message is \"%s\"", antumbra_last_error_message());
+
+    expect_failure("bake, out NULL", antumbra_transfer_bake(&mesh, NULL, &o, NULL, NULL, NULL),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_transfer_bake", "out", NULL);
+    expect_bake_fails("bake, mesh NULL", NULL, NULL, &o, ANTUMBRA_RESULT_NULL_ARGUMENT, "mesh");
+    expect_bake_fails("bake, options NULL", &mesh, NULL, NULL, ANTUMBRA_RESULT_NULL_ARGUMENT, "options");
+
+    o.kind = 4;
+    expect_bake_fails("bake, kind 4", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->kind");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    o.bands = 0;
+    expect_bake_fails("bake, bands 0", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->bands");
+    o.bands = ANTUMBRA_SH_MAX_BANDS + 1;
+    expect_bake_fails("bake, bands 9", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->bands");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    o.rays = 0;
+    expect_bake_fails("bake, rays 0", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->rays");
+    o.rays = ANTUMBRA_TRANSFER_MAX_RAYS + 1;
+    expect_bake_fails("bake, rays too many", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->rays");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    o.bounces = ANTUMBRA_TRANSFER_MAX_BOUNCES + 1;
+    expect_bake_fails("bake, bounces", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->bounces");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    o.parallel = 2;
+    expect_bake_fails("bake, parallel 2", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->parallel");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    o.reserved = 1;
+    expect_bake_fails("bake, reserved", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->reserved");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    o.albedo = 1.0f;
+    expect_bake_fails("bake, albedo 1", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->albedo");
+    o.albedo = NAN;
+    expect_bake_fails("bake, albedo NaN", &mesh, NULL, &o, ANTUMBRA_RESULT_NON_FINITE, "options->albedo");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    o.ray_offset = -1.0f;
+    expect_bake_fails("bake, ray_offset", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->ray_offset");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_MRT);
+    o.grid = 1;
+    expect_bake_fails("bake, MRT grid 1", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->grid");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_MRT);
+    o.brdf = 3;
+    expect_bake_fails("bake, brdf 3", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->brdf");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_MRT);
+    o.brdf = ANTUMBRA_TRANSFER_BRDF_WARD;
+    o.brdf_params[0] = 0.3f;
+    o.brdf_params[1] = 0.0f;
+    expect_bake_fails("bake, Ward alpha 0", &mesh, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                      "options->brdf_params[1]");
+    o = small_options(ANTUMBRA_TRANSFER_KIND_MRT);
+    o.brdf_params[0] = INFINITY;
+    expect_bake_fails("bake, Phong exponent inf", &mesh, NULL, &o, ANTUMBRA_RESULT_NON_FINITE,
+                      "options->brdf_params[0]");
+
+    o = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    memcpy(normals, square_normals, sizeof normals);
+    normals[3 * 2 + 2] = 2.0f;
+    expect_bake_fails("bake, normal not unit", &mesh, normals, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "normals[2]");
+    normals[3 * 2 + 2] = NAN;
+    expect_bake_fails("bake, normal NaN", &mesh, normals, &o, ANTUMBRA_RESULT_NON_FINITE, "normals[2]");
+    bad.triangle_count = 0;
+    expect_bake_fails("bake, no triangles", &bad, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "triangle_count");
+    bad = square_mesh();
+    bad.indices = bad_indices;
+    expect_bake_fails("bake, index out of range", &bad, NULL, &o, ANTUMBRA_RESULT_INDEX_OUT_OF_RANGE,
+                      "mesh->indices[5]");
+    bad = square_mesh();
+    bad.triangle_count = 1; /* vertex 3 is then used by no triangle */
+    expect_bake_fails("bake, unused vertex without normals", &bad, NULL, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                      "vertex 3");
+    /* ...but with normals given it bakes. */
+    expect_success("bake, unused vertex with normals",
+                   antumbra_transfer_bake(&bad, square_normals, &o, NULL, NULL, &out));
+    antumbra_transfer_destroy(out);
+    antumbra_transfer_destroy(NULL); /* a no-op */
+}
+
+static antumbra_transfer *bake_square(uint32_t kind)
+{
+    antumbra_mesh_view mesh = square_mesh();
+    antumbra_transfer_options o = small_options(kind);
+    antumbra_transfer *out = NULL;
+    antumbra_result r = antumbra_transfer_bake(&mesh, NULL, &o, NULL, NULL, &out);
+    expect_success("bake the square", r);
+    if (r != ANTUMBRA_RESULT_OK) {
+        fprintf(stderr, "bad_input: cannot continue the transfer checks\n");
+        exit(EXIT_FAILURE);
+    }
+    return out;
+}
+
+static void expect_load_fails(const char *what, const uint8_t *bytes, size_t len, antumbra_result want,
+                              const char *fragment)
+{
+    antumbra_transfer *out;
+    antumbra_result r;
+    memset(&out, SENTINEL, sizeof out);
+    r = antumbra_transfer_load(bytes, len, &out);
+    expect_failure(what, r, want, "antumbra_transfer_load", fragment, NULL);
+    expect_untouched(what, &out, sizeof out);
+    if (r == ANTUMBRA_RESULT_OK) {
+        antumbra_transfer_destroy(out);
+    }
+}
+
+static void test_transfer_files(void)
+{
+    antumbra_transfer *set = bake_square(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    antumbra_transfer_info info;
+    uint8_t *bytes, *copy;
+    size_t size = 0, small_size, i;
+    int bit;
+    char what[96];
+    antumbra_transfer *loaded = NULL;
+
+    expect_failure("describe, transfer NULL", antumbra_transfer_describe(NULL, &info), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_transfer_describe", "transfer", NULL);
+    expect_failure("describe, info NULL", antumbra_transfer_describe(set, NULL), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_transfer_describe", "info", NULL);
+    expect_success("describe", antumbra_transfer_describe(set, &info));
+    expect(info.kind == ANTUMBRA_TRANSFER_KIND_DIFFUSE && info.bands == 2 && info.coeff_count == 4 &&
+               info.vertex_count == 4 && info.components == 0,
+           "describe: kind %u bands %u coeffs %u vertices %u", info.kind, info.bands, info.coeff_count,
+           info.vertex_count);
+
+    /* Save: sizing, too small (buffer untouched), NULL with capacity. */
+    expect_failure("save, size query", antumbra_transfer_save(set, NULL, 0, &size), ANTUMBRA_RESULT_BUFFER_TOO_SMALL,
+                   "antumbra_transfer_save", "capacity", NULL);
+    expect(size == info.file_bytes, "save reports %lu bytes needed, describe %lu", (unsigned long)size,
+           (unsigned long)info.file_bytes);
+    bytes = malloc(size + 1);
+    copy = malloc(size + 1);
+    if (!bytes || !copy) {
+        fprintf(stderr, "bad_input: out of memory\n");
+        exit(EXIT_FAILURE);
+    }
+    memset(bytes, SENTINEL, size);
+    small_size = 0;
+    expect_failure("save, one byte short", antumbra_transfer_save(set, bytes, size - 1, &small_size),
+                   ANTUMBRA_RESULT_BUFFER_TOO_SMALL, "antumbra_transfer_save", "capacity", NULL);
+    expect_untouched("save, one byte short", bytes, size);
+    expect(small_size == size, "a short save reports %lu, want %lu", (unsigned long)small_size, (unsigned long)size);
+    expect_failure("save, buffer NULL", antumbra_transfer_save(set, NULL, size, NULL), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_transfer_save", "buffer", NULL);
+    expect_failure("save, transfer NULL", antumbra_transfer_save(NULL, bytes, size, NULL),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_transfer_save", "transfer", NULL);
+    expect_success("save", antumbra_transfer_save(set, bytes, size, NULL));
+
+    /* Load: NULL, empty, every truncation, every single-bit flip, a trailing byte. */
+    expect_failure("load, out NULL", antumbra_transfer_load(bytes, size, NULL), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_transfer_load", "out", NULL);
+    expect_load_fails("load, bytes NULL", NULL, size, ANTUMBRA_RESULT_NULL_ARGUMENT, "bytes");
+    expect_load_fails("load, empty", NULL, 0, ANTUMBRA_RESULT_INVALID_DATA, "truncated");
+    for (i = 0; i < size; ++i) {
+        snprintf(what, sizeof what, "load, truncated to %lu bytes", (unsigned long)i);
+        expect_load_fails(what, bytes, i, ANTUMBRA_RESULT_INVALID_DATA, "bytes");
+    }
+    for (i = 0; i < size; ++i) {
+        for (bit = 0; bit < 8; bit += 3) {
+            memcpy(copy, bytes, size);
+            copy[i] ^= (uint8_t)(1u << bit);
+            snprintf(what, sizeof what, "load, bit %d of byte %lu flipped", bit, (unsigned long)i);
+            expect_load_fails(what, copy, size, ANTUMBRA_RESULT_INVALID_DATA, "bytes");
+        }
+    }
+    memcpy(copy, bytes, size);
+    copy[size] = 0;
+    expect_load_fails("load, a trailing byte", copy, size + 1, ANTUMBRA_RESULT_INVALID_DATA, "after the payload");
+    memcpy(copy, bytes, size);
+    copy[0] = 'X';
+    expect_load_fails("load, bad magic", copy, size, ANTUMBRA_RESULT_INVALID_DATA, "magic");
+    expect_success("load", antumbra_transfer_load(bytes, size, &loaded));
+    antumbra_transfer_destroy(loaded);
+
+    free(bytes);
+    free(copy);
+    antumbra_transfer_destroy(set);
+}
+
+static void expect_compress_fails(const char *what, const antumbra_transfer *set, uint32_t k, antumbra_result want,
+                                  const char *fragment)
+{
+    antumbra_transfer *out;
+    antumbra_result r;
+    memset(&out, SENTINEL, sizeof out);
+    r = antumbra_transfer_compress(set, k, &out);
+    expect_failure(what, r, want, "antumbra_transfer_compress", fragment, NULL);
+    expect_untouched(what, &out, sizeof out);
+}
+
+static void test_transfer_compress(void)
+{
+    antumbra_transfer *diffuse = bake_square(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    antumbra_transfer *mrt = bake_square(ANTUMBRA_TRANSFER_KIND_MRT);
+    antumbra_transfer *pca = NULL;
+    expect_compress_fails("compress, transfer NULL", NULL, 1, ANTUMBRA_RESULT_NULL_ARGUMENT, "transfer");
+    expect_failure("compress, out NULL", antumbra_transfer_compress(mrt, 1, NULL), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_transfer_compress", "out", NULL);
+    expect_compress_fails("compress, diffuse set", diffuse, 1, ANTUMBRA_RESULT_INVALID_ARGUMENT, "MRT");
+    expect_compress_fails("compress, 0 components", mrt, 0, ANTUMBRA_RESULT_INVALID_ARGUMENT, "components");
+    /* 4 vertices: at most 4 components. */
+    expect_compress_fails("compress, 5 components", mrt, 5, ANTUMBRA_RESULT_INVALID_ARGUMENT, "components");
+    expect_success("compress", antumbra_transfer_compress(mrt, 2, &pca));
+    expect_compress_fails("compress, already compressed", pca, 1, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                          "already compressed");
+    antumbra_transfer_destroy(pca);
+    antumbra_transfer_destroy(mrt);
+    antumbra_transfer_destroy(diffuse);
+}
+
+static void expect_shade_fails(const char *what, const antumbra_transfer *set, const float *lighting, size_t count,
+                               const antumbra_transfer_material *material, size_t vertices, antumbra_result want,
+                               const char *fragment)
+{
+    float rgb[4 * 3];
+    antumbra_result r;
+    memset(rgb, SENTINEL, sizeof rgb);
+    r = antumbra_transfer_shade(set, lighting, count, material, 0, rgb, vertices);
+    expect_failure(what, r, want, "antumbra_transfer_shade", fragment, NULL);
+    expect_untouched(what, rgb, sizeof rgb);
+}
+
+static void test_transfer_shade(void)
+{
+    antumbra_transfer *set = bake_square(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    float lighting[3 * 4] = {1, 0, 0.5f, 0, 1, 0, 0.5f, 0, 1, 0, 0.5f, 0};
+    float bad_lighting[3 * 4];
+    float directions[4 * 3] = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
+    float positions[4 * 3], rgb[4 * 3];
+    antumbra_transfer_material m;
+    size_t i;
+
+    antumbra_transfer_material_init(&m);
+    expect_shade_fails("shade, transfer NULL", NULL, lighting, 12, &m, 4, ANTUMBRA_RESULT_NULL_ARGUMENT, "transfer");
+    expect_shade_fails("shade, lighting NULL", set, NULL, 12, &m, 4, ANTUMBRA_RESULT_NULL_ARGUMENT, "lighting");
+    expect_shade_fails("shade, lighting_count 27", set, lighting, 27, &m, 4, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                       "lighting_count");
+    memcpy(bad_lighting, lighting, sizeof lighting);
+    bad_lighting[6] = NAN;
+    expect_shade_fails("shade, lighting NaN", set, bad_lighting, 12, &m, 4, ANTUMBRA_RESULT_NON_FINITE, "lighting[6]");
+    expect_shade_fails("shade, vertex_count 3", set, lighting, 12, &m, 3, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                       "vertex_count");
+    m.diffuse[1] = -1.0f;
+    expect_shade_fails("shade, negative diffuse", set, lighting, 12, &m, 4, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                       "material->diffuse[1]");
+    antumbra_transfer_material_init(&m);
+    m.phong_exponent = NAN;
+    expect_shade_fails("shade, exponent NaN", set, lighting, 12, &m, 4, ANTUMBRA_RESULT_NON_FINITE,
+                       "material->phong_exponent");
+    antumbra_transfer_material_init(&m);
+    m.eye[2] = INFINITY;
+    expect_shade_fails("shade, eye inf", set, lighting, 12, &m, 4, ANTUMBRA_RESULT_NON_FINITE, "material->eye[2]");
+    antumbra_transfer_material_init(&m);
+    directions[3 * 3 + 0] = 0.0f;
+    directions[3 * 3 + 2] = 0.0f;
+    m.view_directions = directions;
+    expect_shade_fails("shade, zero view direction", set, lighting, 12, &m, 4, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                       "material->view_directions[3]");
+    directions[3 * 3 + 2] = NAN;
+    expect_shade_fails("shade, NaN view direction", set, lighting, 12, &m, 4, ANTUMBRA_RESULT_NON_FINITE,
+                       "material->view_directions[3]");
+    antumbra_transfer_material_init(&m);
+    expect_failure("shade, rgb NULL", antumbra_transfer_shade(set, lighting, 12, &m, 0, NULL, 4),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_transfer_shade", "rgb", NULL);
+    expect_success("shade, default material (NULL)", antumbra_transfer_shade(set, lighting, 12, NULL, 0, rgb, 4));
+    for (i = 0; i < 12; ++i) {
+        expect(isfinite(rgb[i]) && rgb[i] >= 0.0f, "shade: rgb[%lu] = %g", (unsigned long)i, rgb[i]);
+    }
+
+    /* Geometry: wrong count, outputs untouched. */
+    memset(positions, SENTINEL, sizeof positions);
+    expect_failure("geometry, vertex_count 5", antumbra_transfer_geometry(set, positions, NULL, 5),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_transfer_geometry", "vertex_count", NULL);
+    expect_untouched("geometry, vertex_count 5", positions, sizeof positions);
+    expect_failure("geometry, transfer NULL", antumbra_transfer_geometry(NULL, positions, NULL, 4),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_transfer_geometry", "transfer", NULL);
+    expect_success("geometry", antumbra_transfer_geometry(set, positions, NULL, 4));
+    expect(positions[3 * 2 + 0] == 1.0f && positions[3 * 2 + 1] == 1.0f && positions[3 * 2 + 2] == 0.0f,
+           "geometry: vertex 2 is (%g, %g, %g)", positions[6], positions[7], positions[8]);
+    antumbra_transfer_destroy(set);
+}
+
+static void expect_rotate_fails(const char *what, const float *rotation, uint32_t bands, const float *coefficients,
+                                size_t vectors, antumbra_result want, const char *fragment)
+{
+    float out[2 * 9];
+    antumbra_result r;
+    memset(out, SENTINEL, sizeof out);
+    r = antumbra_sh_rotate(rotation, bands, coefficients, vectors, out);
+    expect_failure(what, r, want, "antumbra_sh_rotate", fragment, NULL);
+    expect_untouched(what, out, sizeof out);
+}
+
+static void test_sh_rotate(void)
+{
+    float identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    float sheared[9] = {1, 0.5f, 0, 0, 1, 0, 0, 0, 1};
+    float nan_rotation[9] = {1, 0, 0, 0, NAN, 0, 0, 0, 1};
+    float coefficients[2 * 9] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 1, 2, 3, 4, 5, 6, 7, 8, 9};
+    float out[2 * 9];
+    expect_rotate_fails("rotate, rotation NULL", NULL, 3, coefficients, 2, ANTUMBRA_RESULT_NULL_ARGUMENT, "rotation");
+    expect_rotate_fails("rotate, sheared", sheared, 3, coefficients, 2, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                        "orthogonal");
+    expect_rotate_fails("rotate, NaN", nan_rotation, 3, coefficients, 2, ANTUMBRA_RESULT_NON_FINITE, "rotation[4]");
+    expect_rotate_fails("rotate, bands 0", identity, 0, coefficients, 2, ANTUMBRA_RESULT_INVALID_ARGUMENT, "bands");
+    expect_rotate_fails("rotate, coefficients NULL", identity, 3, NULL, 2, ANTUMBRA_RESULT_NULL_ARGUMENT,
+                        "coefficients");
+    coefficients[12] = INFINITY;
+    expect_rotate_fails("rotate, coefficient inf", identity, 3, coefficients, 2, ANTUMBRA_RESULT_NON_FINITE,
+                        "coefficients[12]");
+    coefficients[12] = 4.0f;
+    expect_success("rotate, empty batch", antumbra_sh_rotate(identity, 3, NULL, 0, NULL));
+    expect_success("rotate", antumbra_sh_rotate(identity, 3, coefficients, 2, out));
+    expect(memcmp(out, coefficients, sizeof out) == 0, "the identity rotation changed the coefficients");
+}
+
 int main(void)
 {
     if (antumbra_version() != ANTUMBRA_VERSION ||
@@ -1067,6 +1429,11 @@ int main(void)
     test_error_callback();
     test_frame();
     test_thread_local_message();
+    test_transfer_bake();
+    test_transfer_files();
+    test_transfer_compress();
+    test_transfer_shade();
+    test_sh_rotate();
 
     if (checks_failed != 0) {
         fprintf(stderr, "bad_input: %d of %d checks failed\n", checks_failed, checks_run);

@@ -176,6 +176,78 @@ _Static_assert(sizeof(antumbra_ssv_statistics) == 96, "ssv_statistics size");
 /* 8 on LP64 and LLP64; i386 aligns 8-byte scalars in structs to 4, as Rust does there. */
 _Static_assert(alignof(antumbra_ssv_statistics) == alignof(uint64_t), "ssv_statistics alignment");
 
+/* ---- antumbra_transfer_options: twelve 4-byte fields, then the 8-byte seed ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, kind, uint32_t), "transfer_options.kind type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, bands, uint32_t), "transfer_options.bands type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, grid, uint32_t), "transfer_options.grid type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, rays, uint32_t), "transfer_options.rays type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, bounces, uint32_t), "transfer_options.bounces type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, parallel, uint32_t), "transfer_options.parallel type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, brdf, uint32_t), "transfer_options.brdf type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, brdf_params[0], float), "transfer_options.brdf_params type");
+_Static_assert(sizeof(((antumbra_transfer_options *)0)->brdf_params) == 2 * sizeof(float),
+               "transfer_options.brdf_params is float[2]");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, albedo, float), "transfer_options.albedo type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, ray_offset, float), "transfer_options.ray_offset type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, reserved, uint32_t), "transfer_options.reserved type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_options, seed, uint64_t), "transfer_options.seed type");
+_Static_assert(offsetof(antumbra_transfer_options, kind) == 0, "transfer_options.kind offset");
+_Static_assert(offsetof(antumbra_transfer_options, bands) == 4, "transfer_options.bands offset");
+_Static_assert(offsetof(antumbra_transfer_options, grid) == 8, "transfer_options.grid offset");
+_Static_assert(offsetof(antumbra_transfer_options, rays) == 12, "transfer_options.rays offset");
+_Static_assert(offsetof(antumbra_transfer_options, bounces) == 16, "transfer_options.bounces offset");
+_Static_assert(offsetof(antumbra_transfer_options, parallel) == 20, "transfer_options.parallel offset");
+_Static_assert(offsetof(antumbra_transfer_options, brdf) == 24, "transfer_options.brdf offset");
+_Static_assert(offsetof(antumbra_transfer_options, brdf_params) == 28, "transfer_options.brdf_params offset");
+_Static_assert(offsetof(antumbra_transfer_options, albedo) == 36, "transfer_options.albedo offset");
+_Static_assert(offsetof(antumbra_transfer_options, ray_offset) == 40, "transfer_options.ray_offset offset");
+_Static_assert(offsetof(antumbra_transfer_options, reserved) == 44, "transfer_options.reserved offset");
+_Static_assert(offsetof(antumbra_transfer_options, seed) == 48, "transfer_options.seed offset");
+_Static_assert(sizeof(antumbra_transfer_options) == 56, "transfer_options size");
+
+/* ---- antumbra_transfer_info: twelve 4-byte fields, then two size_t ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, kind, uint32_t), "transfer_info.kind type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, bands, uint32_t), "transfer_info.bands type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, coeff_count, uint32_t), "transfer_info.coeff_count type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, grid, uint32_t), "transfer_info.grid type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, components, uint32_t), "transfer_info.components type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, vertex_count, uint32_t), "transfer_info.vertex_count type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, rays, uint32_t), "transfer_info.rays type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, bounces, uint32_t), "transfer_info.bounces type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, albedo, float), "transfer_info.albedo type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, brdf, uint32_t), "transfer_info.brdf type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, brdf_params[0], float), "transfer_info.brdf_params type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, data_bytes, size_t), "transfer_info.data_bytes type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, file_bytes, size_t), "transfer_info.file_bytes type");
+_Static_assert(offsetof(antumbra_transfer_info, kind) == 0, "transfer_info.kind offset");
+_Static_assert(offsetof(antumbra_transfer_info, coeff_count) == 8, "transfer_info.coeff_count offset");
+_Static_assert(offsetof(antumbra_transfer_info, components) == 16, "transfer_info.components offset");
+_Static_assert(offsetof(antumbra_transfer_info, vertex_count) == 20, "transfer_info.vertex_count offset");
+_Static_assert(offsetof(antumbra_transfer_info, albedo) == 32, "transfer_info.albedo offset");
+_Static_assert(offsetof(antumbra_transfer_info, brdf) == 36, "transfer_info.brdf offset");
+_Static_assert(offsetof(antumbra_transfer_info, brdf_params) == 40, "transfer_info.brdf_params offset");
+_Static_assert(offsetof(antumbra_transfer_info, data_bytes) == 48, "transfer_info.data_bytes offset");
+_Static_assert(offsetof(antumbra_transfer_info, file_bytes) == 48 + sizeof(size_t), "transfer_info.file_bytes offset");
+_Static_assert(sizeof(antumbra_transfer_info) == 48 + 2 * sizeof(size_t), "transfer_info size");
+
+/* ---- antumbra_transfer_material: ten floats, then a pointer ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, diffuse[0], float), "transfer_material.diffuse type");
+_Static_assert(sizeof(((antumbra_transfer_material *)0)->diffuse) == 3 * sizeof(float),
+               "transfer_material.diffuse is float[3]");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, specular[0], float), "transfer_material.specular type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, phong_exponent, float), "transfer_material.phong_exponent type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, eye[0], float), "transfer_material.eye type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, view_directions, const float *),
+               "transfer_material.view_directions type");
+_Static_assert(offsetof(antumbra_transfer_material, diffuse) == 0, "transfer_material.diffuse offset");
+_Static_assert(offsetof(antumbra_transfer_material, specular) == 12, "transfer_material.specular offset");
+_Static_assert(offsetof(antumbra_transfer_material, phong_exponent) == 24, "transfer_material.phong_exponent offset");
+_Static_assert(offsetof(antumbra_transfer_material, eye) == 28, "transfer_material.eye offset");
+_Static_assert(offsetof(antumbra_transfer_material, view_directions) == 40, "transfer_material.view_directions offset");
+_Static_assert(sizeof(antumbra_transfer_material) == 40 + sizeof(void *), "transfer_material size");
+_Static_assert(alignof(antumbra_transfer_material) == alignof(void *), "transfer_material alignment");
+_Static_assert(sizeof(antumbra_transfer_progress_fn) == sizeof(void (*)(void)), "progress is one function pointer");
+
 /* ---- Literal numbers for the ABI at hand ---- */
 #if UINTPTR_MAX == UINT64_MAX
 /* LP64 (and LLP64, where the layout of these structs is the same). */
@@ -194,6 +266,8 @@ _Static_assert(offsetof(antumbra_hemi_shading_options, near_radius) == 36, "LP64
 _Static_assert(sizeof(antumbra_hemi_shading_options) == 40, "LP64 shading_options size");
 _Static_assert(offsetof(antumbra_hemi_material, view_directions) == 48, "LP64 material.view_directions");
 _Static_assert(sizeof(antumbra_hemi_material) == 56, "LP64 material size");
+_Static_assert(sizeof(antumbra_transfer_info) == 64, "LP64 transfer_info size");
+_Static_assert(sizeof(antumbra_transfer_material) == 48, "LP64 transfer_material size");
 #elif UINTPTR_MAX == UINT32_MAX
 _Static_assert(sizeof(void *) == 4 && sizeof(size_t) == 4, "32-bit guard is honest");
 _Static_assert(offsetof(antumbra_mesh_view, vertex_count) == 4, "ILP32 mesh_view.vertex_count");
@@ -209,6 +283,8 @@ _Static_assert(offsetof(antumbra_hemi_shading_options, near_radius) == 32, "ILP3
 _Static_assert(sizeof(antumbra_hemi_shading_options) == 36, "ILP32 shading_options size");
 _Static_assert(offsetof(antumbra_hemi_material, view_directions) == 44, "ILP32 material.view_directions");
 _Static_assert(sizeof(antumbra_hemi_material) == 48, "ILP32 material size");
+_Static_assert(sizeof(antumbra_transfer_info) == 56, "ILP32 transfer_info size");
+_Static_assert(sizeof(antumbra_transfer_material) == 44, "ILP32 transfer_material size");
 #else
 #error "no literal layout written for this pointer width; add one"
 #endif
@@ -228,6 +304,7 @@ _Static_assert(ANTUMBRA_RESULT_OUT_OF_MEMORY == 6, "OUT_OF_MEMORY");
 _Static_assert(ANTUMBRA_RESULT_UNSUPPORTED == 7, "UNSUPPORTED");
 _Static_assert(ANTUMBRA_RESULT_PANIC == 8, "PANIC");
 _Static_assert(ANTUMBRA_RESULT_POISONED == 9, "POISONED");
+_Static_assert(ANTUMBRA_RESULT_INVALID_DATA == 10, "INVALID_DATA");
 
 /* ---- Other constants ---- */
 _Static_assert(ANTUMBRA_INVALID_INDEX == UINT32_MAX, "INVALID_INDEX is UINT32_MAX");
@@ -253,6 +330,15 @@ _Static_assert(ANTUMBRA_SSV_MAX_SAMPLES == 1024, "SSV_MAX_SAMPLES");
 _Static_assert(ANTUMBRA_SSV_MAX_LIGHT_VERTICES == 16, "SSV_MAX_LIGHT_VERTICES");
 _Static_assert(ANTUMBRA_SSV_MAX_DEPTH_LIMIT == 24, "SSV_MAX_DEPTH_LIMIT");
 _Static_assert(ANTUMBRA_SSV_MAX_HEMICUBE_RESOLUTION == 1024, "SSV_MAX_HEMICUBE_RESOLUTION");
+
+_Static_assert(ANTUMBRA_TRANSFER_KIND_DIFFUSE == 1, "TRANSFER_KIND_DIFFUSE (the bake file's kind code)");
+_Static_assert(ANTUMBRA_TRANSFER_KIND_GLOSSY_SH == 2, "TRANSFER_KIND_GLOSSY_SH");
+_Static_assert(ANTUMBRA_TRANSFER_KIND_MRT == 3, "TRANSFER_KIND_MRT");
+_Static_assert(ANTUMBRA_TRANSFER_BRDF_PHONG == 1, "TRANSFER_BRDF_PHONG (the bake file's brdf_kind)");
+_Static_assert(ANTUMBRA_TRANSFER_BRDF_WARD == 2, "TRANSFER_BRDF_WARD");
+_Static_assert(ANTUMBRA_TRANSFER_MAX_GRID == 64, "TRANSFER_MAX_GRID");
+_Static_assert(ANTUMBRA_TRANSFER_MAX_RAYS == 4194304, "TRANSFER_MAX_RAYS");
+_Static_assert(ANTUMBRA_TRANSFER_MAX_BOUNCES == 64, "TRANSFER_MAX_BOUNCES");
 _Static_assert(_Generic(ANTUMBRA_VERSION, uint32_t: 1, default: 0), "ANTUMBRA_VERSION is a uint32_t");
 _Static_assert(ANTUMBRA_VERSION ==
                    ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR,

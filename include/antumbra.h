@@ -122,58 +122,51 @@
 #define ANTUMBRA_SH_MAX_BANDS 8
 
 /**
- * `antumbra_ssv_options.structure`: the 2006 lazily built 3D hierarchy over
- * receiver space (one root-to-leaf walk per query). The default and the one to use.
+ * `antumbra_transfer_options.kind`: a diffuse transfer vector per vertex
+ * (`bands²` values): shadowed (and, with bounces, interreflected) irradiance.
  */
-#define ANTUMBRA_SSV_STRUCTURE_HIERARCHY 0
+#define ANTUMBRA_TRANSFER_KIND_DIFFUSE 1
 
 /**
- * `antumbra_ssv_options.structure`: the 2005-style 2D structure, wedges projected
- * onto a cube of direction cells around the light's centroid (a baseline).
+ * `antumbra_transfer_options.kind`: a glossy SH transfer matrix per vertex
+ * (`bands² × bands²`, world frame; Sloan, Kautz and Snyder 2002), shaded with a
+ * Phong lobe of the material's exponent at run time.
  */
-#define ANTUMBRA_SSV_STRUCTURE_HEMICUBE 1
+#define ANTUMBRA_TRANSFER_KIND_GLOSSY_SH 2
 
 /**
- * `antumbra_ssv_options.structure`: every potential silhouette edge for every
- * query (the obviously right reference; slow).
+ * `antumbra_transfer_options.kind`: a matrix radiance transfer matrix per vertex
+ * (`grid² × bands²`: outgoing radiance at the nodes of a bilinear hemispherical
+ * basis, for the BRDF baked in; Lehtinen and Kautz 2003).
  */
-#define ANTUMBRA_SSV_STRUCTURE_BRUTE_FORCE 2
+#define ANTUMBRA_TRANSFER_KIND_MRT 3
 
 /**
- * `antumbra_ssv_options.structure`: N shadow rays per receiver through the
- * library's BVH, each hit confirmed exactly (the other reference).
+ * `antumbra_transfer_options.brdf`: the reflected Phong lobe,
+ * `brdf_params[0]` = exponent (finite, >= 0), `brdf_params[1]` unused (0).
  */
-#define ANTUMBRA_SSV_STRUCTURE_RAY_TRACE 3
+#define ANTUMBRA_TRANSFER_BRDF_PHONG 1
 
 /**
- * `antumbra_ssv_generate_samples` pattern: one uniformly random point per stratum.
+ * `antumbra_transfer_options.brdf`: Ward's anisotropic BRDF, `brdf_params` =
+ * roughness along the tangent and along the bitangent, each in (0, 1].
  */
-#define ANTUMBRA_SSV_SAMPLES_JITTERED 0
+#define ANTUMBRA_TRANSFER_BRDF_WARD 2
 
 /**
- * `antumbra_ssv_generate_samples` pattern: the centre of each stratum.
+ * The largest MRT grid side.
  */
-#define ANTUMBRA_SSV_SAMPLES_STRATIFIED 1
+#define ANTUMBRA_TRANSFER_MAX_GRID 64
 
 /**
- * Most light samples a soft shadow handle may have.
+ * The largest ray count per vertex and pass.
  */
-#define ANTUMBRA_SSV_MAX_SAMPLES 1024
+#define ANTUMBRA_TRANSFER_MAX_RAYS (1 << 22)
 
 /**
- * Most vertices of the light polygon.
+ * The largest interreflection bounce count.
  */
-#define ANTUMBRA_SSV_MAX_LIGHT_VERTICES 16
-
-/**
- * Largest accepted `antumbra_ssv_options.max_depth`.
- */
-#define ANTUMBRA_SSV_MAX_DEPTH_LIMIT 24
-
-/**
- * Largest accepted `antumbra_ssv_options.hemicube_resolution`.
- */
-#define ANTUMBRA_SSV_MAX_HEMICUBE_RESOLUTION 1024
+#define ANTUMBRA_TRANSFER_MAX_BOUNCES 64
 
 /**
  * Shading state for one mesh topology and one configuration, reused every frame.
@@ -204,11 +197,12 @@ typedef struct antumbra_hemi_table antumbra_hemi_table;
 typedef struct antumbra_scene antumbra_scene;
 
 /**
- * Soft shadows from one planar area light with a fixed set of samples over a
- * fixed set of occluders. Opaque; create with `antumbra_ssv_create`, free with
- * `antumbra_ssv_destroy`.
+ * A baked transfer set: kind, bands, grid, per-vertex positions and normals and
+ * the per-vertex transfer data (dense, or PCA-compressed for MRT). Immutable and
+ * opaque; created by `antumbra_transfer_bake`, `antumbra_transfer_load` or
+ * `antumbra_transfer_compress`, freed with `antumbra_transfer_destroy`.
  */
-typedef struct antumbra_ssv antumbra_ssv;
+typedef struct antumbra_transfer antumbra_transfer;
 
 /**
  * The result of every fallible Antumbra call. `ANTUMBRA_RESULT_OK` (0) is
@@ -438,126 +432,183 @@ typedef struct antumbra_hit {
 } antumbra_hit;
 
 /**
- * Options of `antumbra_ssv_create`. Fill with `antumbra_ssv_options_init`, then
- * change fields: fields may be added at the end in later versions, and
- * `options_init` keeps old code correct.
+ * What `antumbra_transfer_bake` measures and how. Fill with
+ * `antumbra_transfer_options_init`, then change fields: fields may be added at
+ * the end in later versions, and `options_init` keeps old code correct.
  *
- * Layout: 48 bytes, twelve 4-byte fields, no padding, 4-byte aligned.
+ * Layout: twelve 4-byte fields, then the 8-byte seed; 56 bytes, no padding.
  */
-typedef struct antumbra_ssv_options {
+typedef struct antumbra_transfer_options {
   /**
-   * `ANTUMBRA_SSV_STRUCTURE_HIERARCHY` (0, the default), `_HEMICUBE` (1),
-   * `_BRUTE_FORCE` (2) or `_RAY_TRACE` (3). All give the same bits; they differ
-   * in speed and memory.
+   * `ANTUMBRA_TRANSFER_KIND_DIFFUSE` (the default), `_GLOSSY_SH` or `_MRT`.
    */
-  uint32_t structure;
+  uint32_t kind;
   /**
-   * Hierarchy: a node holding more candidate edges than this is subdivided when
-   * a query reaches it. At least 1; default 64.
+   * SH bands of the lighting, 1 to `ANTUMBRA_SH_MAX_BANDS` (8). Default 4.
    */
-  uint32_t leaf_edges;
+  uint32_t bands;
   /**
-   * Hierarchy: deepest level of the octree, 0 to `ANTUMBRA_SSV_MAX_DEPTH_LIMIT`
-   * (24); default 12.
+   * MRT nodes per side of the hemispherical grid, 2 to
+   * `ANTUMBRA_TRANSFER_MAX_GRID`; ignored by the other kinds. Default 8.
    */
-  uint32_t max_depth;
+  uint32_t grid;
   /**
-   * Hemicube: cells per cube face side, 1 to 1024; default 32.
+   * Stratified rays per vertex and pass, 1 to `ANTUMBRA_TRANSFER_MAX_RAYS`.
+   * The Monte Carlo error falls as 1/sqrt(rays). Default 256.
    */
-  uint32_t hemicube_resolution;
+  uint32_t rays;
   /**
-   * 0 (the default): `antumbra_ssv_query` runs on the calling thread. 1: the
-   * points of one query call are split across the library's worker threads (a
-   * rayon pool of one thread per core, started on first use and kept for the
-   * life of the process). The bits are identical either way.
+   * Diffuse interreflection bounces, 0 (shadowed direct light only, the
+   * default) to `ANTUMBRA_TRANSFER_MAX_BOUNCES`.
+   */
+  uint32_t bounces;
+  /**
+   * 1 (the default): vertices are spread over the library's worker threads;
+   * 0: the calling thread only. Results are identical bit for bit.
    */
   uint32_t parallel;
   /**
-   * 0 (the default): the hierarchy's root box is the bounds of the occluders
-   * and the light, grown by half their size on every side. 1: it is
-   * `[root_min, root_max]` (receivers outside it test every potential edge).
+   * The BRDF baked into an MRT set: `ANTUMBRA_TRANSFER_BRDF_PHONG` (the default)
+   * or `ANTUMBRA_TRANSFER_BRDF_WARD`; ignored by the other kinds.
    */
-  uint32_t use_root_bounds;
+  uint32_t brdf;
   /**
-   * Lower corner of the root box when `use_root_bounds` is 1 (finite).
+   * The BRDF's parameters (see the `ANTUMBRA_TRANSFER_BRDF_*` values). Default
+   * (16, 0): a Phong exponent of 16.
    */
-  float root_min[3];
+  float brdf_params[2];
   /**
-   * Upper corner of the root box when `use_root_bounds` is 1 (finite, each
-   * coordinate above `root_min`'s).
+   * Diffuse albedo of the scene for the bounces, in [0, 1). Default 0.5.
    */
-  float root_max[3];
-} antumbra_ssv_options;
+  float albedo;
+  /**
+   * Ray origins are moved this far along the normal (mesh units, finite, >= 0)
+   * against self-intersection. Default 1e-4.
+   */
+  float ray_offset;
+  /**
+   * Must be 0 (keeps the seed 8-byte aligned without hidden padding).
+   */
+  uint32_t reserved;
+  /**
+   * Seed of the random streams: a bake is deterministic for a seed. Default 0.
+   */
+  uint64_t seed;
+} antumbra_transfer_options;
 
 /**
- * What a soft shadow handle holds and the work its queries did, from
- * `antumbra_ssv_get_statistics`. The query counters cover every successful
- * `antumbra_ssv_query` on the handle since it was created (all threads).
+ * The surface and viewer of `antumbra_transfer_shade`. Fill with
+ * `antumbra_transfer_material_init`, then change fields (fields may be added at
+ * the end in later versions).
  *
- * Layout: 96 bytes, four 4-byte fields then ten 8-byte fields, no padding,
- * 8-byte aligned.
+ * Outgoing radiance toward the viewer, per kind: diffuse: `diffuse/π · Σ_j t_j
+ * l_j` (t the transfer vector, l the lighting); glossy SH: `specular ·` the
+ * transferred radiance convolved with a Phong lobe of `phong_exponent` about the
+ * mirror direction (the 2002 baseline); MRT: `specular ·` the bilinear blend of
+ * the baked node radiances (the BRDF is in the bake).
+ *
+ * Layout: ten floats (40 bytes), then a pointer; 48 bytes on 64-bit targets, 44
+ * on 32-bit, no padding.
  */
-typedef struct antumbra_ssv_statistics {
+typedef struct antumbra_transfer_material {
   /**
-   * The structure chosen at creation (`ANTUMBRA_SSV_STRUCTURE_*`).
+   * Diffuse albedo (linear RGB, finite, >= 0), diffuse kind. Default (1, 1, 1).
    */
-  uint32_t structure;
+  float diffuse[3];
   /**
-   * Number of light samples N.
+   * Specular colour (finite, >= 0) multiplying the glossy SH and MRT results.
+   * Default (1, 1, 1).
    */
-  uint32_t sample_count;
+  float specular[3];
   /**
-   * `ceil(N / 64)`: the `uint64_t` words of one receiver's bits.
+   * Phong exponent of the glossy SH run time (finite, >= 0); MRT bakes its
+   * BRDF and ignores it. Default 16.
    */
-  uint32_t words_per_receiver;
+  float phong_exponent;
   /**
-   * Vertices of the light polygon.
+   * The viewer's world position, used when `view_directions` is NULL; finite.
+   * Default (0, 0, 0).
    */
-  uint32_t light_vertex_count;
+  float eye[3];
   /**
-   * Welded edges of the occluders (triangles near the light excluded).
+   * NULL (the default: each vertex looks towards `eye`) or 3 floats per vertex:
+   * the direction from each vertex towards the viewer (finite, non-zero, any
+   * length), for orthographic or per-vertex views. Borrowed for the call only.
    */
-  uint64_t edges;
+  const float *view_directions;
+} antumbra_transfer_material;
+
+/**
+ * Progress of `antumbra_transfer_bake`: `done` of `total` vertex passes
+ * (vertices × (1 + bounces)). With `options->parallel` = 1 it is called from the
+ * library's worker threads, possibly at once and slightly out of order; it must
+ * be thread-safe, return normally and not call back into Antumbra.
+ */
+typedef void (*antumbra_transfer_progress_fn)(size_t done, size_t total, void *user_data);
+
+/**
+ * What a transfer set holds, from `antumbra_transfer_describe`.
+ *
+ * Layout: twelve 4-byte fields, then two `size_t`; 64 bytes on 64-bit targets,
+ * 56 on 32-bit, no padding.
+ */
+typedef struct antumbra_transfer_info {
   /**
-   * Edges that may be silhouettes for some receiver (flat interior edges
-   * excluded): what brute force tests per query.
+   * `ANTUMBRA_TRANSFER_KIND_*`.
    */
-  uint64_t potential_edges;
+  uint32_t kind;
   /**
-   * Triangles near the light's plane, tested directly against every sample.
+   * SH bands of the lighting.
    */
-  uint64_t near_light_triangles;
+  uint32_t bands;
   /**
-   * Hierarchy nodes built so far (grows as queries arrive) or hemicube cells;
-   * 0 for brute force and ray tracing.
+   * Lighting coefficients per channel, `bands²`; shading takes `3 *
+   * coeff_count` floats.
    */
-  uint64_t nodes;
+  uint32_t coeff_count;
   /**
-   * Bytes held by the structure's node or cell lists (not the BVH).
+   * MRT grid side (0 for the other kinds).
    */
-  uint64_t bytes;
+  uint32_t grid;
   /**
-   * Receivers queried.
+   * PCA components baked into a compressed MRT set; 0 when uncompressed.
    */
-  uint64_t queries;
+  uint32_t components;
   /**
-   * Candidate edges the structure handed to the exact tests, summed over queries.
+   * Number of vertices (the length of every per-vertex array of shading).
    */
-  uint64_t candidates;
+  uint32_t vertex_count;
   /**
-   * Candidates that were silhouettes of their receiver, summed over queries.
+   * Rays per vertex and pass of the bake.
    */
-  uint64_t silhouettes;
+  uint32_t rays;
   /**
-   * Rays cast, summed over queries (1 per receiver for the wedge structures,
-   * N for ray tracing, 0 for receivers in the light's plane).
+   * Interreflection bounces of the bake.
    */
-  uint64_t rays;
+  uint32_t bounces;
   /**
-   * `candidates / queries` (0 before the first query).
+   * Scene albedo of the bounces.
    */
-  double candidates_per_query;
-} antumbra_ssv_statistics;
+  float albedo;
+  /**
+   * The BRDF of an MRT set: `ANTUMBRA_TRANSFER_BRDF_*`, or 0 (none, or not
+   * described).
+   */
+  uint32_t brdf;
+  /**
+   * Its parameters.
+   */
+  float brdf_params[2];
+  /**
+   * Bytes of the per-vertex data in memory (dense blocks, or PCA mean,
+   * components and weights).
+   */
+  size_t data_bytes;
+  /**
+   * Bytes `antumbra_transfer_save` writes.
+   */
+  size_t file_bytes;
+} antumbra_transfer_info;
 
 /**
  * Success.
@@ -610,6 +661,13 @@ typedef struct antumbra_ssv_statistics {
  * The handle was poisoned by an earlier panic; destroy it and build another.
  */
 #define ANTUMBRA_RESULT_POISONED 9
+
+/**
+ * Bytes given as a file (a bake file) are not valid: truncated, corrupted
+ * (checksum mismatch), of an unsupported version, or holding out-of-range fields
+ * or values. The message names the field.
+ */
+#define ANTUMBRA_RESULT_INVALID_DATA 10
 
 #ifdef __cplusplus
 extern "C" {
@@ -1365,8 +1423,45 @@ antumbra_result antumbra_sh_eval(const float *direction,
                                  float *values);
 
 /**
- * Writes the default options: the hierarchy, 64 edges per leaf, depth 12,
- * hemicube resolution 32, on the calling thread, the automatic root box.
+ * Rotates SH coefficient vectors: for each vector, the coefficients of
+ * `g(ω) = f(R⁻¹ω)`, so a lobe along `d` ends up along `R d` (exact per band, by
+ * the Ivanic–Ruedenberg recurrence; band energies are preserved).
+ *
+ * @param rotation 9 floats, row-major: `rotation[3 * i + j]` is row i, column j
+ *        of R, so `(R d)_i = Σ_j rotation[3 i + j] d_j`. Finite and orthogonal
+ *        (`R Rᵀ = I` within 1e-3 per entry); a reflection (det -1) is allowed.
+ * @param bands 1 to `ANTUMBRA_SH_MAX_BANDS` (8).
+ * @param coefficients `vector_count * bands²` floats, finite: the vectors one
+ *        after another (e.g. 3 for the channel-planar RGB lighting of
+ *        `antumbra_sh_project_equirect`).
+ * @param vector_count the number of vectors; 0 is a valid empty batch.
+ * @param rotated receives `vector_count * bands²` floats; untouched on failure.
+ *        May be the same array as `coefficients` (each vector is read before it
+ *        is written), but must not partly overlap it.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (rotation, or an array with
+ *         vector_count > 0); INVALID_ARGUMENT (bands out of range, a matrix that
+ *         is not orthogonal, misaligned array, size overflow); NON_FINITE
+ *         (rotation, coefficients, naming the index).
+ *
+ * Cost: building the band matrices (about 700 multiply-adds at 8 bands), then
+ * `Σ_l (2l+1)²` multiply-adds per vector; no allocation.
+ * Thread safety: safe from any thread.
+ *
+ * # Safety
+ * `rotation` must be NULL or valid for 9 floats; the arrays NULL or valid for
+ * `vector_count * bands * bands` floats.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_sh_rotate(const float *rotation,
+                                   uint32_t bands,
+                                   const float *coefficients,
+                                   size_t vector_count,
+                                   float *rotated);
+
+/**
+ * Writes the default bake options: diffuse kind, 4 bands, grid 8, 256 rays, no
+ * bounces, parallel, a Phong BRDF of exponent 16 (MRT), albedo 0.5, ray offset
+ * 1e-4, seed 0.
  *
  * @param options the options to fill; every field is written.
  *
@@ -1376,179 +1471,248 @@ antumbra_result antumbra_sh_eval(const float *direction,
  * Thread safety: safe from any thread.
  *
  * # Safety
- * `options` must be NULL or valid for writing one `antumbra_ssv_options`.
+ * `options` must be NULL or valid for writing one `antumbra_transfer_options`.
  */
-void antumbra_ssv_options_init(struct antumbra_ssv_options *options);
+void antumbra_transfer_options_init(struct antumbra_transfer_options *options);
 
 /**
- * Builds the soft shadows of the light polygon `light_vertices` with the light
- * samples `samples` over the triangles of `occluders`.
+ * Writes the default material: diffuse and specular (1, 1, 1), Phong exponent
+ * 16, eye at the origin, no per-vertex view directions.
  *
- * Visibility is exact: the bits `antumbra_ssv_query` returns are those of N
- * shadow segments from the receiver to the samples tested exactly against every
- * occluder triangle (closed triangles, two-sided; degenerate triangles never
- * occlude; the light itself is never an occluder and emits to both sides).
+ * @param material the material to fill; every field is written.
  *
- * @param occluders the triangles; 0 triangles is allowed (everything is lit).
- *        Every index < vertex_count, every coordinate of a vertex used by a
- *        triangle finite and within ±1e12, position_stride 0 (packed) or >= 12.
- *        Copied: the mesh may be freed afterwards.
- * @param light_vertices 3 floats per vertex, in order around the polygon (either
- *        winding): convex, planar within 1e-4 of its diameter, non-zero area, no
- *        two consecutive vertices equal, coordinates finite within ±1e12.
- * @param light_vertex_count 3 to `ANTUMBRA_SSV_MAX_LIGHT_VERTICES` (16).
- * @param samples 3 floats per light sample (bit i of a result is sample i), each
- *        on the light polygon within 1e-4 of its diameter; make them with
- *        `antumbra_ssv_generate_samples`. Copied.
- * @param sample_count 1 to `ANTUMBRA_SSV_MAX_SAMPLES` (1024).
- * @param options NULL for the defaults (see `antumbra_ssv_options_init`).
- * @param out receives the new handle on success; untouched on failure.
- * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (occluders, out, light_vertices,
- *         samples, or a mesh array with a non-zero count); INVALID_ARGUMENT (a
- *         light vertex count outside 3..16, a sample count outside 1..1024, a
- *         non-convex, non-planar or degenerate light, a sample off the light, an
- *         option out of range, misaligned pointer, stride below 12, size
- *         overflow, a coordinate beyond ±1e12); INDEX_OUT_OF_RANGE (a mesh
- *         index); NON_FINITE (a NaN or infinite mesh position, light vertex,
- *         sample or root bound); OUT_OF_MEMORY (the BVH could not be allocated);
- *         PANIC. Messages name the argument and index, e.g. `samples[7] is off
- *         the light polygon ...`.
- *
- * Cost: O(triangles log triangles) (edge welding, the BVH); the hierarchy's
- * nodes are built lazily by the queries that reach them, the hemicube's cells
- * here.
- * Ownership: the caller owns `*out` and frees it with `antumbra_ssv_destroy`.
- * Thread safety: safe from any thread; the new handle is independent of others.
- *
- * # Safety
- * `occluders`, `options` and `out` must be NULL or valid; the arrays in
- * `occluders` valid for the counts and stride it gives; non-NULL
- * `light_vertices` and `samples` valid for 3 floats per vertex or sample.
- */
-ANTUMBRA_NODISCARD
-antumbra_result antumbra_ssv_create(const struct antumbra_mesh_view *occluders,
-                                    const float *light_vertices,
-                                    size_t light_vertex_count,
-                                    const float *samples,
-                                    size_t sample_count,
-                                    const struct antumbra_ssv_options *options,
-                                    struct antumbra_ssv **out);
-
-/**
- * Frees a soft shadow handle. NULL is a no-op.
- *
- * Ownership: takes back a handle from `antumbra_ssv_create`; it must not be used
- * afterwards. Thread safety: needs exclusive access: no query or statistics call
- * on this handle may be running.
- *
- * # Safety
- * `ssv` must be NULL or a live handle from `antumbra_ssv_create`, destroyed at
- * most once.
- */
-void antumbra_ssv_destroy(struct antumbra_ssv *ssv);
-
-/**
- * The visibility bits of a batch of receiver points.
- *
- * For point k at `points[3k..3k+3]`, bit i of receiver k (bit `i % 64` of
- * `visibility_bits[k * W + i / 64]`, `W = ceil(sample_count / 64)`) is set when
- * light sample i is visible from the point: no occluder triangle meets the open
- * segment from the point to the sample. Unused high bits of a receiver's last
- * word are 0. `visible_counts[k]`, when given, is the number of bits set.
- *
- * @param ssv the handle.
- * @param points 3 floats per receiver, finite, within ±1e12. Points may be
- *        anywhere (on the floor, on an occluder's surface, in free space).
- * @param point_count number of receivers; 0 is a valid empty batch (the arrays
- *        may then be NULL).
- * @param visibility_bits receives `point_count * W` words, 8-byte aligned;
- *        untouched on failure (except after ANTUMBRA_RESULT_PANIC, an internal
- *        bug, when it may be partly written).
- * @param visible_counts NULL, or receives one count per receiver (4-byte
- *        aligned); untouched on failure (same exception).
- * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (ssv, points or visibility_bits with
- *         point_count > 0); INVALID_ARGUMENT (misaligned array, point_count
- *         overflow, a coordinate beyond ±1e12); NON_FINITE (a NaN or infinite
- *         point, named with its index, e.g. `points[3] (nan, 0, 1) is not
- *         finite`); POISONED; PANIC (the handle is poisoned).
- *
- * Cost: per receiver, one walk of the structure, the exact tests of its
- * candidate edges against the N samples, and one reference ray; no allocation
- * per receiver. The hierarchy builds the nodes a query reaches the first time.
- * Ownership: borrows every array for the call only; the outputs must not overlap
- * each other or `points`.
- * Thread safety: any number of threads may query the same handle at once
- * (including the hierarchy's lazy construction); with `options.parallel` = 1 a
- * call also uses the library's worker threads.
- *
- * # Safety
- * A non-NULL `points` must be valid for `3 * point_count` floats,
- * `visibility_bits` for `point_count * W` words, `visible_counts` for
- * `point_count` counts.
- */
-ANTUMBRA_NODISCARD
-antumbra_result antumbra_ssv_query(const struct antumbra_ssv *ssv,
-                                   const float *points,
-                                   size_t point_count,
-                                   uint64_t *visibility_bits,
-                                   uint32_t *visible_counts);
-
-/**
- * Reports the handle's sizes and the work its queries did so far.
- *
- * @param ssv the handle.
- * @param statistics receives the statistics; untouched on failure.
- * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (ssv, statistics); INVALID_ARGUMENT
- *         (misaligned statistics); POISONED; PANIC.
- *
- * The counters of queries running at the same time on other threads may be
- * partly included (each query call adds its counts when it finishes).
- * Thread safety: may run while other threads query the same handle.
- *
- * # Safety
- * `ssv` must be NULL or a live handle; `statistics` NULL or valid for writing one
- * `antumbra_ssv_statistics`.
- */
-ANTUMBRA_NODISCARD
-antumbra_result antumbra_ssv_get_statistics(const struct antumbra_ssv *ssv,
-                                            struct antumbra_ssv_statistics *statistics);
-
-/**
- * Light samples on a convex planar polygon, deterministic in `seed`, for
- * `antumbra_ssv_create`.
- *
- * The polygon is cut into a fan of triangles from vertex 0; each gets a share of
- * the samples proportional to its area; a triangle with m samples has a k × k
- * grid of strata (k² >= m) over the unit square, m of them chosen by a seeded
- * shuffle and mapped onto the triangle by an area-preserving warp. Stratified
- * takes the strata centres, jittered one uniform point in each. The same
- * arguments give the same floats on every platform and thread.
- *
- * @param light_vertices 3 floats per vertex, as for `antumbra_ssv_create`.
- * @param light_vertex_count 3 to 16.
- * @param sample_count 1 to `ANTUMBRA_SSV_MAX_SAMPLES` (1024).
- * @param pattern `ANTUMBRA_SSV_SAMPLES_JITTERED` (0) or
- *        `ANTUMBRA_SSV_SAMPLES_STRATIFIED` (1).
- * @param seed any value.
- * @param samples receives `3 * sample_count` floats; untouched on failure.
- * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (light_vertices, samples);
- *         INVALID_ARGUMENT (a count out of range, an unknown pattern, a
- *         non-convex, non-planar or degenerate light, a coordinate beyond
- *         ±1e12, misaligned arrays); NON_FINITE (a light vertex); PANIC.
- *
+ * On a NULL or misaligned pointer nothing is written, and the thread's last error
+ * message and the error callback report ANTUMBRA_RESULT_NULL_ARGUMENT or
+ * ANTUMBRA_RESULT_INVALID_ARGUMENT.
  * Thread safety: safe from any thread.
  *
  * # Safety
- * A non-NULL `light_vertices` must be valid for `3 * light_vertex_count` floats,
- * `samples` for writing `3 * sample_count` floats, not overlapping them.
+ * `material` must be NULL or valid for writing one `antumbra_transfer_material`.
+ */
+void antumbra_transfer_material_init(struct antumbra_transfer_material *material);
+
+/**
+ * Bakes the transfer of every vertex of a mesh: rays cast from each vertex over
+ * its hemisphere against the mesh itself (a BVH built for the call), for every
+ * lighting coefficient at once, with `options->bounces` diffuse interreflections.
+ *
+ * @param mesh the triangles (at least one); every vertex must be used by a
+ *        triangle unless `normals` are given. Same rules as `antumbra_scene_create`.
+ * @param normals NULL (area-weighted vertex normals are computed) or 3 floats per
+ *        vertex: unit normals (finite, length within 1e-3 of 1) defining each
+ *        vertex's hemisphere and frame.
+ * @param options what to measure; NULL is not allowed (fill one with
+ *        `antumbra_transfer_options_init`).
+ * @param progress NULL or a function told of progress (see
+ *        `antumbra_transfer_progress_fn`).
+ * @param user_data passed to `progress` untouched.
+ * @param out receives the new transfer set on success; untouched on failure.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, options, out, or an array of
+ *         `mesh` with a non-zero count); INVALID_ARGUMENT (an option out of range,
+ *         naming it; no triangles; an unused vertex without given normals; a
+ *         normal not unit length; misaligned pointer; coordinate beyond ±1e12);
+ *         INDEX_OUT_OF_RANGE (mesh->indices); NON_FINITE (positions, normals,
+ *         albedo, ray_offset, BRDF parameters); OUT_OF_MEMORY (the normals or
+ *         the BVH's triangle arrays could not be reserved; the bake's result
+ *         arrays, sized below, abort the process on exhaustion, as Rust
+ *         allocations do); PANIC.
+ *
+ * Cost: vertices × (1 + bounces) × rays rays; memory per vertex `4 bands²` bytes
+ * (diffuse), `4 bands⁴` (glossy SH), `4 grid² bands²` (MRT).
+ * Ownership: the caller owns `*out` and frees it with `antumbra_transfer_destroy`;
+ * the mesh and normals are borrowed for the call only.
+ * Thread safety: safe from any thread; the new set is independent of others.
+ *
+ * # Safety
+ * Pointers must be NULL or valid as described; the arrays in `mesh` valid for the
+ * counts and stride it gives.
  */
 ANTUMBRA_NODISCARD
-antumbra_result antumbra_ssv_generate_samples(const float *light_vertices,
-                                              size_t light_vertex_count,
-                                              size_t sample_count,
-                                              uint32_t pattern,
-                                              uint64_t seed,
-                                              float *samples);
+antumbra_result antumbra_transfer_bake(const struct antumbra_mesh_view *mesh,
+                                       const float *normals,
+                                       const struct antumbra_transfer_options *options,
+                                       antumbra_transfer_progress_fn progress,
+                                       void *user_data,
+                                       struct antumbra_transfer **out);
+
+/**
+ * Frees a transfer set. NULL is a no-op.
+ *
+ * Ownership: takes back a set from bake, load or compress; it must not be used
+ * afterwards. Thread safety: needs exclusive access: no other call on this set
+ * may be running.
+ *
+ * # Safety
+ * `transfer` must be NULL or a live set, destroyed at most once.
+ */
+void antumbra_transfer_destroy(struct antumbra_transfer *transfer);
+
+/**
+ * Describes a transfer set: kind, sizes, how it was baked, memory and file size.
+ *
+ * @param transfer the set.
+ * @param info receives the description; untouched on failure.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (transfer, info); INVALID_ARGUMENT
+ *         (misaligned info); POISONED; PANIC.
+ *
+ * Thread safety: any number of threads may use the same set at once.
+ *
+ * # Safety
+ * `transfer` must be NULL or a live set; `info` NULL or valid for one write.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_transfer_describe(const struct antumbra_transfer *transfer,
+                                           struct antumbra_transfer_info *info);
+
+/**
+ * Copies the vertex positions and unit normals a set was baked with (world
+ * frame; each vertex's shading frame is `antumbra_frame_from_normal` of its
+ * normal), for drawing a loaded set or computing view directions.
+ *
+ * @param transfer the set.
+ * @param positions NULL (not wanted) or room for 3 floats per vertex.
+ * @param normals NULL (not wanted) or room for 3 floats per vertex.
+ * @param vertex_count the number of vertices the arrays hold; must equal the
+ *        set's (`antumbra_transfer_describe`'s `vertex_count`).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (transfer); INVALID_ARGUMENT
+ *         (vertex_count not the set's, misaligned array); POISONED; PANIC.
+ *         Outputs are untouched on failure.
+ *
+ * Thread safety: any number of threads may use the same set at once.
+ *
+ * # Safety
+ * `transfer` must be NULL or a live set; each non-NULL array valid for `3 *
+ * vertex_count` floats and not overlapping the other.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_transfer_geometry(const struct antumbra_transfer *transfer,
+                                           float *positions,
+                                           float *normals,
+                                           size_t vertex_count);
+
+/**
+ * Writes a transfer set as a bake file (core's version-1 format: a 72-byte
+ * header with magic, version, kind, bands, grid, K, counts and CRC-32 checksums,
+ * then little-endian floats) into a caller buffer.
+ *
+ * @param transfer the set.
+ * @param buffer destination of `capacity` bytes; may be NULL when `capacity` is 0
+ *        (to ask for the size).
+ * @param capacity size of `buffer` in bytes.
+ * @param size if not NULL, receives the bytes written on success, or the bytes
+ *        needed on ANTUMBRA_RESULT_BUFFER_TOO_SMALL (also
+ *        `antumbra_transfer_describe`'s `file_bytes`).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (transfer; buffer with capacity > 0);
+ *         INVALID_ARGUMENT (misaligned size); BUFFER_TOO_SMALL (nothing written
+ *         to `buffer`); OUT_OF_MEMORY; POISONED; PANIC.
+ *
+ * Cost: builds the file in a temporary of its size, then copies it.
+ * Thread safety: any number of threads may use the same set at once.
+ *
+ * # Safety
+ * `buffer` must be NULL or valid for `capacity` bytes; `size` NULL or valid.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_transfer_save(const struct antumbra_transfer *transfer,
+                                       uint8_t *buffer,
+                                       size_t capacity,
+                                       size_t *size);
+
+/**
+ * Reads a bake file (as written by `antumbra_transfer_save` or the `antumbra
+ * bake` command) and validates everything: length, magic, version, header
+ * checksum, every header field, the payload length (before allocating), the
+ * payload checksum and every value.
+ *
+ * @param bytes the file's contents, `len` bytes; no alignment needed.
+ * @param len its length.
+ * @param out receives the new transfer set on success; untouched on failure.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (bytes with len > 0, out);
+ *         INVALID_ARGUMENT (misaligned out); INVALID_DATA (truncated, bad magic,
+ *         unsupported version, a field out of range, checksum mismatch, trailing
+ *         bytes, a non-finite value; the message names the field); PANIC.
+ *
+ * Ownership: the caller owns `*out` (free with `antumbra_transfer_destroy`);
+ * `bytes` is borrowed for the call only.
+ * Thread safety: safe from any thread.
+ *
+ * # Safety
+ * `bytes` must be NULL or valid for `len` bytes; `out` NULL or valid.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_transfer_load(const uint8_t *bytes,
+                                       size_t len,
+                                       struct antumbra_transfer **out);
+
+/**
+ * PCA-compresses an uncompressed MRT set: a mean and `components` principal
+ * components of the per-vertex matrices, `components` weights per vertex.
+ * Shading the result costs `4 (K + 1)` RGB multiply-adds per vertex after `K + 1`
+ * per-frame products; with all components it reproduces the uncompressed set
+ * to float precision.
+ *
+ * @param transfer an uncompressed MRT set.
+ * @param components K, 1 to min(grid² bands², vertex count).
+ * @param out receives the new compressed set; untouched on failure. The source
+ *        set is unchanged.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (transfer, out); INVALID_ARGUMENT
+ *         (not an uncompressed MRT set, components out of range, misaligned out);
+ *         POISONED; PANIC.
+ *
+ * Cost: about 64 · vertices · grid² bands² · K multiply-adds; deterministic.
+ * Ownership: the caller owns `*out`.
+ * Thread safety: any number of threads may use the same source set at once.
+ *
+ * # Safety
+ * `transfer` must be NULL or a live set; `out` NULL or valid.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_transfer_compress(const struct antumbra_transfer *transfer,
+                                           uint32_t components,
+                                           struct antumbra_transfer **out);
+
+/**
+ * Relights every vertex of a transfer set: RGB radiance toward the viewer under
+ * SH lighting (see `antumbra_transfer_material` for the formula of each kind).
+ *
+ * @param transfer the set.
+ * @param lighting `3 * bands²` floats, finite: the bands² red SH coefficients of
+ *        the distant lighting (world frame), then green, then blue, as written by
+ *        `antumbra_sh_project_equirect` and `antumbra_sh_rotate`.
+ * @param lighting_count the number of floats in `lighting`; must be `3 *
+ *        info.coeff_count`.
+ * @param material the surface and viewer; NULL means the defaults of
+ *        `antumbra_transfer_material_init`.
+ * @param components for a PCA-compressed MRT set, how many components to use (the
+ *        run-time quality knob; values above the baked count use all of them); 0
+ *        = all. Ignored by uncompressed sets.
+ * @param rgb receives 3 floats per vertex; untouched on failure. Must not overlap
+ *        the inputs.
+ * @param vertex_count the number of vertices `rgb` (and
+ *        `material->view_directions`) holds; must equal `info.vertex_count`.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (transfer, lighting, rgb,
+ *         view_directions with vertices); INVALID_ARGUMENT (lighting_count or
+ *         vertex_count not the set's, a negative material value, a zero view
+ *         direction, misaligned array); NON_FINITE (lighting, material values,
+ *         eye, view directions, naming the index); POISONED; PANIC.
+ *
+ * Cost per vertex: 3 bands² multiply-adds (diffuse), about bands⁴ + 3 bands²
+ * (glossy SH), 7 bands² (MRT), 4 (K + 1) RGB multiply-adds after K + 1 per-frame
+ * products (MRT from PCA). A compressed set allocates one per-frame buffer of
+ * grid² (K + 1) RGB values; the others allocate nothing.
+ * Thread safety: any number of threads may shade the same set at once.
+ *
+ * # Safety
+ * Pointers must be NULL or valid for the counts described.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_transfer_shade(const struct antumbra_transfer *transfer,
+                                        const float *lighting,
+                                        size_t lighting_count,
+                                        const struct antumbra_transfer_material *material,
+                                        uint32_t components,
+                                        float *rgb,
+                                        size_t vertex_count);
 
 /**
  * The version of the linked library, packed as `major << 16 | minor << 8 | patch`;

@@ -27,6 +27,7 @@ mod result;
 mod scene;
 mod sh;
 mod ssv;
+mod transfer;
 mod version;
 
 pub use error::{
@@ -56,7 +57,9 @@ pub use scene::{
     ANTUMBRA_INVALID_INDEX, antumbra_hit, antumbra_scene, antumbra_scene_create,
     antumbra_scene_destroy, antumbra_scene_intersect, antumbra_scene_occluded,
 };
-pub use sh::{ANTUMBRA_SH_MAX_BANDS, antumbra_sh_eval, antumbra_sh_project_equirect};
+pub use sh::{
+    ANTUMBRA_SH_MAX_BANDS, antumbra_sh_eval, antumbra_sh_project_equirect, antumbra_sh_rotate,
+};
 pub use ssv::{
     ANTUMBRA_SSV_MAX_DEPTH_LIMIT, ANTUMBRA_SSV_MAX_HEMICUBE_RESOLUTION,
     ANTUMBRA_SSV_MAX_LIGHT_VERTICES, ANTUMBRA_SSV_MAX_SAMPLES, ANTUMBRA_SSV_SAMPLES_JITTERED,
@@ -65,6 +68,16 @@ pub use ssv::{
     ANTUMBRA_SSV_STRUCTURE_RAY_TRACE, antumbra_ssv, antumbra_ssv_create, antumbra_ssv_destroy,
     antumbra_ssv_generate_samples, antumbra_ssv_get_statistics, antumbra_ssv_options,
     antumbra_ssv_options_init, antumbra_ssv_query, antumbra_ssv_statistics,
+};
+pub use transfer::{
+    ANTUMBRA_TRANSFER_BRDF_PHONG, ANTUMBRA_TRANSFER_BRDF_WARD, ANTUMBRA_TRANSFER_KIND_DIFFUSE,
+    ANTUMBRA_TRANSFER_KIND_GLOSSY_SH, ANTUMBRA_TRANSFER_KIND_MRT, ANTUMBRA_TRANSFER_MAX_BOUNCES,
+    ANTUMBRA_TRANSFER_MAX_GRID, ANTUMBRA_TRANSFER_MAX_RAYS, antumbra_transfer,
+    antumbra_transfer_bake, antumbra_transfer_compress, antumbra_transfer_describe,
+    antumbra_transfer_destroy, antumbra_transfer_geometry, antumbra_transfer_info,
+    antumbra_transfer_load, antumbra_transfer_material, antumbra_transfer_material_init,
+    antumbra_transfer_options, antumbra_transfer_options_init, antumbra_transfer_progress_fn,
+    antumbra_transfer_save, antumbra_transfer_shade,
 };
 pub use version::{antumbra_version, antumbra_version_string};
 

@@ -30,6 +30,10 @@ pub const ANTUMBRA_RESULT_UNSUPPORTED: antumbra_result = 7;
 pub const ANTUMBRA_RESULT_PANIC: antumbra_result = 8;
 /// The handle was poisoned by an earlier panic; destroy it and build another.
 pub const ANTUMBRA_RESULT_POISONED: antumbra_result = 9;
+/// Bytes given as a file (a bake file) are not valid: truncated, corrupted
+/// (checksum mismatch), of an unsupported version, or holding out-of-range fields
+/// or values. The message names the field.
+pub const ANTUMBRA_RESULT_INVALID_DATA: antumbra_result = 10;
 
 /// A static, NUL-terminated name for a result code, e.g.
 /// `"ANTUMBRA_RESULT_NULL_ARGUMENT"`; `"ANTUMBRA_RESULT_UNKNOWN"` for values this
@@ -52,6 +56,7 @@ pub(crate) fn result_name(code: antumbra_result) -> &'static core::ffi::CStr {
         ANTUMBRA_RESULT_UNSUPPORTED => c"ANTUMBRA_RESULT_UNSUPPORTED",
         ANTUMBRA_RESULT_PANIC => c"ANTUMBRA_RESULT_PANIC",
         ANTUMBRA_RESULT_POISONED => c"ANTUMBRA_RESULT_POISONED",
+        ANTUMBRA_RESULT_INVALID_DATA => c"ANTUMBRA_RESULT_INVALID_DATA",
         _ => c"ANTUMBRA_RESULT_UNKNOWN",
     }
 }

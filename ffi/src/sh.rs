@@ -1,5 +1,6 @@
 //! Spherical harmonics for C callers: projection of an equirectangular RGB map
-//! (the lighting the shading entry points take) and evaluation of the basis.
+//! (the lighting the shading entry points take), evaluation of the basis and
+//! rotation of coefficient vectors.
 //!
 //! The basis is core's (`antumbra_core::sh`): real, orthonormal, with the
 //! Condon–Shortley phase; coefficient (l, m) at index `l(l+1) + m`; `bands` bands
@@ -253,4 +254,126 @@ pub unsafe extern "C" fn antumbra_sh_eval(
         unsafe { core::ptr::copy_nonoverlapping(basis.as_ptr(), out, count) };
         Ok(())
     })
+}
+
+/// Rotates SH coefficient vectors: for each vector, the coefficients of
+/// `g(ω) = f(R⁻¹ω)`, so a lobe along `d` ends up along `R d` (exact per band, by
+/// the Ivanic–Ruedenberg recurrence; band energies are preserved).
+///
+/// @param rotation 9 floats, row-major: `rotation[3 * i + j]` is row i, column j
+///        of R, so `(R d)_i = Σ_j rotation[3 i + j] d_j`. Finite and orthogonal
+///        (`R Rᵀ = I` within 1e-3 per entry); a reflection (det -1) is allowed.
+/// @param bands 1 to `ANTUMBRA_SH_MAX_BANDS` (8).
+/// @param coefficients `vector_count * bands²` floats, finite: the vectors one
+///        after another (e.g. 3 for the channel-planar RGB lighting of
+///        `antumbra_sh_project_equirect`).
+/// @param vector_count the number of vectors; 0 is a valid empty batch.
+/// @param rotated receives `vector_count * bands²` floats; untouched on failure.
+///        May be the same array as `coefficients` (each vector is read before it
+///        is written), but must not partly overlap it.
+/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (rotation, or an array with
+///         vector_count > 0); INVALID_ARGUMENT (bands out of range, a matrix that
+///         is not orthogonal, misaligned array, size overflow); NON_FINITE
+///         (rotation, coefficients, naming the index).
+///
+/// Cost: building the band matrices (about 700 multiply-adds at 8 bands), then
+/// `Σ_l (2l+1)²` multiply-adds per vector; no allocation.
+/// Thread safety: safe from any thread.
+///
+/// # Safety
+/// `rotation` must be NULL or valid for 9 floats; the arrays NULL or valid for
+/// `vector_count * bands * bands` floats.
+#[must_use]
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn antumbra_sh_rotate(
+    rotation: *const f32,
+    bands: u32,
+    coefficients: *const f32,
+    vector_count: usize,
+    rotated: *mut f32,
+) -> antumbra_result {
+    guard("antumbra_sh_rotate", || {
+        // SAFETY: caller contract on `rotation`.
+        let r = unsafe { raw::slice(rotation, 9, "rotation") }?;
+        let r: [f32; 9] = core::array::from_fn(|i| r[i]);
+        if let Some(i) = r.iter().position(|c| !c.is_finite()) {
+            return Err(Error::new(
+                ANTUMBRA_RESULT_NON_FINITE,
+                format!("rotation[{i}] is {}; it must be finite", r[i]),
+            ));
+        }
+        let bands = check_bands(bands)?;
+        // glam is column-major: column j holds row entries (r[j], r[3+j], r[6+j]).
+        let matrix = glam::Mat3::from_cols_array(&r).transpose();
+        let error = (matrix * matrix.transpose() - glam::Mat3::IDENTITY)
+            .to_cols_array()
+            .iter()
+            .fold(0.0f32, |m, e| m.max(e.abs()));
+        if error > UNIT_TOLERANCE {
+            return Err(Error::invalid(format!(
+                "rotation is not orthogonal: R Rᵀ differs from the identity by {error} \
+                 (tolerance {UNIT_TOLERANCE})"
+            )));
+        }
+        let count = bands * bands;
+        let total = raw::element_count(vector_count, count, "vector_count")?;
+        // Raw pointers: `rotated` may be `coefficients` itself.
+        let input = if total == 0 {
+            coefficients
+        } else {
+            // Checked like a slice, but read through the pointer only.
+            raw::writable(coefficients.cast_mut(), total, "coefficients")?.cast_const()
+        };
+        let output = raw::writable(rotated, total, "rotated")?;
+        for i in 0..total {
+            // SAFETY: checked non-NULL, aligned and in bounds above.
+            let c = unsafe { input.add(i).read() };
+            if !c.is_finite() {
+                return Err(Error::new(
+                    ANTUMBRA_RESULT_NON_FINITE,
+                    format!(
+                        "coefficients[{i}] (vector {}, coefficient {}) is {c}; it must be finite",
+                        i / count,
+                        i % count
+                    ),
+                ));
+            }
+        }
+        rotate(matrix, bands, vector_count, input, output);
+        Ok(())
+    })
+}
+
+/// Rotates `vectors` vectors of `bands²` floats from `input` to `output` (which may
+/// be equal), one vector at a time through a stack copy.
+fn rotate(matrix: glam::Mat3, bands: usize, vectors: usize, input: *const f32, output: *mut f32) {
+    fn run<const N: usize>(
+        matrix: glam::Mat3,
+        vectors: usize,
+        input: *const f32,
+        output: *mut f32,
+    ) {
+        let rotation = sh::ShRotation::<N>::new(matrix);
+        for v in 0..vectors {
+            let mut coeffs = [0.0f32; N];
+            // SAFETY: the export checked `vectors * N` floats at both pointers; the
+            // vector is copied out before its slot is written.
+            unsafe {
+                core::ptr::copy(input.add(v * N), coeffs.as_mut_ptr(), N);
+                let out = rotation.apply(&sh::Sh::new(coeffs));
+                core::ptr::copy(out.coeffs.as_ptr(), output.add(v * N), N);
+            }
+        }
+    }
+    match bands {
+        1 => run::<1>(matrix, vectors, input, output),
+        2 => run::<4>(matrix, vectors, input, output),
+        3 => run::<9>(matrix, vectors, input, output),
+        4 => run::<16>(matrix, vectors, input, output),
+        5 => run::<25>(matrix, vectors, input, output),
+        6 => run::<36>(matrix, vectors, input, output),
+        7 => run::<49>(matrix, vectors, input, output),
+        8 => run::<64>(matrix, vectors, input, output),
+        _ => unreachable!("bands checked to be 1..=8"),
+    }
 }

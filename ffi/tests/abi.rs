@@ -496,6 +496,10 @@ fn result_strings_and_version() {
     assert_eq!(name(ANTUMBRA_RESULT_OK), "ANTUMBRA_RESULT_OK");
     assert_eq!(name(ANTUMBRA_RESULT_POISONED), "ANTUMBRA_RESULT_POISONED");
     assert_eq!(name(-3), "ANTUMBRA_RESULT_UNKNOWN");
+    assert_eq!(
+        name(ANTUMBRA_RESULT_INVALID_DATA + 1),
+        "ANTUMBRA_RESULT_UNKNOWN"
+    );
     let codes = [
         ANTUMBRA_RESULT_OK,
         ANTUMBRA_RESULT_NULL_ARGUMENT,
@@ -507,6 +511,7 @@ fn result_strings_and_version() {
         ANTUMBRA_RESULT_UNSUPPORTED,
         ANTUMBRA_RESULT_PANIC,
         ANTUMBRA_RESULT_POISONED,
+        ANTUMBRA_RESULT_INVALID_DATA,
     ];
     let names: std::collections::HashSet<_> = codes.iter().map(|&c| name(c)).collect();
     assert_eq!(names.len(), codes.len(), "every code has its own name");

@@ -18,6 +18,8 @@ from embreex.mesh_construction import TriangleMesh
 
 ROOT = os.path.normpath(os.path.join(os.path.dirname(__file__), "..", ".."))
 OK, NULL_ARGUMENT, INVALID_ARGUMENT, NON_FINITE, INDEX_OUT_OF_RANGE = 0, 1, 2, 3, 4
+BUFFER_TOO_SMALL, INVALID_DATA = 5, 10
+TRANSFER_KIND_DIFFUSE = 1
 
 
 class MeshView(C.Structure):
@@ -40,6 +42,22 @@ class SsvStatistics(C.Structure):
                [(name, C.c_uint64) for name in
                 ("edges", "potential_edges", "near_light_triangles", "nodes", "bytes", "queries",
                  "candidates", "silhouettes", "rays")] + [("candidates_per_query", C.c_double)]
+
+
+class TransferOptions(C.Structure):
+    _fields_ = [
+        ("kind", C.c_uint32), ("bands", C.c_uint32), ("grid", C.c_uint32), ("rays", C.c_uint32),
+        ("bounces", C.c_uint32), ("parallel", C.c_uint32), ("brdf", C.c_uint32),
+        ("brdf_params", C.c_float * 2), ("albedo", C.c_float), ("ray_offset", C.c_float),
+        ("reserved", C.c_uint32), ("seed", C.c_uint64),
+    ]
+
+
+class TransferMaterial(C.Structure):
+    _fields_ = [
+        ("diffuse", C.c_float * 3), ("specular", C.c_float * 3), ("phong_exponent", C.c_float),
+        ("eye", C.c_float * 3), ("view_directions", C.POINTER(C.c_float)),
+    ]
 
 
 def load_library(path):
@@ -66,7 +84,146 @@ def load_library(path):
     lib.antumbra_ssv_destroy.restype = None
     lib.antumbra_last_error_message.restype = C.c_char_p
     lib.antumbra_version.restype = C.c_uint32
+    vp, sz, u8p = C.c_void_p, C.c_size_t, C.POINTER(C.c_uint8)
+    lib.antumbra_transfer_options_init.argtypes = [C.POINTER(TransferOptions)]
+    lib.antumbra_transfer_options_init.restype = None
+    lib.antumbra_transfer_material_init.argtypes = [C.POINTER(TransferMaterial)]
+    lib.antumbra_transfer_material_init.restype = None
+    lib.antumbra_transfer_bake.argtypes = [C.POINTER(MeshView), fp, C.POINTER(TransferOptions), vp, vp,
+                                           C.POINTER(C.c_void_p)]
+    lib.antumbra_transfer_bake.restype = C.c_int32
+    lib.antumbra_transfer_geometry.argtypes = [vp, fp, fp, sz]
+    lib.antumbra_transfer_geometry.restype = C.c_int32
+    lib.antumbra_transfer_shade.argtypes = [vp, fp, sz, C.POINTER(TransferMaterial), C.c_uint32, fp, sz]
+    lib.antumbra_transfer_shade.restype = C.c_int32
+    lib.antumbra_transfer_save.argtypes = [vp, u8p, sz, C.POINTER(C.c_size_t)]
+    lib.antumbra_transfer_save.restype = C.c_int32
+    lib.antumbra_transfer_load.argtypes = [u8p, sz, C.POINTER(C.c_void_p)]
+    lib.antumbra_transfer_load.restype = C.c_int32
+    lib.antumbra_transfer_destroy.argtypes = [vp]
+    lib.antumbra_transfer_destroy.restype = None
+    lib.antumbra_sh_eval.argtypes = [fp, C.c_uint32, fp]
+    lib.antumbra_sh_eval.restype = C.c_int32
     return lib
+
+
+def sh9(d):
+    """Real SH, 3 bands, Condon-Shortley phase (the library's convention), per row of d."""
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    return np.stack([
+        np.full_like(x, 0.282095), -0.488603 * y, 0.488603 * z, -0.488603 * x,
+        1.092548 * x * y, -1.092548 * y * z, 0.315392 * (3 * z * z - 1), -1.092548 * x * z,
+        0.546274 * (x * x - y * y)], axis=1)
+
+
+def bake_diffuse(lib, checks, view, options, n):
+    """Bakes through the ABI; returns the handle and the transfer vectors, read one
+    coefficient at a time: unit red lighting e_j and a diffuse albedo of pi make
+    the shaded red channel t_j."""
+    handle = C.c_void_p()
+    r = lib.antumbra_transfer_bake(C.byref(view), None, C.byref(options), None, None, C.byref(handle))
+    checks.check(f"transfer_bake (bunny, diffuse, 3 bands, {options.rays} rays, seed {options.seed})", r == OK,
+                 lib.antumbra_last_error_message().decode())
+    if r != OK:
+        return None, None
+    material = TransferMaterial()
+    lib.antumbra_transfer_material_init(C.byref(material))
+    material.diffuse[0] = np.pi
+    vectors = np.zeros((n, 9))
+    rgb = np.zeros((n, 3), np.float32)
+    for j in range(9):
+        lighting = np.zeros(27, np.float32)
+        lighting[j] = 1.0
+        r = lib.antumbra_transfer_shade(handle, ptr(lighting, C.c_float), 27, C.byref(material), 0,
+                                        ptr(rgb, C.c_float), n)
+        if r != OK:
+            checks.check("transfer_shade", False, lib.antumbra_last_error_message().decode())
+            lib.antumbra_transfer_destroy(handle)
+            return None, None
+        vectors[:, j] = rgb[:, 0]
+    return handle, vectors
+
+
+def check_transfer(lib, checks, verts, tris, embree):
+    """Diffuse transfer (0 bounces) baked through the C ABI against a Monte Carlo
+    reference whose visibility Embree traces: t_j = ∫_H V(ω) Y_j(ω) cos θ dω."""
+    view = MeshView(ptr(verts, C.c_float), len(verts), 0, ptr(tris, C.c_uint32), len(tris))
+    radius = float(np.linalg.norm(verts.max(0) - verts.min(0))) / 2
+    options = TransferOptions()
+    lib.antumbra_transfer_options_init(C.byref(options))
+    options.kind, options.bands, options.rays = TRANSFER_KIND_DIFFUSE, 3, 1024
+    options.ray_offset = radius * 1e-4
+    handle, ours = bake_diffuse(lib, checks, view, options, len(verts))
+    if handle is None:
+        return
+    n = len(verts)
+    positions, normals = np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32)
+    r = lib.antumbra_transfer_geometry(handle, ptr(positions, C.c_float), ptr(normals, C.c_float), n)
+    checks.check("transfer_geometry", r == OK and np.array_equal(positions, verts))
+    # A second seed measures our own Monte Carlo noise: Var(a - b) = 2 Var(a).
+    options.seed = 1
+    other, ours_b = bake_diffuse(lib, checks, view, options, n)
+    if other is None:
+        return
+    lib.antumbra_transfer_destroy(other)
+
+    # Our SH polynomials agree with the library's.
+    d = np.array([[0.36, 0.48, 0.8], [0.0, -0.6, 0.8], [-1.0, 0.0, 0.0]], np.float32)
+    values = np.zeros(9, np.float32)
+    same = True
+    for row in d:
+        row = np.ascontiguousarray(row)
+        same &= lib.antumbra_sh_eval(ptr(row, C.c_float), 3, ptr(values, C.c_float)) == OK
+        same &= bool(np.allclose(values, sh9(row[None, :])[0], atol=1e-5))
+    checks.check("reference SH polynomials match antumbra_sh_eval", same)
+
+    # Reference: M cosine-weighted directions per vertex, visibility from Embree.
+    rng = np.random.default_rng(5)
+    picked = rng.choice(n, 48, replace=False)
+    samples = 16384
+    err = norm = variance = ours_variance = 0.0
+    for v in picked:
+        nrm = normals[v].astype(np.float64)
+        helper = np.array([1.0, 0, 0]) if abs(nrm[0]) < 0.9 else np.array([0, 1.0, 0])
+        t = np.cross(nrm, helper)
+        t /= np.linalg.norm(t)
+        b = np.cross(nrm, t)
+        u1, u2 = rng.random(samples), rng.random(samples)
+        rr, phi = np.sqrt(u1), 2 * np.pi * u2
+        local = np.stack([rr * np.cos(phi), rr * np.sin(phi), np.sqrt(1 - u1)], axis=1)
+        dirs = local[:, :1] * t + local[:, 1:2] * b + local[:, 2:] * nrm
+        origins = np.tile(positions[v] + nrm * options.ray_offset, (samples, 1)).astype(np.float32)
+        dirs32 = np.ascontiguousarray(dirs, np.float32)
+        far = np.full(samples, np.inf, np.float32)
+        visible = embree.run(origins, dirs32, dists=far, query="OCCLUDED") != 0
+        terms = np.pi * visible[:, None] * sh9(dirs)
+        ref = terms.mean(axis=0)
+        variance += float(np.sum(terms.var(axis=0))) / samples
+        ours_variance += float(np.sum((ours[v] - ours_b[v]) ** 2)) / 2
+        err += float(np.sum((ours[v] - ref) ** 2))
+        norm += float(np.sum(ref ** 2))
+    rel = np.sqrt(err / norm)
+    # Both sides are Monte Carlo: three standard errors, from the reference's
+    # measured sample variance and our noise measured across two seeds.
+    bound = 3 * np.sqrt((variance + ours_variance) / norm)
+    checks.check("diffuse transfer vs Embree-traced reference (48 vertices)", rel < bound,
+                 f"relative RMS {100 * rel:.2f} % (bound {100 * bound:.2f} %: reference noise "
+                 f"{100 * np.sqrt(variance / norm):.2f} %, ours {100 * np.sqrt(ours_variance / norm):.2f} %)")
+
+    # A truncated bake file is refused with INVALID_DATA and the handle untouched.
+    size = C.c_size_t()
+    r = lib.antumbra_transfer_save(handle, None, 0, C.byref(size))
+    data = np.zeros(size.value, np.uint8)
+    r2 = lib.antumbra_transfer_save(handle, ptr(data, C.c_uint8), size.value, None)
+    out = C.c_void_p(0x5A5A)
+    r3 = lib.antumbra_transfer_load(ptr(data, C.c_uint8), size.value - 1, C.byref(out))
+    msg = lib.antumbra_last_error_message().decode()
+    checks.check("truncated bake file", r == BUFFER_TOO_SMALL and r2 == OK and r3 == INVALID_DATA
+                 and out.value == 0x5A5A and "truncated" in msg, msg)
+    r = lib.antumbra_transfer_load(ptr(data, C.c_uint8), size.value, C.byref(out))
+    checks.check("bake file reloads", r == OK)
+    lib.antumbra_transfer_destroy(out)
+    lib.antumbra_transfer_destroy(handle)
 
 
 def load_obj(path):
@@ -246,6 +403,7 @@ def main():
     msg = lib.antumbra_last_error_message().decode()
     checks.check("NaN origin", r == NON_FINITE and "origins[2]" in msg and (out == 9).all(), msg)
     check_ssv(lib, checks, verts, tris)
+    check_transfer(lib, checks, verts, tris, embree)
     v = lib.antumbra_version()
     checks.check("version", v >> 16 == 0 and v > 0, hex(v))
 
