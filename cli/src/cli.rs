@@ -21,6 +21,11 @@ use clap::{Args, Parser, Subcommand};
   antumbra demo                                     pictures into ./antumbra-demo
   antumbra render --mesh model.obj --env sky.exr    lit by an HDR sky, into model-env.png
   antumbra bake --mesh model.obj --out model.csv    per-vertex ambient occlusion
+  antumbra bake --mesh model.obj --kind mrt --pca 8 -o model.xfer
+                                                    matrix radiance transfer, PCA-compressed
+  antumbra render --mesh model.obj --bake model.xfer --env sky.exr --rotate 90
+                                                    relight the bake under a rotated sky
+  antumbra bench transfer                           PRT/MRT shading cost, bake vs Embree
   antumbra bench raycast                            BVH vs brute-force rays per second
   antumbra verify --mesh model.obj                  BVH answers against brute force"
 )]
@@ -41,7 +46,9 @@ pub enum Command {
     /// without rays, the bunny under the same sky in spherical harmonics,
     /// shadowed per vertex by hemispherical rasterization, diffuse and glossy,
     /// and a contact sheet of frames of the bunny twisting, re-shaded every frame
-    /// (with per-frame timings). Prints where each file went, its size and how
+    /// (with per-frame timings); last, a glossy bunny relit by matrix radiance
+    /// transfer under the sky rotating frame by frame (baked once, then shaded
+    /// per frame without rays). Prints where each file went, its size and how
     /// long it took.
     Demo(DemoArgs),
 
@@ -51,21 +58,37 @@ pub enum Command {
     /// The camera frames the mesh's bounding box automatically and the mesh
     /// stands on a ground plane at the bottom of its bounds (the mesh must be +Y
     /// up).
+    ///
+    /// With --bake FILE (made by `antumbra bake` from the same mesh): relights the
+    /// bake under the map in SH (rotated by --rotate degrees about +Y), seen from
+    /// the same camera, with no rays: one shading pass over the vertices, drawn
+    /// with the vertex colours interpolated. No ground (the bake holds the mesh
+    /// alone).
     Render(RenderArgs),
 
-    /// Bake per-vertex ambient occlusion of an OBJ mesh into a text or CSV file.
+    /// Bake precomputed radiance transfer (diffuse PRT, glossy SH transfer or
+    /// matrix radiance transfer) into a bake file, or per-vertex ambient occlusion
+    /// into a text or CSV file (`--kind ao`, the default).
     ///
-    /// For each vertex, rays leave from the vertex (pushed off the surface by a
-    /// tiny distance relative to the bounding box) in cosine-weighted directions
-    /// around its smooth normal; the value is the fraction that escape.
+    /// Transfer (`--kind diffuse|glossy-sh|mrt`): for every vertex, `--rays`
+    /// stratified rays over the hemisphere of its smooth normal (pushed off the
+    /// surface by 1e-4 of the bounding-box diagonal) gather the transfer of every
+    /// SH lighting coefficient at once, plus `--bounces` diffuse interreflections
+    /// of albedo `--albedo`. MRT bakes a `--grid`² × bands² matrix per vertex for
+    /// the chosen BRDF (Phong, or Ward's anisotropic one with --ward) and can be
+    /// PCA-compressed to `--pca K` components (the error and memory per K are
+    /// printed). The file is antumbra's versioned, checksummed bake format
+    /// (`antumbra_core::transfer::format`); relight it with `antumbra render
+    /// --bake`.
     ///
-    /// Output: with a .csv extension, a CSV table `vertex,x,y,z,nx,ny,nz,visibility`
-    /// with one header row; otherwise a text file whose first line is a `#` header
-    /// describing the contents, followed by one visibility value per line, line
-    /// i+2 for vertex i. Either way: one line per vertex plus one header line.
-    /// Visibility is in [0, 1]: 1 = unoccluded, 0 = fully occluded. Vertices are
-    /// in the order of the loaded mesh: OBJ positions in order of first use by a
-    /// face, objects one after another (for most files, the order of the `v` lines).
+    /// Ambient occlusion (`--kind ao`): for each vertex, rays leave from the vertex
+    /// in cosine-weighted directions around its smooth normal; the value is the
+    /// fraction that escape. Output: with a .csv extension, a CSV table
+    /// `vertex,x,y,z,nx,ny,nz,visibility` with one header row; otherwise a text
+    /// file whose first line is a `#` header describing the contents, followed by
+    /// one visibility value per line, line i+2 for vertex i. Visibility is in
+    /// [0, 1]: 1 = unoccluded. Vertices are in the order of the loaded mesh: OBJ
+    /// positions in order of first use by a face, objects one after another.
     Bake(BakeArgs),
 
     /// Measure performance and print figures next to a baseline measured in the
@@ -126,6 +149,36 @@ pub struct RenderArgs {
     /// Do not add a ground plane under the mesh.
     #[arg(long)]
     pub no_ground: bool,
+
+    /// Relight this bake file (baked from --mesh) with the environment map in SH
+    /// instead of ray tracing [--env defaults to the built-in sunrise].
+    #[arg(long, value_name = "FILE")]
+    pub bake: Option<PathBuf>,
+
+    /// Rotate the environment map by this many degrees about +Y (with --bake).
+    #[arg(long, value_name = "DEG", default_value_t = 0.0)]
+    pub rotate: f32,
+
+    /// Phong exponent of a glossy SH bake's run time (with --bake).
+    #[arg(long, value_name = "S", default_value_t = 32.0)]
+    pub exponent: f32,
+
+    /// PCA components used when relighting a compressed MRT bake [default: all].
+    #[arg(long, value_name = "K")]
+    pub components: Option<usize>,
+}
+
+/// What `antumbra bake` computes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BakeKind {
+    /// Per-vertex ambient occlusion (text or CSV).
+    Ao,
+    /// Diffuse transfer vectors (bands² values per vertex).
+    Diffuse,
+    /// Glossy SH transfer matrices (bands² × bands² per vertex).
+    GlossySh,
+    /// Matrix radiance transfer (grid² × bands² per vertex).
+    Mrt,
 }
 
 /// Arguments of `antumbra bake`.
@@ -135,17 +188,54 @@ pub struct BakeArgs {
     #[arg(long, value_name = "FILE.obj")]
     pub mesh: PathBuf,
 
-    /// Output file: CSV when it ends in .csv, the documented text format otherwise.
-    #[arg(long, value_name = "FILE")]
+    /// What to bake.
+    #[arg(long, value_enum, default_value_t = BakeKind::Ao)]
+    pub kind: BakeKind,
+
+    /// Output file: a bake file for the transfer kinds; for ao, CSV when it ends in
+    /// .csv, the documented text format otherwise.
+    #[arg(long, short = 'o', value_name = "FILE")]
     pub out: PathBuf,
 
-    /// Rays per vertex.
+    /// Rays per vertex (and per bounce).
     #[arg(long, value_name = "N", default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     pub rays: u32,
 
-    /// Ignore occluders farther than this, in mesh units [default: no limit].
+    /// Ignore occluders farther than this, in mesh units (ao only) [default: no limit].
     #[arg(long, value_name = "DISTANCE")]
     pub max_distance: Option<f32>,
+
+    /// SH bands of the lighting (bands² coefficients).
+    #[arg(long, value_name = "B", default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub bands: u32,
+
+    /// MRT grid side (grid² nodes over the hemisphere).
+    #[arg(long, value_name = "G", default_value_t = 8, value_parser = clap::value_parser!(u32).range(2..=64))]
+    pub grid: u32,
+
+    /// Diffuse interreflection bounces.
+    #[arg(long, value_name = "N", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=64))]
+    pub bounces: u32,
+
+    /// Albedo of the scene for the bounces, in [0, 1).
+    #[arg(long, value_name = "A", default_value_t = 0.5)]
+    pub albedo: f32,
+
+    /// PCA-compress an MRT bake to K components (mean + K).
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
+    pub pca: Option<u32>,
+
+    /// Exponent of the MRT bake's Phong lobe.
+    #[arg(long, value_name = "S", default_value_t = 32.0)]
+    pub phong_exponent: f32,
+
+    /// Bake Ward's anisotropic BRDF with these roughnesses instead of Phong (MRT).
+    #[arg(long, value_name = "AX,AY", value_delimiter = ',')]
+    pub ward: Option<Vec<f32>>,
+
+    /// Seed of the bake's random numbers.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub seed: u64,
 }
 
 /// The benchmarks.
@@ -172,6 +262,44 @@ pub enum BenchCommand {
     /// thread and on all cores. Slow frames (large meshes without the far mesh)
     /// are timed once: the armadillo takes minutes.
     Hemi(BenchHemiArgs),
+
+    /// Precomputed transfer: per-vertex shading cost of diffuse PRT, glossy SH
+    /// transfer, MRT and MRT from PCA (as ratios); bake rays per second against
+    /// obvhs and Embree casting the same rays (one thread); PCA error and memory
+    /// per vertex against K.
+    Transfer(BenchTransferArgs),
+}
+
+/// Arguments of `antumbra bench transfer`.
+#[derive(Debug, Args)]
+pub struct BenchTransferArgs {
+    /// Mesh (Wavefront OBJ) [default: the built-in bunny].
+    #[arg(long, value_name = "FILE.obj")]
+    pub mesh: Option<PathBuf>,
+
+    /// SH band counts to compare at (each is a full set of figures).
+    #[arg(long, value_name = "B,...", value_delimiter = ',', default_values_t = [4u32, 5])]
+    pub bands: Vec<u32>,
+
+    /// MRT grid side.
+    #[arg(long, value_name = "G", default_value_t = 8, value_parser = clap::value_parser!(u32).range(2..=64))]
+    pub grid: u32,
+
+    /// Rays per vertex of the timed bakes.
+    #[arg(long, value_name = "N", default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub rays: u32,
+
+    /// Largest PCA component count of the error and memory table.
+    #[arg(long, value_name = "K", default_value_t = 32)]
+    pub max_components: usize,
+
+    /// Time each shading figure over at least this many milliseconds.
+    #[arg(long, value_name = "MS", default_value_t = 300)]
+    pub min_time: u64,
+
+    /// Skip the Embree figure (it needs the oracle's Python, see `verify hemi`).
+    #[arg(long)]
+    pub no_embree: bool,
 }
 
 /// Arguments of `antumbra bench raycast`.

@@ -16,6 +16,7 @@ mod hemi_shading;
 mod mesh;
 mod picture;
 mod progress;
+mod prt;
 mod raster;
 mod ray_batch;
 mod render;

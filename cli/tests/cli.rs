@@ -88,6 +88,7 @@ fn demo_writes_decodable_pictures_with_content() {
         "bunny-hemi-diffuse.png",
         "bunny-hemi-glossy.png",
         "bunny-hemi-twist.png",
+        "bunny-mrt-rotating-sky.png",
     ] {
         let path = dir.join(name);
         assert!(
@@ -97,8 +98,13 @@ fn demo_writes_decodable_pictures_with_content() {
         let picture = image::open(&path)
             .unwrap_or_else(|e| panic!("{} does not decode: {e}", path.display()))
             .into_rgb8();
-        // The twist is a contact sheet of 2x2 frames, each as wide as the others.
-        let frames = if name.ends_with("twist.png") { 2 } else { 1 };
+        // The twist and the rotating sky are contact sheets of 2x2 frames, each
+        // as wide as the others.
+        let frames = if name.ends_with("twist.png") || name.ends_with("sky.png") {
+            2
+        } else {
+            1
+        };
         assert_eq!(picture.width(), 32 * frames, "{name}");
         let first = picture.get_pixel(0, 0);
         assert!(
@@ -200,6 +206,127 @@ fn bake_writes_one_line_per_vertex_plus_a_header() {
             assert!((0.0..=1.0).contains(&value), "{name}: {line}");
         }
     }
+}
+
+#[test]
+fn transfer_bakes_round_trip_through_render() {
+    let dir = scratch("bake-transfer");
+    let teapot = data("teapot.obj");
+    let bunny = data("bunny.obj");
+    for (kind, extra) in [
+        ("diffuse", &["--bounces", "1"][..]),
+        ("glossy-sh", &["--bands", "3"][..]),
+        ("mrt", &["--grid", "4", "--pca", "4"][..]),
+        ("mrt", &["--grid", "4", "--ward", "0.2,0.5"][..]),
+    ] {
+        let out = dir.join(format!("teapot-{kind}-{}.xfer", extra.len()));
+        let mut args = vec![
+            "bake",
+            "--mesh",
+            &teapot,
+            "--kind",
+            kind,
+            "--rays",
+            "16",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let output = antumbra(&args);
+        assert_success(&output);
+        let text = stdout(&output);
+        assert!(text.contains("792 vertices"), "{text}");
+        if extra.contains(&"--pca") {
+            assert!(text.contains("K =   4: relative RMS error"), "{text}");
+        }
+        let png = dir.join(format!("teapot-{kind}-{}.png", extra.len()));
+        let output = antumbra(&[
+            "render",
+            "--mesh",
+            &teapot,
+            "--bake",
+            out.to_str().unwrap(),
+            "--rotate",
+            "45",
+            "--size",
+            "40",
+            "--out",
+            png.to_str().unwrap(),
+        ]);
+        assert_success(&output);
+        let picture = image::open(&png).unwrap().into_rgb8();
+        assert_eq!(picture.width(), 40);
+        let first = picture.get_pixel(0, 0);
+        assert!(picture.pixels().any(|p| p != first), "{kind}: one colour");
+        // A bake relit on another mesh is refused by name.
+        let output = antumbra(&[
+            "render",
+            "--mesh",
+            &bunny,
+            "--bake",
+            out.to_str().unwrap(),
+            "--out",
+            png.to_str().unwrap(),
+        ]);
+        assert!(!output.status.success());
+        assert!(
+            stderr(&output).contains("bake it from this mesh"),
+            "{}",
+            stderr(&output)
+        );
+    }
+    // --pca needs an MRT bake; a corrupt file is refused with a message.
+    let output = antumbra(&[
+        "bake", "--mesh", &teapot, "--kind", "diffuse", "--pca", "2", "-o", "x.xfer",
+    ]);
+    assert!(!output.status.success());
+    assert!(stderr(&output).contains("--pca"), "{}", stderr(&output));
+    let bad = dir.join("bad.xfer");
+    std::fs::write(&bad, b"ANTXFER\0 not really").unwrap();
+    let output = antumbra(&["render", "--mesh", &teapot, "--bake", bad.to_str().unwrap()]);
+    assert!(!output.status.success());
+    assert!(
+        stderr(&output).contains("is not a valid bake file"),
+        "{}",
+        stderr(&output)
+    );
+}
+
+#[test]
+fn bench_transfer_prints_every_figure() {
+    let output = antumbra(&[
+        "bench",
+        "transfer",
+        "--mesh",
+        &data("teapot.obj"),
+        "--bands",
+        "2,3",
+        "--rays",
+        "4",
+        "--min-time",
+        "1",
+        "--max-components",
+        "4",
+        "--no-embree",
+    ]);
+    assert_success(&output);
+    let text = stdout(&output);
+    for needle in [
+        "bake, one thread",
+        "obvhs occluded alone",
+        "glossy SH transfer",
+        "MRT from PCA, K = 4",
+        "cheaper than glossy SH",
+        "K =   4",
+        "bytes per vertex",
+    ] {
+        assert!(text.contains(needle), "{needle} missing:\n{text}");
+    }
+    assert_eq!(
+        text.matches("shading cost per vertex, ").count(),
+        2,
+        "{text}"
+    );
 }
 
 #[test]

@@ -1,4 +1,5 @@
-//! `antumbra bake`: per-vertex ambient occlusion written as text or CSV.
+//! `antumbra bake`: precomputed transfer written as a bake file, or per-vertex
+//! ambient occlusion written as text or CSV.
 
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -8,10 +9,11 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{absolute, format_duration};
-use crate::cli::BakeArgs;
+use crate::cli::{BakeArgs, BakeKind};
 use crate::error::{Context, Error, Result};
 use crate::mesh::TriangleMesh;
 use crate::progress;
+use crate::prt;
 use crate::render::ambient_ray_escapes;
 use crate::sampling::{R2Sequence, SampleRng, hash_seed};
 
@@ -24,6 +26,9 @@ const SEED: u64 = 0xBA;
 
 /// Bakes and writes the file.
 pub fn run(args: &BakeArgs) -> Result<()> {
+    if args.kind != BakeKind::Ao {
+        return run_transfer(args);
+    }
     if let Some(d) = args.max_distance.filter(|d| d.is_nan() || *d <= 0.0) {
         return Err(Error::msg(format!(
             "--max-distance must be positive, not {d}"
@@ -64,6 +69,122 @@ pub fn run(args: &BakeArgs) -> Result<()> {
         "  wrote {} ({})",
         absolute(&args.out).display(),
         if csv { "CSV" } else { "text" }
+    );
+    Ok(())
+}
+
+/// Component counts of the PCA error table, up to the baked one.
+fn pca_table_counts(k: usize) -> Vec<usize> {
+    let mut counts: Vec<usize> = std::iter::successors(Some(1usize), |c| Some(c * 2))
+        .take_while(|&c| c < k)
+        .collect();
+    counts.push(k);
+    counts
+}
+
+/// `bake --kind diffuse|glossy-sh|mrt`.
+fn run_transfer(args: &BakeArgs) -> Result<()> {
+    if args.max_distance.is_some() {
+        return Err(Error::msg("--max-distance applies to --kind ao only"));
+    }
+    let kind = match args.kind {
+        BakeKind::Diffuse => prt::Kind::Diffuse,
+        BakeKind::GlossySh => prt::Kind::GlossySh,
+        BakeKind::Mrt => prt::Kind::Mrt,
+        BakeKind::Ao => unreachable!("handled by run"),
+    };
+    if args.pca.is_some() && kind != prt::Kind::Mrt {
+        return Err(Error::msg("--pca compresses MRT bakes only (--kind mrt)"));
+    }
+    let brdf = match args.ward.as_deref() {
+        Some(&[ax, ay]) => prt::BrdfChoice::ward(ax, ay)?,
+        Some(other) => {
+            return Err(Error::msg(format!(
+                "--ward takes two roughnesses, got {other:?}"
+            )));
+        }
+        None => prt::BrdfChoice::phong(args.phong_exponent)?,
+    };
+    let config = prt::BakeConfig {
+        kind,
+        bands: args.bands,
+        grid: args.grid,
+        bounces: args.bounces,
+        rays: args.rays,
+        albedo: args.albedo,
+        brdf,
+        seed: args.seed,
+    };
+    let mesh = TriangleMesh::load_obj(&args.mesh)?;
+    let passes = mesh.vertex_count() as u64 * u64::from(args.bounces + 1);
+    let bar = progress::bar(passes, "baking transfer", "vertex passes");
+    let baked = prt::bake_mesh(&mesh, &config, false, Some(&bar))?;
+    bar.finish_and_clear();
+    let what = match kind {
+        prt::Kind::Diffuse => "diffuse transfer".to_string(),
+        prt::Kind::GlossySh => "glossy SH transfer".to_string(),
+        prt::Kind::Mrt => format!(
+            "matrix radiance transfer ({}×{} grid, {})",
+            args.grid,
+            args.grid,
+            brdf.describe()
+        ),
+    };
+    println!(
+        "baked {what} of {} ({} vertices, {} bands, {} rays, {} bounce{}) in {}, {}",
+        mesh.name(),
+        mesh.vertex_count(),
+        args.bands,
+        args.rays,
+        args.bounces,
+        if args.bounces == 1 { "" } else { "s" },
+        format_duration(baked.elapsed),
+        super::format_rate(
+            baked.rays_cast as f64 / baked.elapsed.as_secs_f64().max(1e-9),
+            "rays"
+        )
+    );
+    let dense = baked.set;
+    let set = match args.pca {
+        None => dense,
+        Some(k) => {
+            let started = Instant::now();
+            let compressed = dense
+                .compress(k as usize)
+                .map_err(|e| Error::msg(format!("cannot compress: {e}")))?;
+            println!(
+                "  PCA to {k} components in {}; error and memory against K:",
+                format_duration(started.elapsed())
+            );
+            let dense_per_vertex = dense.data_bytes() as f64 / dense.vertex_count() as f64;
+            let levels = dense
+                .pca_levels(&compressed, &pca_table_counts(k as usize))
+                .expect("compressed from this set");
+            for level in levels {
+                println!(
+                    "    K = {:>3}: relative RMS error {:>7.3} %, {:>7.1} bytes per vertex ({:.1}x less than dense {:.0})",
+                    level.components,
+                    100.0 * level.relative_rms_error,
+                    level.bytes_per_vertex,
+                    dense_per_vertex / level.bytes_per_vertex,
+                    dense_per_vertex
+                );
+            }
+            compressed
+        }
+    };
+    let bytes = set.to_bytes();
+    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("cannot create folder {}", parent.display()))?;
+    }
+    std::fs::write(&args.out, &bytes)
+        .with_context(|| format!("cannot write {}", args.out.display()))?;
+    println!(
+        "  wrote {} ({} bytes, {:.1} bytes of transfer per vertex)",
+        absolute(&args.out).display(),
+        bytes.len(),
+        set.data_bytes() as f64 / set.vertex_count().max(1) as f64
     );
     Ok(())
 }
@@ -158,6 +279,13 @@ mod tests {
         assert!(text.starts_with('#'));
         let csv = format_csv(&tetra, &tetra.vertex_normals(), &visibility);
         assert_eq!(csv.lines().count(), 5);
+    }
+
+    #[test]
+    fn pca_table_doubles_up_to_the_baked_count() {
+        assert_eq!(pca_table_counts(1), vec![1]);
+        assert_eq!(pca_table_counts(8), vec![1, 2, 4, 8]);
+        assert_eq!(pca_table_counts(12), vec![1, 2, 4, 8, 12]);
     }
 
     #[test]

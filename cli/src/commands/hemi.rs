@@ -149,7 +149,7 @@ pub fn run_verify(args: &VerifyHemiArgs) -> Result<()> {
 }
 
 /// Repeats `work` until `min_time` has passed; returns the mean time per call.
-fn time_per_call(min_time: Duration, mut work: impl FnMut()) -> Duration {
+pub(super) fn time_per_call(min_time: Duration, mut work: impl FnMut()) -> Duration {
     work();
     let started = Instant::now();
     let mut calls = 0u32;

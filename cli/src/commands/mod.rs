@@ -2,6 +2,7 @@
 
 mod bake;
 mod bench;
+mod bench_transfer;
 mod demo;
 mod hemi;
 mod render;
@@ -21,6 +22,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bake(args) => bake::run(&args),
         Command::Bench(BenchCommand::Raycast(args)) => bench::run_raycast(&args),
         Command::Bench(BenchCommand::Hemi(args)) => hemi::run_bench(&args),
+        Command::Bench(BenchCommand::Transfer(args)) => bench_transfer::run(&args),
         Command::Verify(VerifyArgs {
             what: Some(VerifyCommand::Hemi(args)),
             ..

@@ -242,7 +242,7 @@ pub(super) fn rasterize(
 
 /// The finished picture of a supersampled frame: tone-mapped with `exposure` (the
 /// filmic curve, sRGB) over the backdrop, then box-filtered down in display space.
-pub(super) fn develop(frame: &Framebuffer, exposure: f32) -> HdrImage {
+pub(crate) fn develop(frame: &Framebuffer, exposure: f32) -> HdrImage {
     let (wide, high) = (frame.width(), frame.height());
     let mut display = HdrImage::new(wide, high);
     for y in 0..high {
@@ -263,7 +263,7 @@ pub(super) fn develop(frame: &Framebuffer, exposure: f32) -> HdrImage {
 }
 
 /// Quantises a display-space image (values in `[0, 1]`) to 8 bits.
-pub(super) fn to_rgb8(display: &HdrImage) -> image::RgbImage {
+pub(crate) fn to_rgb8(display: &HdrImage) -> image::RgbImage {
     let mut out = image::RgbImage::new(display.width() as u32, display.height() as u32);
     for (pixel, value) in out.pixels_mut().zip(display.pixels()) {
         pixel.0 = value

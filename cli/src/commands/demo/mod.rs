@@ -9,10 +9,11 @@
 mod ambient_occlusion;
 mod environment_lighting;
 mod environment_preview;
-mod hemi;
+pub(super) mod hemi;
 mod hemi_diffuse;
 mod hemi_glossy;
 mod hemi_twist;
+mod mrt_relit;
 
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
@@ -36,6 +37,7 @@ const PICTURES: &[DemoPicture] = &[
     hemi_diffuse::PICTURE,
     hemi_glossy::PICTURE,
     hemi_twist::PICTURE,
+    mrt_relit::PICTURE,
 ];
 
 /// Where the bunny is seen from, in degrees around +Y (0 = from +Z): the sunrise
