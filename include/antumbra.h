@@ -122,6 +122,60 @@
 #define ANTUMBRA_SH_MAX_BANDS 8
 
 /**
+ * `antumbra_ssv_options.structure`: the 2006 lazily built 3D hierarchy over
+ * receiver space (one root-to-leaf walk per query). The default and the one to use.
+ */
+#define ANTUMBRA_SSV_STRUCTURE_HIERARCHY 0
+
+/**
+ * `antumbra_ssv_options.structure`: the 2005-style 2D structure, wedges projected
+ * onto a cube of direction cells around the light's centroid (a baseline).
+ */
+#define ANTUMBRA_SSV_STRUCTURE_HEMICUBE 1
+
+/**
+ * `antumbra_ssv_options.structure`: every potential silhouette edge for every
+ * query (the obviously right reference; slow).
+ */
+#define ANTUMBRA_SSV_STRUCTURE_BRUTE_FORCE 2
+
+/**
+ * `antumbra_ssv_options.structure`: N shadow rays per receiver through the
+ * library's BVH, each hit confirmed exactly (the other reference).
+ */
+#define ANTUMBRA_SSV_STRUCTURE_RAY_TRACE 3
+
+/**
+ * `antumbra_ssv_generate_samples` pattern: one uniformly random point per stratum.
+ */
+#define ANTUMBRA_SSV_SAMPLES_JITTERED 0
+
+/**
+ * `antumbra_ssv_generate_samples` pattern: the centre of each stratum.
+ */
+#define ANTUMBRA_SSV_SAMPLES_STRATIFIED 1
+
+/**
+ * Most light samples a soft shadow handle may have.
+ */
+#define ANTUMBRA_SSV_MAX_SAMPLES 1024
+
+/**
+ * Most vertices of the light polygon.
+ */
+#define ANTUMBRA_SSV_MAX_LIGHT_VERTICES 16
+
+/**
+ * Largest accepted `antumbra_ssv_options.max_depth`.
+ */
+#define ANTUMBRA_SSV_MAX_DEPTH_LIMIT 24
+
+/**
+ * Largest accepted `antumbra_ssv_options.hemicube_resolution`.
+ */
+#define ANTUMBRA_SSV_MAX_HEMICUBE_RESOLUTION 1024
+
+/**
  * `antumbra_transfer_options.kind`: a diffuse transfer vector per vertex
  * (`bands²` values): shadowed (and, with bounces, interreflected) irradiance.
  */
@@ -195,6 +249,13 @@ typedef struct antumbra_hemi_table antumbra_hemi_table;
  * `antumbra_scene_destroy`.
  */
 typedef struct antumbra_scene antumbra_scene;
+
+/**
+ * Soft shadows from one planar area light with a fixed set of samples over a
+ * fixed set of occluders. Opaque; create with `antumbra_ssv_create`, free with
+ * `antumbra_ssv_destroy`.
+ */
+typedef struct antumbra_ssv antumbra_ssv;
 
 /**
  * A baked transfer set: kind, bands, grid, per-vertex positions and normals and
@@ -430,6 +491,128 @@ typedef struct antumbra_hit {
    */
   float v;
 } antumbra_hit;
+
+/**
+ * Options of `antumbra_ssv_create`. Fill with `antumbra_ssv_options_init`, then
+ * change fields: fields may be added at the end in later versions, and
+ * `options_init` keeps old code correct.
+ *
+ * Layout: 48 bytes, twelve 4-byte fields, no padding, 4-byte aligned.
+ */
+typedef struct antumbra_ssv_options {
+  /**
+   * `ANTUMBRA_SSV_STRUCTURE_HIERARCHY` (0, the default), `_HEMICUBE` (1),
+   * `_BRUTE_FORCE` (2) or `_RAY_TRACE` (3). All give the same bits; they differ
+   * in speed and memory.
+   */
+  uint32_t structure;
+  /**
+   * Hierarchy: a node holding more candidate edges than this is subdivided when
+   * a query reaches it. At least 1; default 64.
+   */
+  uint32_t leaf_edges;
+  /**
+   * Hierarchy: deepest level of the octree, 0 to `ANTUMBRA_SSV_MAX_DEPTH_LIMIT`
+   * (24); default 12.
+   */
+  uint32_t max_depth;
+  /**
+   * Hemicube: cells per cube face side, 1 to 1024; default 32.
+   */
+  uint32_t hemicube_resolution;
+  /**
+   * 0 (the default): `antumbra_ssv_query` runs on the calling thread. 1: the
+   * points of one query call are split across the library's worker threads (a
+   * rayon pool of one thread per core, started on first use and kept for the
+   * life of the process). The bits are identical either way.
+   */
+  uint32_t parallel;
+  /**
+   * 0 (the default): the hierarchy's root box is the bounds of the occluders
+   * and the light, grown by half their size on every side. 1: it is
+   * `[root_min, root_max]` (receivers outside it test every potential edge).
+   */
+  uint32_t use_root_bounds;
+  /**
+   * Lower corner of the root box when `use_root_bounds` is 1 (finite).
+   */
+  float root_min[3];
+  /**
+   * Upper corner of the root box when `use_root_bounds` is 1 (finite, each
+   * coordinate above `root_min`'s).
+   */
+  float root_max[3];
+} antumbra_ssv_options;
+
+/**
+ * What a soft shadow handle holds and the work its queries did, from
+ * `antumbra_ssv_get_statistics`. The query counters cover every successful
+ * `antumbra_ssv_query` on the handle since it was created (all threads).
+ *
+ * Layout: 96 bytes, four 4-byte fields then ten 8-byte fields, no padding,
+ * 8-byte aligned.
+ */
+typedef struct antumbra_ssv_statistics {
+  /**
+   * The structure chosen at creation (`ANTUMBRA_SSV_STRUCTURE_*`).
+   */
+  uint32_t structure;
+  /**
+   * Number of light samples N.
+   */
+  uint32_t sample_count;
+  /**
+   * `ceil(N / 64)`: the `uint64_t` words of one receiver's bits.
+   */
+  uint32_t words_per_receiver;
+  /**
+   * Vertices of the light polygon.
+   */
+  uint32_t light_vertex_count;
+  /**
+   * Welded edges of the occluders (triangles near the light excluded).
+   */
+  uint64_t edges;
+  /**
+   * Edges that may be silhouettes for some receiver (flat interior edges
+   * excluded): what brute force tests per query.
+   */
+  uint64_t potential_edges;
+  /**
+   * Triangles near the light's plane, tested directly against every sample.
+   */
+  uint64_t near_light_triangles;
+  /**
+   * Hierarchy nodes built so far (grows as queries arrive) or hemicube cells;
+   * 0 for brute force and ray tracing.
+   */
+  uint64_t nodes;
+  /**
+   * Bytes held by the structure's node or cell lists (not the BVH).
+   */
+  uint64_t bytes;
+  /**
+   * Receivers queried.
+   */
+  uint64_t queries;
+  /**
+   * Candidate edges the structure handed to the exact tests, summed over queries.
+   */
+  uint64_t candidates;
+  /**
+   * Candidates that were silhouettes of their receiver, summed over queries.
+   */
+  uint64_t silhouettes;
+  /**
+   * Rays cast, summed over queries (1 per receiver for the wedge structures,
+   * N for ray tracing, 0 for receivers in the light's plane).
+   */
+  uint64_t rays;
+  /**
+   * `candidates / queries` (0 before the first query).
+   */
+  double candidates_per_query;
+} antumbra_ssv_statistics;
 
 /**
  * What `antumbra_transfer_bake` measures and how. Fill with
@@ -1457,6 +1640,192 @@ antumbra_result antumbra_sh_rotate(const float *rotation,
                                    const float *coefficients,
                                    size_t vector_count,
                                    float *rotated);
+
+/**
+ * Writes the default options: the hierarchy, 64 edges per leaf, depth 12,
+ * hemicube resolution 32, on the calling thread, the automatic root box.
+ *
+ * @param options the options to fill; every field is written.
+ *
+ * On a NULL or misaligned pointer nothing is written, and the thread's last error
+ * message and the error callback report ANTUMBRA_RESULT_NULL_ARGUMENT or
+ * ANTUMBRA_RESULT_INVALID_ARGUMENT.
+ * Thread safety: safe from any thread.
+ *
+ * # Safety
+ * `options` must be NULL or valid for writing one `antumbra_ssv_options`.
+ */
+void antumbra_ssv_options_init(struct antumbra_ssv_options *options);
+
+/**
+ * Builds the soft shadows of the light polygon `light_vertices` with the light
+ * samples `samples` over the triangles of `occluders`.
+ *
+ * Visibility is exact: the bits `antumbra_ssv_query` returns are those of N
+ * shadow segments from the receiver to the samples tested exactly against every
+ * occluder triangle (closed triangles, two-sided; degenerate triangles never
+ * occlude; the light itself is never an occluder and emits to both sides).
+ *
+ * @param occluders the triangles; 0 triangles is allowed (everything is lit).
+ *        Every index < vertex_count, every coordinate of a vertex used by a
+ *        triangle finite and within ±1e12, position_stride 0 (packed) or >= 12.
+ *        Copied: the mesh may be freed afterwards.
+ * @param light_vertices 3 floats per vertex, in order around the polygon (either
+ *        winding): convex, planar within 1e-4 of its diameter, non-zero area, no
+ *        two consecutive vertices equal, coordinates finite within ±1e12.
+ * @param light_vertex_count 3 to `ANTUMBRA_SSV_MAX_LIGHT_VERTICES` (16).
+ * @param samples 3 floats per light sample (bit i of a result is sample i), each
+ *        on the light polygon within 1e-4 of its diameter; make them with
+ *        `antumbra_ssv_generate_samples`. Copied.
+ * @param sample_count 1 to `ANTUMBRA_SSV_MAX_SAMPLES` (1024).
+ * @param options NULL for the defaults (see `antumbra_ssv_options_init`).
+ * @param out receives the new handle on success; untouched on failure.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (occluders, out, light_vertices,
+ *         samples, or a mesh array with a non-zero count); INVALID_ARGUMENT (a
+ *         light vertex count outside 3..16, a sample count outside 1..1024, a
+ *         non-convex, non-planar or degenerate light, a sample off the light, an
+ *         option out of range, misaligned pointer, stride below 12, size
+ *         overflow, a coordinate beyond ±1e12); INDEX_OUT_OF_RANGE (a mesh
+ *         index); NON_FINITE (a NaN or infinite mesh position, light vertex,
+ *         sample or root bound); OUT_OF_MEMORY (the BVH could not be allocated);
+ *         PANIC. Messages name the argument and index, e.g. `samples[7] is off
+ *         the light polygon ...`.
+ *
+ * Cost: O(triangles log triangles) (edge welding, the BVH); the hierarchy's
+ * nodes are built lazily by the queries that reach them, the hemicube's cells
+ * here.
+ * Ownership: the caller owns `*out` and frees it with `antumbra_ssv_destroy`.
+ * Thread safety: safe from any thread; the new handle is independent of others.
+ *
+ * # Safety
+ * `occluders`, `options` and `out` must be NULL or valid; the arrays in
+ * `occluders` valid for the counts and stride it gives; non-NULL
+ * `light_vertices` and `samples` valid for 3 floats per vertex or sample.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_ssv_create(const struct antumbra_mesh_view *occluders,
+                                    const float *light_vertices,
+                                    size_t light_vertex_count,
+                                    const float *samples,
+                                    size_t sample_count,
+                                    const struct antumbra_ssv_options *options,
+                                    struct antumbra_ssv **out);
+
+/**
+ * Frees a soft shadow handle. NULL is a no-op.
+ *
+ * Ownership: takes back a handle from `antumbra_ssv_create`; it must not be used
+ * afterwards. Thread safety: needs exclusive access: no query or statistics call
+ * on this handle may be running.
+ *
+ * # Safety
+ * `ssv` must be NULL or a live handle from `antumbra_ssv_create`, destroyed at
+ * most once.
+ */
+void antumbra_ssv_destroy(struct antumbra_ssv *ssv);
+
+/**
+ * The visibility bits of a batch of receiver points.
+ *
+ * For point k at `points[3k..3k+3]`, bit i of receiver k (bit `i % 64` of
+ * `visibility_bits[k * W + i / 64]`, `W = ceil(sample_count / 64)`) is set when
+ * light sample i is visible from the point: no occluder triangle meets the open
+ * segment from the point to the sample. Unused high bits of a receiver's last
+ * word are 0. `visible_counts[k]`, when given, is the number of bits set.
+ *
+ * @param ssv the handle.
+ * @param points 3 floats per receiver, finite, within ±1e12. Points may be
+ *        anywhere (on the floor, on an occluder's surface, in free space).
+ * @param point_count number of receivers; 0 is a valid empty batch (the arrays
+ *        may then be NULL).
+ * @param visibility_bits receives `point_count * W` words, 8-byte aligned;
+ *        untouched on failure (except after ANTUMBRA_RESULT_PANIC, an internal
+ *        bug, when it may be partly written).
+ * @param visible_counts NULL, or receives one count per receiver (4-byte
+ *        aligned); untouched on failure (same exception).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (ssv, points or visibility_bits with
+ *         point_count > 0); INVALID_ARGUMENT (misaligned array, point_count
+ *         overflow, a coordinate beyond ±1e12); NON_FINITE (a NaN or infinite
+ *         point, named with its index, e.g. `points[3] (nan, 0, 1) is not
+ *         finite`); POISONED; PANIC (the handle is poisoned).
+ *
+ * Cost: per receiver, one walk of the structure, the exact tests of its
+ * candidate edges against the N samples, and one reference ray; no allocation
+ * per receiver. The hierarchy builds the nodes a query reaches the first time.
+ * Ownership: borrows every array for the call only; the outputs must not overlap
+ * each other or `points`.
+ * Thread safety: any number of threads may query the same handle at once
+ * (including the hierarchy's lazy construction); with `options.parallel` = 1 a
+ * call also uses the library's worker threads.
+ *
+ * # Safety
+ * A non-NULL `points` must be valid for `3 * point_count` floats,
+ * `visibility_bits` for `point_count * W` words, `visible_counts` for
+ * `point_count` counts.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_ssv_query(const struct antumbra_ssv *ssv,
+                                   const float *points,
+                                   size_t point_count,
+                                   uint64_t *visibility_bits,
+                                   uint32_t *visible_counts);
+
+/**
+ * Reports the handle's sizes and the work its queries did so far.
+ *
+ * @param ssv the handle.
+ * @param statistics receives the statistics; untouched on failure.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (ssv, statistics); INVALID_ARGUMENT
+ *         (misaligned statistics); POISONED; PANIC.
+ *
+ * The counters of queries running at the same time on other threads may be
+ * partly included (each query call adds its counts when it finishes).
+ * Thread safety: may run while other threads query the same handle.
+ *
+ * # Safety
+ * `ssv` must be NULL or a live handle; `statistics` NULL or valid for writing one
+ * `antumbra_ssv_statistics`.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_ssv_get_statistics(const struct antumbra_ssv *ssv,
+                                            struct antumbra_ssv_statistics *statistics);
+
+/**
+ * Light samples on a convex planar polygon, deterministic in `seed`, for
+ * `antumbra_ssv_create`.
+ *
+ * The polygon is cut into a fan of triangles from vertex 0; each gets a share of
+ * the samples proportional to its area; a triangle with m samples has a k × k
+ * grid of strata (k² >= m) over the unit square, m of them chosen by a seeded
+ * shuffle and mapped onto the triangle by an area-preserving warp. Stratified
+ * takes the strata centres, jittered one uniform point in each. The same
+ * arguments give the same floats on every platform and thread.
+ *
+ * @param light_vertices 3 floats per vertex, as for `antumbra_ssv_create`.
+ * @param light_vertex_count 3 to 16.
+ * @param sample_count 1 to `ANTUMBRA_SSV_MAX_SAMPLES` (1024).
+ * @param pattern `ANTUMBRA_SSV_SAMPLES_JITTERED` (0) or
+ *        `ANTUMBRA_SSV_SAMPLES_STRATIFIED` (1).
+ * @param seed any value.
+ * @param samples receives `3 * sample_count` floats; untouched on failure.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (light_vertices, samples);
+ *         INVALID_ARGUMENT (a count out of range, an unknown pattern, a
+ *         non-convex, non-planar or degenerate light, a coordinate beyond
+ *         ±1e12, misaligned arrays); NON_FINITE (a light vertex); PANIC.
+ *
+ * Thread safety: safe from any thread.
+ *
+ * # Safety
+ * A non-NULL `light_vertices` must be valid for `3 * light_vertex_count` floats,
+ * `samples` for writing `3 * sample_count` floats, not overlapping them.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_ssv_generate_samples(const float *light_vertices,
+                                              size_t light_vertex_count,
+                                              size_t sample_count,
+                                              uint32_t pattern,
+                                              uint64_t seed,
+                                              float *samples);
 
 /**
  * Writes the default bake options: diffuse kind, 4 bands, grid 8, 256 rays, no

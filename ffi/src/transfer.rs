@@ -481,6 +481,7 @@ fn bake_error(error: BakeError) -> Error {
         BakeError::Grid(_) => "options->grid",
         BakeError::NormalCount { .. } | BakeError::Normal { .. } => "normals",
         BakeError::TooManyVertices(_) => "mesh->vertex_count",
+        BakeError::BrdfNotFinite => "options->brdf_params",
     };
     Error::invalid(format!("{field}: {error}"))
 }
