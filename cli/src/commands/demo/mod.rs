@@ -13,6 +13,7 @@ mod hemi;
 mod hemi_diffuse;
 mod hemi_glossy;
 mod hemi_twist;
+mod soft_shadows;
 
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
@@ -36,6 +37,8 @@ const PICTURES: &[DemoPicture] = &[
     hemi_diffuse::PICTURE,
     hemi_glossy::PICTURE,
     hemi_twist::PICTURE,
+    soft_shadows::PICTURE,
+    soft_shadows::DIFFERENCE,
 ];
 
 /// Where the bunny is seen from, in degrees around +Y (0 = from +Z): the sunrise
@@ -60,6 +63,7 @@ struct DemoContext {
     bunny: OnceCell<Scene>,
     sky: OnceCell<(EnvironmentMap, EnvironmentSampler)>,
     hemi_stage: OnceCell<hemi::HemiStage>,
+    ssv_stage: OnceCell<soft_shadows::SsvStage>,
 }
 
 impl DemoContext {
@@ -69,6 +73,7 @@ impl DemoContext {
             bunny: OnceCell::new(),
             sky: OnceCell::new(),
             hemi_stage: OnceCell::new(),
+            ssv_stage: OnceCell::new(),
         }
     }
 
