@@ -46,10 +46,13 @@ pub enum Command {
     /// without rays, the bunny under the same sky in spherical harmonics,
     /// shadowed per vertex by hemispherical rasterization, diffuse and glossy,
     /// and a contact sheet of frames of the bunny twisting, re-shaded every frame
-    /// (with per-frame timings); last, a glossy bunny relit by matrix radiance
-    /// transfer under the sky rotating frame by frame (baked once, then shaded
-    /// per frame without rays). Prints where each file went, its size and how
-    /// long it took.
+    /// (with per-frame timings); then the bunny over a floor under a quad light
+    /// with exact soft shadows from 256 light samples (soft shadow volumes, the
+    /// wedge hierarchy) and the difference image against tracing the same 256
+    /// shadow rays per pixel (with the count of differing pixels); last, a glossy
+    /// bunny relit by matrix radiance transfer under the sky rotating frame by
+    /// frame (baked once, then shaded per frame without rays). Prints where each
+    /// file went, its size and how long it took.
     Demo(DemoArgs),
 
     /// Render your own OBJ mesh: ambient occlusion, or lighting from an
@@ -263,6 +266,18 @@ pub enum BenchCommand {
     /// are timed once: the armadillo takes minutes.
     Hemi(BenchHemiArgs),
 
+    /// Soft shadows from a quad light: time per receiver of the 2006 wedge
+    /// hierarchy against the 2005-style hemicube, brute force over every wedge,
+    /// obvhs shadow rays and Embree shadow rays (one thread each, same receivers and
+    /// samples, printed as ratios), with candidate wedges per query and memory,
+    /// for N = 16, 64, 256 and 1024 light samples and three light orientations.
+    ///
+    /// The scene is the one of `verify ssv`: the mesh scaled to a largest extent
+    /// of 1 over a floor, a 0.5 × 0.5 quad light 1.8 away (above, tilted 45°,
+    /// low at the side 80°); receivers on the floor and just off the mesh. The
+    /// hierarchy is lazy: its first pass over the receivers (construction
+    /// included) is printed beside the timed warm passes.
+    Ssv(BenchSsvArgs),
     /// Precomputed transfer: per-vertex shading cost of diffuse PRT, glossy SH
     /// transfer, MRT and MRT from PCA (as ratios); bake rays per second against
     /// obvhs and Embree casting the same rays (one thread); PCA error and memory
@@ -372,6 +387,76 @@ pub enum VerifyCommand {
     /// <percent>% of <cells> cells, <receivers> receivers`; the exit status is
     /// non-zero below 99.99 % (exact) or 99.5 % (table).
     Hemi(VerifyHemiArgs),
+
+    /// Soft shadow visibility bits against Embree occlusion rays: the mesh
+    /// (scaled to a largest extent of 1) over a floor, a quad light in three
+    /// orientations, receivers on a grid on the floor (exactly on it) and at mesh
+    /// vertices lifted 1e-3 along their normals; every (receiver, sample) bit of
+    /// the default hierarchy is compared with Embree's ray over the open segment.
+    ///
+    /// Each mismatch is decided by the exact segment–triangle test: the library
+    /// must agree with it (else it is a library bug), and the segment must graze a
+    /// triangle edge (Embree's f32 rounding decided). Needs the Embree oracle's
+    /// Python (`make pyenv`; or set ANTUMBRA_ORACLE_PYTHON). The last line reads
+    /// `ssv agreement: <percent>% of <bits> bits, <mismatches> mismatches`; the
+    /// exit status is non-zero above 1e-5 of the bits or on any unexplained one.
+    Ssv(VerifySsvArgs),
+}
+
+/// Arguments of `antumbra verify ssv`.
+#[derive(Debug, Args)]
+pub struct VerifySsvArgs {
+    /// Mesh to put over the floor (Wavefront OBJ, +Y up) [default: the built-in bunny].
+    #[arg(long, value_name = "FILE.obj")]
+    pub mesh: Option<PathBuf>,
+
+    /// Light samples (jittered, stratified over the quad).
+    #[arg(long, value_name = "N", default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub samples: u32,
+
+    /// Floor receivers: an N × N grid over [-1.5, 1.5]².
+    #[arg(long, value_name = "N", default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub floor_grid: u32,
+
+    /// Mesh receivers (vertices spread evenly over the vertex order).
+    #[arg(long, value_name = "N", default_value_t = 400, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
+    pub mesh_points: u32,
+}
+
+/// Arguments of `antumbra bench ssv`.
+#[derive(Debug, Args)]
+pub struct BenchSsvArgs {
+    /// Mesh to put over the floor (Wavefront OBJ, +Y up) [default: the built-in bunny].
+    #[arg(long, value_name = "FILE.obj")]
+    pub mesh: Option<PathBuf>,
+
+    /// Floor receivers: an N × N grid over [-1.5, 1.5]².
+    #[arg(long, value_name = "N", default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub floor_grid: u32,
+
+    /// Mesh receivers (vertices spread evenly over the vertex order).
+    #[arg(long, value_name = "N", default_value_t = 100, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
+    pub mesh_points: u32,
+
+    /// Time each warm figure over at least this many milliseconds.
+    #[arg(long, value_name = "MS", default_value_t = 150)]
+    pub min_time: u64,
+
+    /// Skip the Embree figure (it needs the oracle's Python, see `verify ssv`).
+    #[arg(long)]
+    pub no_embree: bool,
+
+    /// Hierarchy: subdivide a node holding more edges than this.
+    #[arg(long, value_name = "N", default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..))]
+    pub leaf_edges: u32,
+
+    /// Hierarchy: deepest level.
+    #[arg(long, value_name = "N", default_value_t = 12, value_parser = clap::value_parser!(u32).range(0..=24))]
+    pub max_depth: u32,
+
+    /// Only these sample counts (comma-separated) [default: 16,64,256,1024].
+    #[arg(long, value_name = "N,N,...", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub samples: Vec<u32>,
 }
 
 /// Mask quality on the command line.

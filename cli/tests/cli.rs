@@ -89,6 +89,8 @@ fn demo_writes_decodable_pictures_with_content() {
         "bunny-hemi-glossy.png",
         "bunny-hemi-twist.png",
         "bunny-mrt-rotating-sky.png",
+        "bunny-soft-shadows.png",
+        "bunny-soft-shadows-difference.png",
     ] {
         let path = dir.join(name);
         assert!(
@@ -122,6 +124,12 @@ fn demo_writes_decodable_pictures_with_content() {
         .find(|line| line.contains("per frame"))
         .unwrap_or_else(|| panic!("no per-frame timings:\n{summary}"));
     assert_eq!(twist.matches(" ms").count(), 4, "{twist}");
+    // The soft shadows equal tracing the same 256 rays per pixel, bit for bit.
+    let difference = summary
+        .lines()
+        .find(|line| line.starts_with("soft shadows against ray tracing: "))
+        .unwrap_or_else(|| panic!("no soft-shadow difference count:\n{summary}"));
+    assert!(difference.contains(": 0 of "), "{difference}");
 }
 
 #[test]
@@ -392,6 +400,59 @@ fn verify_hemi_prints_the_agreement_line_and_passes_on_the_bunny() {
         last.starts_with("hemi exact agreement: ") && last.ends_with("cells, 20 receivers"),
         "{text}"
     );
+}
+
+#[test]
+fn verify_ssv_prints_the_agreement_line_and_passes_on_the_bunny() {
+    let output = antumbra(&[
+        "verify",
+        "ssv",
+        "--samples",
+        "64",
+        "--floor-grid",
+        "6",
+        "--mesh-points",
+        "40",
+    ]);
+    assert_success(&output);
+    let text = stdout(&output);
+    let last = text.lines().last().unwrap_or_default();
+    // 3 light orientations x (36 floor + 40 mesh receivers) x 64 samples.
+    assert!(
+        last.starts_with("ssv agreement: ") && last.contains("% of 14592 bits, "),
+        "{text}"
+    );
+    assert!(last.ends_with(" mismatches"), "{text}");
+}
+
+#[test]
+fn bench_ssv_reports_every_structure_and_orientation() {
+    let output = antumbra(&[
+        "bench",
+        "ssv",
+        "--samples",
+        "16",
+        "--floor-grid",
+        "2",
+        "--mesh-points",
+        "4",
+        "--min-time",
+        "1",
+        "--no-embree",
+    ]);
+    assert_success(&output);
+    let text = stdout(&output);
+    for needle in [
+        "light horizontal",
+        "light tilted 45°",
+        "light side 80°",
+        "hemicube",
+        "obvhs rays",
+        "candidates:",
+        "light orientation changes the hierarchy's time per receiver",
+    ] {
+        assert!(text.contains(needle), "no {needle:?} in:\n{text}");
+    }
 }
 
 #[test]

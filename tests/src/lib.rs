@@ -5,3 +5,4 @@
 pub mod data;
 pub mod oracle;
 pub mod scenes;
+pub mod ssv;

@@ -120,3 +120,194 @@ fn rays_of_kinds(rng: &mut SmallRng, mesh: &Mesh, count: usize, kinds: &[usize])
     }
     rays
 }
+
+/// Where the quad light of a [`FloorScene`] hangs: it always faces the mesh from
+/// 1.8 units away, turned about the x axis by this angle from straight above.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LightOrientation {
+    /// Straight above the mesh, horizontal.
+    Horizontal,
+    /// 45° from the vertical, tilted.
+    Tilted,
+    /// 80° from the vertical: low, to the side, almost vertical (the floor
+    /// crosses the light's plane outside the light).
+    Side,
+}
+
+impl LightOrientation {
+    /// Every orientation, in order.
+    pub const ALL: [LightOrientation; 3] = [
+        LightOrientation::Horizontal,
+        LightOrientation::Tilted,
+        LightOrientation::Side,
+    ];
+
+    /// A short name for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightOrientation::Horizontal => "horizontal",
+            LightOrientation::Tilted => "tilted 45°",
+            LightOrientation::Side => "side 80°",
+        }
+    }
+
+    /// Angle of the light's direction (seen from the mesh) from +Y, in degrees.
+    pub fn degrees(self) -> f64 {
+        match self {
+            LightOrientation::Horizontal => 0.0,
+            LightOrientation::Tilted => 45.0,
+            LightOrientation::Side => 80.0,
+        }
+    }
+}
+
+/// Gap between the floor and the bottom of the mesh in a [`FloorScene`].
+pub const FLOOR_GAP: f32 = 0.05;
+/// Half the side of the floor square (`y = 0`, centred on the origin).
+pub const FLOOR_HALF_SIDE: f32 = 2.0;
+/// Half the side of the quad light.
+pub const LIGHT_HALF_SIDE: f32 = 0.25;
+/// Distance from the aim point (`(0, 0.5, 0)`) to the light's centre.
+pub const LIGHT_DISTANCE: f64 = 1.8;
+/// How far mesh receivers are lifted off the surface along the area-weighted
+/// vertex normal (the mesh's largest extent is 1).
+pub const MESH_RECEIVER_OFFSET: f32 = 1e-3;
+
+/// The soft-shadow cross-check scene shared by the Embree test, `antumbra verify
+/// ssv` and `antumbra bench ssv`: a mesh scaled to a largest extent of 1, centred
+/// over the origin with its bottom [`FLOOR_GAP`] above a floor square at `y = 0`
+/// (two triangles, the last of the occluders), under a square quad light.
+///
+/// Receivers: a grid on the floor, exactly at `y = 0` (the floor's own triangles
+/// contain them and so do not occlude them), and mesh vertices spread evenly over
+/// the vertex order, lifted by [`MESH_RECEIVER_OFFSET`] along their area-weighted
+/// normals (vertices whose normals cancel are skipped). Visibility of a receiver
+/// `p` for a sample `s`: no occluder triangle meets the open segment `p → s`.
+#[derive(Clone, Debug)]
+pub struct FloorScene {
+    /// The normalised mesh followed by the two floor triangles.
+    pub occluders: Mesh,
+    /// Triangles of the mesh (the floor's two come after them).
+    pub mesh_triangles: usize,
+    /// The light's four corners, in order around the quad.
+    pub light: [Vec3; 4],
+    /// Receivers on the floor.
+    pub floor_receivers: Vec<Vec3>,
+    /// Receivers just off the mesh.
+    pub mesh_receivers: Vec<Vec3>,
+}
+
+impl FloorScene {
+    /// Builds the scene from a mesh, with a `floor_grid × floor_grid` grid of floor
+    /// receivers over `[-1.5, 1.5]²` and up to `mesh_points` mesh receivers.
+    pub fn new(
+        positions: &[[f32; 3]],
+        indices: &[u32],
+        orientation: LightOrientation,
+        floor_grid: usize,
+        mesh_points: usize,
+    ) -> FloorScene {
+        let (lo, hi) = positions.iter().fold(
+            (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY),
+            |(lo, hi), p| {
+                let p = Vec3::from(*p).as_dvec3();
+                (lo.min(p), hi.max(p))
+            },
+        );
+        let scale = 1.0 / (hi - lo).max_element().max(1e-30);
+        let shift = glam::DVec3::new(
+            -(lo.x + hi.x) * 0.5,
+            -lo.y + f64::from(FLOOR_GAP) / scale,
+            -(lo.z + hi.z) * 0.5,
+        );
+        let mut occluders = Mesh {
+            positions: positions
+                .iter()
+                .map(|p| {
+                    ((Vec3::from(*p).as_dvec3() + shift) * scale)
+                        .as_vec3()
+                        .to_array()
+                })
+                .collect(),
+            indices: indices.to_vec(),
+        };
+        let mesh_triangles = indices.len() / 3;
+        let normals = area_weighted_normals(&occluders);
+        let vertices = occluders.positions.len();
+        let step = (vertices as f64 / mesh_points.max(1) as f64).max(1.0);
+        let mesh_receivers = (0..mesh_points.min(vertices))
+            .map(|k| (k as f64 * step) as usize)
+            .filter_map(|v| {
+                normals[v].map(|n| Vec3::from(occluders.positions[v]) + n * MESH_RECEIVER_OFFSET)
+            })
+            .collect();
+        let base = vertices as u32;
+        let h = FLOOR_HALF_SIDE;
+        occluders
+            .positions
+            .extend([[-h, 0.0, -h], [h, 0.0, -h], [h, 0.0, h], [-h, 0.0, h]]);
+        occluders
+            .indices
+            .extend([base, base + 2, base + 1, base, base + 3, base + 2]);
+        let n = floor_grid.max(1);
+        let floor_receivers = (0..n * n)
+            .map(|k| {
+                let at = |i: usize| {
+                    if n == 1 {
+                        0.0
+                    } else {
+                        -1.5 + 3.0 * i as f32 / (n - 1) as f32
+                    }
+                };
+                Vec3::new(at(k % n), 0.0, at(k / n))
+            })
+            .collect();
+        let angle = orientation.degrees().to_radians();
+        let toward = glam::DVec3::new(0.0, angle.cos(), angle.sin());
+        let centre = glam::DVec3::new(0.0, 0.5, 0.0) + toward * LIGHT_DISTANCE;
+        let u = glam::DVec3::X * f64::from(LIGHT_HALF_SIDE);
+        let v = glam::DVec3::new(0.0, -angle.sin(), angle.cos()) * f64::from(LIGHT_HALF_SIDE);
+        let light = [
+            centre - u - v,
+            centre + u - v,
+            centre + u + v,
+            centre - u + v,
+        ]
+        .map(|c| c.as_vec3());
+        FloorScene {
+            occluders,
+            mesh_triangles,
+            light,
+            floor_receivers,
+            mesh_receivers,
+        }
+    }
+
+    /// Every receiver: the floor's, then the mesh's.
+    pub fn receivers(&self) -> Vec<Vec3> {
+        self.floor_receivers
+            .iter()
+            .chain(&self.mesh_receivers)
+            .copied()
+            .collect()
+    }
+}
+
+/// Area-weighted vertex normals (the normalised sum of the incident triangles'
+/// unnormalised normals); `None` where they cancel out.
+pub fn area_weighted_normals(mesh: &Mesh) -> Vec<Option<Vec3>> {
+    let mut sums = vec![glam::DVec3::ZERO; mesh.positions.len()];
+    for t in mesh.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| Vec3::from(mesh.positions[t[k] as usize]).as_dvec3());
+        let n = (b - a).cross(c - a);
+        for &v in t {
+            sums[v as usize] += n;
+        }
+    }
+    sums.into_iter()
+        .map(|s| {
+            let n = s.normalize_or_zero();
+            (n != glam::DVec3::ZERO).then(|| n.as_vec3())
+        })
+        .collect()
+}

@@ -6,6 +6,7 @@ mod bench_transfer;
 mod demo;
 mod hemi;
 mod render;
+mod ssv;
 mod verify;
 
 use std::path::{Path, PathBuf};
@@ -23,6 +24,11 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(BenchCommand::Raycast(args)) => bench::run_raycast(&args),
         Command::Bench(BenchCommand::Hemi(args)) => hemi::run_bench(&args),
         Command::Bench(BenchCommand::Transfer(args)) => bench_transfer::run(&args),
+        Command::Bench(BenchCommand::Ssv(args)) => ssv::run_bench(&args),
+        Command::Verify(VerifyArgs {
+            what: Some(VerifyCommand::Ssv(args)),
+            ..
+        }) => ssv::run_verify(&args),
         Command::Verify(VerifyArgs {
             what: Some(VerifyCommand::Hemi(args)),
             ..

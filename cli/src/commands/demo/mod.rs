@@ -14,6 +14,7 @@ mod hemi_diffuse;
 mod hemi_glossy;
 mod hemi_twist;
 mod mrt_relit;
+mod soft_shadows;
 
 use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
@@ -38,6 +39,8 @@ const PICTURES: &[DemoPicture] = &[
     hemi_glossy::PICTURE,
     hemi_twist::PICTURE,
     mrt_relit::PICTURE,
+    soft_shadows::PICTURE,
+    soft_shadows::DIFFERENCE,
 ];
 
 /// Where the bunny is seen from, in degrees around +Y (0 = from +Z): the sunrise
@@ -62,6 +65,7 @@ struct DemoContext {
     bunny: OnceCell<Scene>,
     sky: OnceCell<(EnvironmentMap, EnvironmentSampler)>,
     hemi_stage: OnceCell<hemi::HemiStage>,
+    ssv_stage: OnceCell<soft_shadows::SsvStage>,
 }
 
 impl DemoContext {
@@ -71,6 +75,7 @@ impl DemoContext {
             bunny: OnceCell::new(),
             sky: OnceCell::new(),
             hemi_stage: OnceCell::new(),
+            ssv_stage: OnceCell::new(),
         }
     }
 
