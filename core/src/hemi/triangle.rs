@@ -52,6 +52,9 @@ pub struct TriangleCone {
     corners: [Vec3; 3],
     /// Inward edge normals: `a×b, b×c, c×a`, negated when `(a×b)·c < 0`.
     normals: [Vec3; 3],
+    /// `|(a×b)·c|` as computed from the `f32` cross product (before the normals'
+    /// power-of-two scaling): the size of the cone, for [`TriangleCone::proven_box`].
+    det_abs: f32,
 }
 
 /// Margin (in disk `u` and `v`) added around the cone's extent when choosing which
@@ -110,6 +113,7 @@ impl TriangleCone {
         Ok(TriangleCone {
             corners: [a, b, c],
             normals,
+            det_abs: det.abs(),
         })
     }
 
@@ -162,6 +166,40 @@ impl TriangleCone {
     /// reach are looked at: a narrow box of cells is tested cell by cell, a wider
     /// one solved row by row as in [`half_space_mask`](super::half_space_mask).
     pub fn mask_exact(&self) -> HemiMask {
+        match self.proven_box() {
+            Proven::Cells(None) => HemiMask::EMPTY,
+            Proven::Cells(Some(cells)) => self.mask_in_proven_box(cells),
+            Proven::Wide => self.mask_exact_general(),
+            Proven::Tiny => self.mask_every_row(),
+        }
+    }
+
+    /// Every row solved for the three planes: exact whatever the cone (the row
+    /// solver is the half-space predicate), for the rare cones too small or
+    /// too extreme for any box ([`Proven::Tiny`]), whose rounded normals can
+    /// bound a cone far from the triangle.
+    #[cold]
+    fn mask_every_row(&self) -> HemiMask {
+        let solvers = self.normals.map(RowSolver::new);
+        let mut mask = HemiMask::EMPTY;
+        for (j, row) in mask.rows.iter_mut().enumerate() {
+            let mut bits = solvers[0].row(j);
+            if bits != 0 {
+                bits &= solvers[1].row(j);
+                if bits != 0 {
+                    bits &= solvers[2].row(j);
+                }
+            }
+            *row = bits;
+        }
+        mask
+    }
+
+    /// [`TriangleCone::mask_exact`] without the proven box: the box of the cone
+    /// the normals bound ([`TriangleCone::cell_box`]), for every cone. The slow
+    /// twin the proven box is tested against, and the path of wide, thin or
+    /// extreme cones.
+    pub(crate) fn mask_exact_general(&self) -> HemiMask {
         let mut mask = HemiMask::EMPTY;
         let Some(CellBox { i0, i1, j0, j1 }) = self.cell_box() else {
             return mask;
@@ -184,6 +222,110 @@ impl TriangleCone {
         for j in j0..=j1 {
             // Later planes only matter where the earlier ones left something.
             let mut row = solvers[0].row(j);
+            if row != 0 {
+                row &= solvers[1].row(j);
+                if row != 0 {
+                    row &= solvers[2].row(j);
+                }
+            }
+            mask.rows[j] = row;
+        }
+        mask
+    }
+
+    /// A box of cells outside which, provably, no cell passes the three `f32`
+    /// predicates ([`Proven::Cells`]; `None` when it holds no cell center, the
+    /// common case for the small, far triangles of a dense mesh), or why there
+    /// is none: [`Proven::Wide`] for cones with corners more than 60° apart,
+    /// [`Proven::Tiny`] for cones too small (`D < 1e-5`, then the rounded normals
+    /// may bound a cone far from the triangle) or too extreme in scale.
+    ///
+    /// Why no cell outside passes. Let `â, b̂, ĉ` be the unit corners, `g` their
+    /// mean, `D = |det(â, b̂, ĉ)|` and `u = 2⁻²⁴`. The `f32` normal `m = fl(a×b)`
+    /// is off by at most `3.5u |a||b|`, and the predicate `fl(m·d)` by `3u |m|`,
+    /// so a cell `d` that passes has `(â×b̂)·d >= -6.5u` (likewise for the other
+    /// edges; the power-of-two scaling and the orientation flip are exact, and
+    /// with corner lengths in `[1e-9, 1e9]` no product underflows or overflows
+    /// noticeably). Writing `d = α â + β b̂ + γ ĉ` gives `(â×b̂)·d = γ D`, so every
+    /// weight is at least `-τ`, `τ = 6.5u / D`. Then `d = σ p - 3τ g` with `p` in
+    /// the flat triangle `T` of the unit corners and `σ >= 1 - u - 3τ`, so `d` is
+    /// a positive multiple of `p + κ (p - g)` with `κ <= 3τ / (1 - u - 6τ)`: `d`
+    /// is in the cone of `T` scaled by `1 + κ` about `g`, whose points are within
+    /// `e = κ ℓ` of `T` (`ℓ` the longest chord between corners). Every point of
+    /// `T` has length at least `sqrt(cos_min) >= cos_min` (pairwise cosines at
+    /// least `cos_min >= 0`), so those of the scaled one at least `n = cos_min -
+    /// e`, and at most `1 + e`: the disk coordinates of a passing cell are within
+    /// `e + (1 + e) max(1/n - 1, e)` of the corners' box. Every quantity is
+    /// bounded from the safe side: the corners come from an inverse square root
+    /// good to 1e-5 ([`inv_sqrt_fine`]), `D` from the computed determinant less
+    /// its rounding, and `cos_min` less the cosines' rounding; [`cell_range`]
+    /// keeps the cells whose exact center coordinate is in the widened range (its
+    /// own rounding is far inside the extra 5e-5).
+    #[inline(always)]
+    fn proven_box(&self) -> Proven {
+        let [a, b, c] = self.corners;
+        let (la, lb, lc) = (a.length_squared(), b.length_squared(), c.length_squared());
+        let in_range = |l: f32| (1e-18..=1e18).contains(&l);
+        if !(in_range(la) & in_range(lb) & in_range(lc)) {
+            return Proven::Tiny;
+        }
+        let (ra, rb, rc) = (inv_sqrt_fine(la), inv_sqrt_fine(lb), inv_sqrt_fine(lc));
+        let (a, b, c) = (a * ra, b * rb, c * rc);
+        // The corners' pairwise cosines, less their error (1e-5 relative per
+        // corner and the dot's rounding).
+        let cos_min = min3(dot(a, b), dot(b, c), dot(c, a)) - 1e-4;
+        // det(â, b̂, ĉ) from below: the computed |det| is within 6.5u |a||b||c| of
+        // the true one, and ra rb rc within 3.1e-5 of 1 / (|a||b||c|).
+        let d_lo = self.det_abs * (ra * rb * rc) * (1.0 - 1e-4) - 1e-6;
+        // τ <= 0.04 keeps κ <= 4τ = 2.6e-6 / D (rounded up to 3e-6 / D).
+        if d_lo.is_nan() || d_lo < 1e-5 {
+            return Proven::Tiny;
+        }
+        if cos_min.is_nan() || cos_min < 0.5 {
+            return Proven::Wide;
+        }
+        let kappa = 3e-6 / d_lo;
+        // The longest chord, from the smallest cosine (which is below the true
+        // one); the 1e-5 covers the square root's rounding.
+        let chord = libm::sqrtf(2.0 - 2.0 * cos_min) + 1e-5;
+        let e = kappa * chord;
+        let n = cos_min - e;
+        if n < 0.5 {
+            return Proven::Wide;
+        }
+        let bulge = (1.0 / n - 1.0).max(e);
+        // 1e-5 for the approximate corners, 5e-5 for the range's rounding.
+        let margin = e + (1.0 + e) * bulge + 6e-5;
+        let (i0, i_end) = cell_range(min3(a.x, b.x, c.x), max3(a.x, b.x, c.x), margin);
+        let (j0, j_end) = cell_range(min3(a.y, b.y, c.y), max3(a.y, b.y, c.y), margin);
+        Proven::Cells((i0 < i_end && j0 < j_end).then_some((i0, i_end, j0, j_end)))
+    }
+
+    /// The exact mask of a cone inside its proven box (columns `i0..i_end`, rows
+    /// `j0..j_end`, see [`TriangleCone::proven_box`]): each candidate cell
+    /// tested when the box is narrow, else the rows solved and clipped to it.
+    #[inline(always)]
+    fn mask_in_proven_box(&self, (i0, i_end, j0, j_end): (usize, usize, usize, usize)) -> HemiMask {
+        let columns = ((1u64 << i_end).wrapping_sub(1u64 << i0)) as u32;
+        let mut mask = HemiMask::EMPTY;
+        if i_end <= i0 + NARROW_BOX_COLUMNS {
+            let [m0, m1, m2] = self.normals;
+            for j in j0..j_end {
+                let mut candidates = HemiMask::VALID.rows[j] & columns;
+                let mut row = 0;
+                while candidates != 0 {
+                    let i = candidates.trailing_zeros() as usize;
+                    let hit = inside(m0, i, j) & inside(m1, i, j) & inside(m2, i, j);
+                    row |= u32::from(hit) << i;
+                    candidates &= candidates - 1;
+                }
+                mask.rows[j] = row;
+            }
+            return mask;
+        }
+        let solvers = self.normals.map(RowSolver::new);
+        for j in j0..j_end {
+            let mut row = solvers[0].row(j) & columns;
             if row != 0 {
                 row &= solvers[1].row(j);
                 if row != 0 {
@@ -463,6 +605,18 @@ impl TriangleCone {
     }
 }
 
+/// What [`TriangleCone::proven_box`] found.
+#[derive(Clone, Copy, Debug)]
+enum Proven {
+    /// Columns `i0..i_end` and rows `j0..j_end` hold every cell the predicate
+    /// sets; `None` when they hold no cell center.
+    Cells(Option<(usize, usize, usize, usize)>),
+    /// Corners more than 60° apart: [`TriangleCone::cell_box`] bounds the cone.
+    Wide,
+    /// Too small or too extreme in scale to bound: every row is solved.
+    Tiny,
+}
+
 /// A rectangle of cells, bounds inclusive.
 #[derive(Clone, Copy, Debug)]
 struct CellBox {
@@ -547,6 +701,15 @@ fn cell_range(lo: f32, hi: f32, margin: f32) -> (usize, usize) {
 #[inline(always)]
 fn inv_sqrt_approx(x: f32) -> f32 {
     let y = f32::from_bits(0x5f37_5a86_u32.wrapping_sub(x.to_bits() >> 1));
+    y * (1.5 - 0.5 * x * y * y)
+}
+
+/// `1/sqrt(x)` to within a relative 1e-5 for `x` in `[1e-18, 1e18]`: a second
+/// Newton step on [`inv_sqrt_approx`] (the error squares, `1.5 (1.8e-3)² <
+/// 5e-6`, plus a few roundings); checked against `f64` in the tests.
+#[inline(always)]
+fn inv_sqrt_fine(x: f32) -> f32 {
+    let y = inv_sqrt_approx(x);
     y * (1.5 - 0.5 * x * y * y)
 }
 
@@ -754,5 +917,151 @@ mod table_quality_tests {
         let cone = TriangleCone::new(corners[0] * 1e-21, corners[1], corners[2], false).unwrap();
         let all_exact = HalfSpaceTable::new(16).with_exact_edges(core::f32::consts::FRAC_PI_2, 0.0);
         assert_eq!(cone.mask_table(&all_exact), cone.mask_reference());
+    }
+}
+
+#[cfg(test)]
+mod proven_box_tests {
+    //! The proven box of exact quality ([`TriangleCone::proven_box`]) against its
+    //! slow twins: the per-cell predicate on every cell and the general exact
+    //! path, on small triangles of every kind around cell centers.
+
+    use super::*;
+    use crate::hemi::mask::{VALID_CELL_COUNT, cell_directions};
+    use proptest::prelude::*;
+
+    /// The direction of valid cell `k` (row by row), nudged by `jitter`.
+    fn cell_dir(k: usize, jitter: Vec3) -> Vec3 {
+        let (_, _, d) = cell_directions()
+            .nth(k % VALID_CELL_COUNT as usize)
+            .unwrap();
+        (d + jitter).normalize()
+    }
+
+    /// Triangles the proven box is for and around its limits: small ones about a
+    /// cell center (or the horizon) at distances from 1e-4 to 1e4, with a corner
+    /// exactly on a cell's ray, slivers, nearly edge-on ones, and huge and tiny
+    /// scales where the box must give up.
+    fn small_triangle() -> impl Strategy<Value = [Vec3; 3]> {
+        let cell = 0usize..VALID_CELL_COUNT as usize;
+        let jitter = (-0.05f32..0.05, -0.05f32..0.05, -0.05f32..0.05).prop_map(Vec3::from);
+        let offset = (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0).prop_map(Vec3::from);
+        let distance = (-4.0f32..4.0).prop_map(|e| libm::powf(10.0, e));
+        let size = (-6.0f32..-0.3).prop_map(|e| libm::powf(10.0, e));
+        prop_oneof![
+            // About a cell center.
+            4 => (cell.clone(), jitter.clone(), distance.clone(), size.clone(), offset.clone(), offset.clone())
+                .prop_map(|(k, j, r, s, p, q)| {
+                    let c = cell_dir(k, j) * r;
+                    [c + p * (s * r), c + q * (s * r), c - (p + q) * (s * r)]
+                }),
+            // A corner exactly on a cell's ray (a tie for the predicate's rounding).
+            2 => (cell.clone(), distance.clone(), size.clone(), offset.clone(), offset.clone())
+                .prop_map(|(k, r, s, p, q)| {
+                    let c = cell_dir(k, Vec3::ZERO) * r;
+                    [c, c + p * (s * r), c + q * (s * r)]
+                }),
+            // Straddling the horizon.
+            2 => (-1.0f32..1.0, -0.05f32..0.05, distance.clone(), size.clone(), offset.clone(), offset.clone())
+                .prop_map(|(phi, z, r, s, p, q)| {
+                    let c = Vec3::new(libm::cosf(3.2 * phi), libm::sinf(3.2 * phi), z) * r;
+                    [c + p * (s * r), c + q * (s * r), c - (p + q) * (s * r)]
+                }),
+            // Slivers and nearly edge-on.
+            1 => (cell.clone(), distance.clone(), size.clone(), offset.clone(), -1e-4f32..1e-4)
+                .prop_map(|(k, r, s, p, e)| {
+                    let c = cell_dir(k, Vec3::ZERO) * r;
+                    let b = c + p * (s * r);
+                    [c, b, c.lerp(b, 0.4) + Vec3::splat(e * s * r)]
+                }),
+            1 => (cell.clone(), distance, size, offset.clone(), -1e-4f32..1e-4)
+                .prop_map(|(k, r, s, p, e)| {
+                    let c = cell_dir(k, Vec3::ZERO) * r;
+                    let b = c + p * (s * r);
+                    [c, b, c * 0.3 + b * 0.6 + c.cross(b) * e]
+                }),
+            // Extreme scales.
+            1 => (cell, prop_oneof![Just(1e-12f32), Just(1e-9f32), Just(1e9f32), Just(1e15f32)], 1e-3f32..0.2, offset.clone(), offset)
+                .prop_map(|(k, r, s, p, q)| {
+                    let c = cell_dir(k, Vec3::ZERO) * r;
+                    [c + p * (s * r), c + q * (s * r), c - p * (s * r)]
+                }),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(6000))]
+
+        /// The exact mask with the proven box is the per-cell predicate and the
+        /// general path, and the box holds every cell the predicate sets.
+        #[test]
+        fn proven_box_is_exact([a, b, c] in small_triangle()) {
+            let Ok(cone) = TriangleCone::new(a, b, c, false) else {
+                return Ok(());
+            };
+            let reference = cone.mask_reference();
+            prop_assert_eq!(cone.mask_exact(), reference);
+            prop_assert_eq!(cone.mask_every_row(), reference);
+            match cone.proven_box() {
+                Proven::Wide => prop_assert_eq!(cone.mask_exact_general(), reference),
+                Proven::Tiny => {}
+                Proven::Cells(None) => prop_assert_eq!(reference, HemiMask::EMPTY),
+                Proven::Cells(Some((i0, i_end, j0, j_end))) => {
+                    for (i, j) in reference.occluded_cells() {
+                        prop_assert!((i0..i_end).contains(&i) && (j0..j_end).contains(&j),
+                            "cell ({}, {}) outside {:?}", i, j, (i0, i_end, j0, j_end));
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn small_triangles_take_the_proven_box() {
+        // Triangles 0.02 to 0.3 rad across about every cell center: the proven
+        // box must decide nearly all of them (else the fast path is dead code),
+        // and most boxes hold no cell or only a few.
+        let (mut total, mut proven, mut empty) = (0, 0, 0);
+        for k in 0..VALID_CELL_COUNT as usize {
+            // The smallest ones sit between four cell centers (half a cell off).
+            for (s, r, off) in [
+                (0.005f32, 1.0f32, 0.031f32),
+                (0.05, 30.0, 0.013),
+                (0.15, 0.01, 0.0),
+            ] {
+                let c = cell_dir(k, Vec3::new(off, off, 0.0)) * r;
+                let (e1, e2) = c.normalize().any_orthonormal_pair();
+                let corners = [c + e1 * (s * r), c + e2 * (s * r), c - (e1 + e2) * (s * r)];
+                let cone = TriangleCone::new(corners[0], corners[1], corners[2], false).unwrap();
+                total += 1;
+                match cone.proven_box() {
+                    Proven::Cells(None) => {
+                        proven += 1;
+                        empty += 1;
+                    }
+                    Proven::Cells(Some(_)) => proven += 1,
+                    Proven::Wide | Proven::Tiny => {}
+                }
+                assert_eq!(cone.mask_exact(), cone.mask_reference());
+            }
+        }
+        assert!(proven * 100 >= total * 95, "{proven} of {total} proven");
+        assert!(empty > 0 && empty < total, "{empty} of {total} empty");
+    }
+
+    #[test]
+    fn inv_sqrt_fine_is_good_to_1e5() {
+        let mut x = 1e-18f32;
+        let mut worst = 0.0f64;
+        while x <= 1e18 {
+            for step in 0..64 {
+                let v = x * (1.0 + step as f32 / 64.0);
+                let exact = 1.0 / (v as f64).sqrt();
+                worst = worst.max(((inv_sqrt_fine(v) as f64) - exact).abs() / exact);
+            }
+            x *= 1.7;
+        }
+        assert!(worst < 1e-5, "worst relative error {worst}");
+        assert!(worst > 0.0);
     }
 }
