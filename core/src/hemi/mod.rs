@@ -238,12 +238,12 @@ pub fn rasterize_receiver_with_counts(
     match options.quality {
         Quality::Exact => {
             rasterize_mesh(mesh, &receiver, options.skip_triangles, |a, b, c, acc| {
-                acc.add(a, b, c, cull, TriangleCone::mask_exact)
+                acc.add(a, b, c, cull, TriangleCone::or_exact_into)
             })
         }
         Quality::Table(table) => {
             rasterize_mesh(mesh, &receiver, options.skip_triangles, |a, b, c, acc| {
-                acc.add(a, b, c, cull, |cone| cone.mask_table(table))
+                acc.add(a, b, c, cull, table_raster(table))
             })
         }
     }
@@ -267,12 +267,12 @@ pub fn rasterize_triangles_into<I: IntoIterator<Item = [Vec3; 3]>>(
     match quality {
         Quality::Exact => {
             for [a, b, c] in triangles {
-                acc.add(a, b, c, cull_backfaces, TriangleCone::mask_exact);
+                acc.add(a, b, c, cull_backfaces, TriangleCone::or_exact_into);
             }
         }
         Quality::Table(table) => {
             for [a, b, c] in triangles {
-                acc.add(a, b, c, cull_backfaces, |cone| cone.mask_table(table));
+                acc.add(a, b, c, cull_backfaces, table_raster(table));
             }
         }
     }
@@ -316,6 +316,18 @@ fn rasterize_mesh(
     (acc.mask, acc.counts)
 }
 
+/// Table quality as a rasterizer for [`Accumulator::add`]: the cone of the
+/// local corners, its table mask ORed in.
+#[inline(always)]
+fn table_raster(
+    table: &HalfSpaceTable,
+) -> impl Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy + '_ {
+    move |a, b, c, cull, mask| {
+        *mask |= TriangleCone::new(a, b, c, cull)?.mask_table(table);
+        Ok(())
+    }
+}
+
 /// A receiver's mask and counts while its triangles are added.
 struct Accumulator<'r> {
     receiver: &'r Receiver,
@@ -332,7 +344,7 @@ impl Accumulator<'_> {
         b: Vec3,
         c: Vec3,
         cull_backfaces: bool,
-        cone_mask: impl FnOnce(&TriangleCone) -> HemiMask,
+        raster: impl FnOnce(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled>,
     ) {
         let o = self.receiver.origin;
         let (a, b, c) = (a - o, b - o, c - o);
@@ -344,16 +356,14 @@ impl Accumulator<'_> {
             self.counts.below_horizon += 1;
             return;
         }
-        match TriangleCone::new(
+        match raster(
             frame.to_local(a),
             frame.to_local(b),
             frame.to_local(c),
             cull_backfaces,
+            &mut self.mask,
         ) {
-            Ok(cone) => {
-                self.mask |= cone_mask(&cone);
-                self.counts.rasterized += 1;
-            }
+            Ok(()) => self.counts.rasterized += 1,
             Err(culled) => self.counts.count(culled),
         }
     }

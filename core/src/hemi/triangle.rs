@@ -19,10 +19,10 @@
 //!   degenerate ones (`(a×b)·c == 0`, an edge normal that rounds to zero, or a
 //!   non-finite value), and, on request, back-facing ones (see [`Culled`]).
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 use super::half_space::{RowSolver, inside, normalize_exponent};
-use super::mask::{GRID, HemiMask, ROW_FIRST, ROW_LAST};
+use super::mask::{CELL_COORD, CELL_Z, GRID, HemiMask, ROW_FIRST, ROW_LAST};
 use super::table::{ALL, EdgeClasses, Entry, HalfSpaceTable, and_entries};
 
 /// Why a triangle contributes nothing and was skipped.
@@ -57,6 +57,61 @@ pub struct TriangleCone {
     det_abs: f32,
 }
 
+/// A triangle that passed culling, its normals oriented but not yet scaled.
+#[derive(Clone, Copy)]
+struct RawCone {
+    corners: [Vec3; 3],
+    normals: [Vec3; 3],
+    det_abs: f32,
+}
+
+impl RawCone {
+    /// The culling of [`TriangleCone::new`].
+    #[inline(always)]
+    fn new(a: Vec3, b: Vec3, c: Vec3, cull_backfaces: bool) -> Result<Self, Culled> {
+        if a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0 {
+            return Err(Culled::BelowHorizon);
+        }
+        let (ab, bc, ca) = (cross(a, b), cross(b, c), cross(c, a));
+        let det = dot(ab, c);
+        let finite = det.is_finite() && (ab + bc + ca).is_finite();
+        if !finite || det == 0.0 || ab == Vec3::ZERO || bc == Vec3::ZERO || ca == Vec3::ZERO {
+            return Err(Culled::Degenerate);
+        }
+        if cull_backfaces && det > 0.0 {
+            return Err(Culled::BackFacing);
+        }
+        // Negation is exact, so a shared edge still gets exactly opposite normals
+        // in its two triangles whenever both are seen with the same orientation.
+        let normals = if det < 0.0 {
+            [-ab, -bc, -ca]
+        } else {
+            [ab, bc, ca]
+        };
+        Ok(RawCone {
+            corners: [a, b, c],
+            normals,
+            det_abs: det.abs(),
+        })
+    }
+
+    /// The cone, its normals scaled by powers of two (exact, and still exactly
+    /// opposite across a shared edge) so every quality sees the same normals.
+    #[inline(always)]
+    fn finish(self) -> TriangleCone {
+        let [m0, m1, m2] = self.normals;
+        TriangleCone {
+            corners: self.corners,
+            normals: [
+                normalize_exponent(m0),
+                normalize_exponent(m1),
+                normalize_exponent(m2),
+            ],
+            det_abs: self.det_abs,
+        }
+    }
+}
+
 /// Margin (in disk `u` and `v`) added around the cone's extent when choosing which
 /// cells to test or rows to solve. A cell passing all three predicates in `f32`
 /// lies within 1e-6 rad of each half-space (the predicate's rounding), hence within
@@ -88,33 +143,31 @@ impl TriangleCone {
     /// Back faces are culled only when `cull_backfaces` is set.
     #[inline]
     pub fn new(a: Vec3, b: Vec3, c: Vec3, cull_backfaces: bool) -> Result<Self, Culled> {
-        if a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0 {
-            return Err(Culled::BelowHorizon);
+        let raw = RawCone::new(a, b, c, cull_backfaces)?;
+        Ok(raw.finish())
+    }
+
+    /// `TriangleCone::new(a, b, c, cull_backfaces)?.mask_exact()` ORed into
+    /// `mask`, bit for bit, with less work: the proven box needs only the
+    /// corners and the determinant, so the normals are scaled only when a cell
+    /// center is within reach (for about half of a dense mesh's rasterized
+    /// triangles, none is).
+    #[inline(always)]
+    pub(crate) fn or_exact_into(
+        a: Vec3,
+        b: Vec3,
+        c: Vec3,
+        cull_backfaces: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled> {
+        let raw = RawCone::new(a, b, c, cull_backfaces)?;
+        match proven_box(raw.corners, raw.det_abs) {
+            Proven::Cells(None) => {}
+            Proven::Cells(Some(cells)) => raw.finish().or_in_proven_box(cells, mask),
+            Proven::Wide => *mask |= raw.finish().mask_exact_general(),
+            Proven::Tiny => *mask |= raw.finish().mask_every_row(),
         }
-        let (ab, bc, ca) = (cross(a, b), cross(b, c), cross(c, a));
-        let det = dot(ab, c);
-        let finite = det.is_finite() && (ab + bc + ca).is_finite();
-        if !finite || det == 0.0 || ab == Vec3::ZERO || bc == Vec3::ZERO || ca == Vec3::ZERO {
-            return Err(Culled::Degenerate);
-        }
-        if cull_backfaces && det > 0.0 {
-            return Err(Culled::BackFacing);
-        }
-        // Negation is exact, so a shared edge still gets exactly opposite normals
-        // in its two triangles whenever both are seen with the same orientation.
-        let normals = if det < 0.0 {
-            [-ab, -bc, -ca]
-        } else {
-            [ab, bc, ca]
-        };
-        // Scaled by powers of two once here (exact, and still exactly opposite
-        // across a shared edge) so every quality sees the same normals.
-        let normals = normals.map(normalize_exponent);
-        Ok(TriangleCone {
-            corners: [a, b, c],
-            normals,
-            det_abs: det.abs(),
-        })
+        Ok(())
     }
 
     /// The corners as given.
@@ -168,7 +221,11 @@ impl TriangleCone {
     pub fn mask_exact(&self) -> HemiMask {
         match self.proven_box() {
             Proven::Cells(None) => HemiMask::EMPTY,
-            Proven::Cells(Some(cells)) => self.mask_in_proven_box(cells),
+            Proven::Cells(Some(cells)) => {
+                let mut mask = HemiMask::EMPTY;
+                self.or_in_proven_box(cells, &mut mask);
+                mask
+            }
             Proven::Wide => self.mask_exact_general(),
             Proven::Tiny => self.mask_every_row(),
         }
@@ -263,65 +320,35 @@ impl TriangleCone {
     /// own rounding is far inside the extra 5e-5).
     #[inline(always)]
     fn proven_box(&self) -> Proven {
-        let [a, b, c] = self.corners;
-        let (la, lb, lc) = (a.length_squared(), b.length_squared(), c.length_squared());
-        let in_range = |l: f32| (1e-18..=1e18).contains(&l);
-        if !(in_range(la) & in_range(lb) & in_range(lc)) {
-            return Proven::Tiny;
-        }
-        let (ra, rb, rc) = (inv_sqrt_fine(la), inv_sqrt_fine(lb), inv_sqrt_fine(lc));
-        let (a, b, c) = (a * ra, b * rb, c * rc);
-        // The corners' pairwise cosines, less their error (1e-5 relative per
-        // corner and the dot's rounding).
-        let cos_min = min3(dot(a, b), dot(b, c), dot(c, a)) - 1e-4;
-        // det(â, b̂, ĉ) from below: the computed |det| is within 6.5u |a||b||c| of
-        // the true one, and ra rb rc within 3.1e-5 of 1 / (|a||b||c|).
-        let d_lo = self.det_abs * (ra * rb * rc) * (1.0 - 1e-4) - 1e-6;
-        // τ <= 0.04 keeps κ <= 4τ = 2.6e-6 / D (rounded up to 3e-6 / D).
-        if d_lo.is_nan() || d_lo < 1e-5 {
-            return Proven::Tiny;
-        }
-        if cos_min.is_nan() || cos_min < 0.5 {
-            return Proven::Wide;
-        }
-        let kappa = 3e-6 / d_lo;
-        // The longest chord, from the smallest cosine (which is below the true
-        // one); the 1e-5 covers the square root's rounding.
-        let chord = libm::sqrtf(2.0 - 2.0 * cos_min) + 1e-5;
-        let e = kappa * chord;
-        let n = cos_min - e;
-        if n < 0.5 {
-            return Proven::Wide;
-        }
-        let bulge = (1.0 / n - 1.0).max(e);
-        // 1e-5 for the approximate corners, 5e-5 for the range's rounding.
-        let margin = e + (1.0 + e) * bulge + 6e-5;
-        let (i0, i_end) = cell_range(min3(a.x, b.x, c.x), max3(a.x, b.x, c.x), margin);
-        let (j0, j_end) = cell_range(min3(a.y, b.y, c.y), max3(a.y, b.y, c.y), margin);
-        Proven::Cells((i0 < i_end && j0 < j_end).then_some((i0, i_end, j0, j_end)))
+        proven_box(self.corners, self.det_abs)
     }
 
-    /// The exact mask of a cone inside its proven box (columns `i0..i_end`, rows
-    /// `j0..j_end`, see [`TriangleCone::proven_box`]): each candidate cell
-    /// tested when the box is narrow, else the rows solved and clipped to it.
+    /// ORs the exact mask of a cone inside its proven box (columns
+    /// `i0..i_end`, rows `j0..j_end`, see [`TriangleCone::proven_box`]) into
+    /// `mask`. Boxes up to 16 columns wide evaluate the predicate on four cells
+    /// at a time ([`PlaneRow`]: the same products and sums in the same order,
+    /// lane by lane, so the same bits); wider ones solve the rows and clip them
+    /// to the box.
     #[inline(always)]
-    fn mask_in_proven_box(&self, (i0, i_end, j0, j_end): (usize, usize, usize, usize)) -> HemiMask {
+    fn or_in_proven_box(
+        &self,
+        (i0, i_end, j0, j_end): (usize, usize, usize, usize),
+        mask: &mut HemiMask,
+    ) {
         let columns = ((1u64 << i_end).wrapping_sub(1u64 << i0)) as u32;
-        let mut mask = HemiMask::EMPTY;
-        if i_end <= i0 + NARROW_BOX_COLUMNS {
-            let [m0, m1, m2] = self.normals;
+        if i_end <= i0 + 16 {
+            let planes = self.normals.map(PlaneRow::new);
             for j in j0..j_end {
-                let mut candidates = HemiMask::VALID.rows[j] & columns;
                 let mut row = 0;
-                while candidates != 0 {
-                    let i = candidates.trailing_zeros() as usize;
-                    let hit = inside(m0, i, j) & inside(m1, i, j) & inside(m2, i, j);
-                    row |= u32::from(hit) << i;
-                    candidates &= candidates - 1;
+                let mut i = i0;
+                while i < i_end {
+                    let bits = planes[0].bits(i, j) & planes[1].bits(i, j) & planes[2].bits(i, j);
+                    row |= bits << i;
+                    i += 4;
                 }
-                mask.rows[j] = row;
+                mask.rows[j] |= row & columns & HemiMask::VALID.rows[j];
             }
-            return mask;
+            return;
         }
         let solvers = self.normals.map(RowSolver::new);
         for j in j0..j_end {
@@ -332,9 +359,8 @@ impl TriangleCone {
                     row &= solvers[2].row(j);
                 }
             }
-            mask.rows[j] = row;
+            mask.rows[j] |= row;
         }
-        mask
     }
 
     /// The table mask (the paper's method, with exact edges): each edge plane
@@ -604,6 +630,107 @@ impl TriangleCone {
         Some(CellBox { i0, i1, j0, j1 })
     }
 }
+
+/// [`TriangleCone::proven_box`] of `corners` and `|det|`.
+#[inline(always)]
+fn proven_box(corners: [Vec3; 3], det_abs: f32) -> Proven {
+    let [a, b, c] = corners;
+    let (la, lb, lc) = (a.length_squared(), b.length_squared(), c.length_squared());
+    let in_range = |l: f32| (1e-18..=1e18).contains(&l);
+    if !(in_range(la) & in_range(lb) & in_range(lc)) {
+        return Proven::Tiny;
+    }
+    let (ra, rb, rc) = (inv_sqrt_fine(la), inv_sqrt_fine(lb), inv_sqrt_fine(lc));
+    let (a, b, c) = (a * ra, b * rb, c * rc);
+    // The corners' pairwise cosines, less their error (1e-5 relative per
+    // corner and the dot's rounding).
+    let cos_min = min3(dot(a, b), dot(b, c), dot(c, a)) - 1e-4;
+    // det(â, b̂, ĉ) from below: the computed |det| is within 6.5u |a||b||c| of
+    // the true one, and ra rb rc within 3.1e-5 of 1 / (|a||b||c|).
+    let d_lo = det_abs * (ra * rb * rc) * (1.0 - 1e-4) - 1e-6;
+    // τ <= 0.04 keeps κ <= 4τ = 2.6e-6 / D (rounded up to 3e-6 / D).
+    if d_lo.is_nan() || d_lo < 1e-5 {
+        return Proven::Tiny;
+    }
+    if cos_min.is_nan() || cos_min < 0.5 {
+        return Proven::Wide;
+    }
+    let kappa = 3e-6 / d_lo;
+    // The longest chord, from the smallest cosine (which is below the true
+    // one); the 1e-5 covers the square root's rounding.
+    let chord = libm::sqrtf(2.0 - 2.0 * cos_min) + 1e-5;
+    let e = kappa * chord;
+    let n = cos_min - e;
+    if n < 0.5 {
+        return Proven::Wide;
+    }
+    let bulge = (1.0 / n - 1.0).max(e);
+    // 1e-5 for the approximate corners, 5e-5 for the range's rounding.
+    let margin = e + (1.0 + e) * bulge + 6e-5;
+    let (i0, i_end) = cell_range(min3(a.x, b.x, c.x), max3(a.x, b.x, c.x), margin);
+    let (j0, j_end) = cell_range(min3(a.y, b.y, c.y), max3(a.y, b.y, c.y), margin);
+    Proven::Cells((i0 < i_end && j0 < j_end).then_some((i0, i_end, j0, j_end)))
+}
+
+/// One plane's predicate on four neighbouring cells of a row at once.
+#[derive(Clone, Copy)]
+struct PlaneRow {
+    m: Vec3,
+    x: Vec4,
+    z: Vec4,
+}
+
+impl PlaneRow {
+    #[inline(always)]
+    fn new(m: Vec3) -> Self {
+        PlaneRow {
+            m,
+            x: Vec4::splat(m.x),
+            z: Vec4::splat(m.z),
+        }
+    }
+
+    /// Bits 0..4: [`inside`] at cells `(i..i + 4, j)`, each lane the scalar
+    /// expression `(m.x u + m.y v) + m.z z` (no fused multiply-add in either),
+    /// so bit `k` is exactly `inside(m, i + k, j)` for valid cells; cells past
+    /// the grid read zero padding (masked off by the caller).
+    #[inline(always)]
+    fn bits(&self, i: usize, j: usize) -> u32 {
+        let u = Vec4::from_slice(&CELL_COORD_PADDED[i..i + 4]);
+        let z = Vec4::from_slice(&CELL_Z_PADDED[j][i..i + 4]);
+        let v = Vec4::splat(self.m.y * CELL_COORD[j]);
+        ((self.x * u + v) + self.z * z).cmpge(Vec4::ZERO).bitmask()
+    }
+}
+
+/// Columns past the grid, so [`PlaneRow::bits`] can read four from any column.
+const PADDED: usize = GRID + 4;
+
+/// [`CELL_COORD`] with zero padding.
+static CELL_COORD_PADDED: [f32; PADDED] = {
+    let mut out = [0.0; PADDED];
+    let mut i = 0;
+    while i < GRID {
+        out[i] = CELL_COORD[i];
+        i += 1;
+    }
+    out
+};
+
+/// [`CELL_Z`] with zero padding.
+static CELL_Z_PADDED: [[f32; PADDED]; GRID] = {
+    let mut out = [[0.0; PADDED]; GRID];
+    let mut j = 0;
+    while j < GRID {
+        let mut i = 0;
+        while i < GRID {
+            out[j][i] = CELL_Z[j][i];
+            i += 1;
+        }
+        j += 1;
+    }
+    out
+};
 
 /// What [`TriangleCone::proven_box`] found.
 #[derive(Clone, Copy, Debug)]
@@ -995,11 +1122,23 @@ mod proven_box_tests {
         /// The exact mask with the proven box is the per-cell predicate and the
         /// general path, and the box holds every cell the predicate sets.
         #[test]
-        fn proven_box_is_exact([a, b, c] in small_triangle()) {
-            let Ok(cone) = TriangleCone::new(a, b, c, false) else {
-                return Ok(());
+        fn proven_box_is_exact([a, b, c] in small_triangle(), cull in any::<bool>()) {
+            // The fused path culls as TriangleCone::new and ORs the same mask in.
+            let start = HemiMask { rows: core::array::from_fn(|j| 0x0f0f_0f0f_u32.rotate_left(j as u32)) }
+                & HemiMask::VALID;
+            let mut ored = start;
+            let fused = TriangleCone::or_exact_into(a, b, c, cull, &mut ored);
+            let cone = match TriangleCone::new(a, b, c, cull) {
+                Ok(cone) => cone,
+                Err(culled) => {
+                    prop_assert_eq!(fused, Err(culled));
+                    prop_assert_eq!(ored, start);
+                    return Ok(());
+                }
             };
             let reference = cone.mask_reference();
+            prop_assert_eq!(fused, Ok(()));
+            prop_assert_eq!(ored, start | reference);
             prop_assert_eq!(cone.mask_exact(), reference);
             prop_assert_eq!(cone.mask_every_row(), reference);
             match cone.proven_box() {
