@@ -19,7 +19,7 @@
 //!   degenerate ones (`(a×b)·c == 0`, an edge normal that rounds to zero, or a
 //!   non-finite value), and, on request, back-facing ones (see [`Culled`]).
 
-use glam::{Vec3, Vec4};
+use glam::{Vec3, Vec4, Vec4Swizzles};
 
 use super::half_space::{RowSolver, inside, normalize_exponent};
 use super::mask::{CELL_COORD, CELL_Z, GRID, HemiMask, ROW_FIRST, ROW_LAST};
@@ -95,6 +95,18 @@ impl RawCone {
         })
     }
 
+    /// ORs the exact mask into `mask`, scaling the normals only when the proven
+    /// box holds a cell.
+    #[inline(always)]
+    fn or_exact_into(self, mask: &mut HemiMask) {
+        match proven_box(self.corners, self.det_abs) {
+            Proven::Cells(None) => {}
+            Proven::Cells(Some(cells)) => self.finish().or_in_proven_box(cells, mask),
+            Proven::Wide => *mask |= self.finish().mask_exact_general(),
+            Proven::Tiny => *mask |= self.finish().mask_every_row(),
+        }
+    }
+
     /// The cone, its normals scaled by powers of two (exact, and still exactly
     /// opposite across a shared edge) so every quality sees the same normals.
     #[inline(always)]
@@ -160,13 +172,7 @@ impl TriangleCone {
         cull_backfaces: bool,
         mask: &mut HemiMask,
     ) -> Result<(), Culled> {
-        let raw = RawCone::new(a, b, c, cull_backfaces)?;
-        match proven_box(raw.corners, raw.det_abs) {
-            Proven::Cells(None) => {}
-            Proven::Cells(Some(cells)) => raw.finish().or_in_proven_box(cells, mask),
-            Proven::Wide => *mask |= raw.finish().mask_exact_general(),
-            Proven::Tiny => *mask |= raw.finish().mask_every_row(),
-        }
+        RawCone::new(a, b, c, cull_backfaces)?.or_exact_into(mask);
         Ok(())
     }
 
@@ -314,7 +320,7 @@ impl TriangleCone {
     /// e`, and at most `1 + e`: the disk coordinates of a passing cell are within
     /// `e + (1 + e) max(1/n - 1, e)` of the corners' box. Every quantity is
     /// bounded from the safe side: the corners come from an inverse square root
-    /// good to 1e-5 ([`inv_sqrt_fine`]), `D` from the computed determinant less
+    /// good to 3u (a correctly rounded square root and division), `D` from the computed determinant less
     /// its rounding, and `cos_min` less the cosines' rounding; [`cell_range`]
     /// keeps the cells whose exact center coordinate is in the widened range (its
     /// own rounding is far inside the extra 5e-5).
@@ -385,12 +391,11 @@ impl TriangleCone {
     /// play: a cell up to that far outside the cone can be on the table's side
     /// of a shared edge, and dropping it would leave it to neither triangle.
     /// Cells outside the widened box are neither in this cone nor within the
-    /// table's error of it, so leaving them out drops only table errors. With the default rule, most triangles of a
-    /// dense mesh seen from its vertices have all edges short and never touch
-    /// the table: that path costs about 45–60 ns against 95 for
-    /// [`TriangleCone::mask_exact`] (its corner box avoids the exact path's six
-    /// normalisations), which is why table quality stays faster than exact
-    /// quality while rasterizing most edges exactly.
+    /// table's error of it, so leaving them out drops only table errors. With
+    /// the default rule, most triangles of a dense mesh seen from its vertices
+    /// have all edges short and never touch the table: that path costs about
+    /// what [`TriangleCone::mask_exact`] does (its corner box is cheaper than
+    /// the exact path's proven box, its margin wider).
     #[inline]
     pub fn mask_table(&self, table: &HalfSpaceTable) -> HemiMask {
         if !table.has_exact_edges() {
@@ -635,19 +640,27 @@ impl TriangleCone {
 #[inline(always)]
 fn proven_box(corners: [Vec3; 3], det_abs: f32) -> Proven {
     let [a, b, c] = corners;
-    let (la, lb, lc) = (a.length_squared(), b.length_squared(), c.length_squared());
-    let in_range = |l: f32| (1e-18..=1e18).contains(&l);
-    if !(in_range(la) & in_range(lb) & in_range(lc)) {
+    // The corners in lanes (a, b, c, a): one square root and one division for
+    // all three lengths, no dependent chains per corner.
+    let xs = Vec4::new(a.x, b.x, c.x, a.x);
+    let ys = Vec4::new(a.y, b.y, c.y, a.y);
+    let zs = Vec4::new(a.z, b.z, c.z, a.z);
+    let lengths_sq = xs * xs + ys * ys + zs * zs;
+    let in_range = lengths_sq.cmpge(Vec4::splat(1e-18)) & lengths_sq.cmple(Vec4::splat(1e18));
+    if !in_range.all() {
         return Proven::Tiny;
     }
-    let (ra, rb, rc) = (inv_sqrt_fine(la), inv_sqrt_fine(lb), inv_sqrt_fine(lc));
-    let (a, b, c) = (a * ra, b * rb, c * rc);
-    // The corners' pairwise cosines, less their error (1e-5 relative per
-    // corner and the dot's rounding).
-    let cos_min = min3(dot(a, b), dot(b, c), dot(c, a)) - 1e-4;
+    // Correctly rounded square root and division: 1/|p| to within 3u.
+    let inv = Vec4::ONE / lengths_sq.sqrt();
+    let (ux, uy, uz) = (xs * inv, ys * inv, zs * inv);
+    // Lanes (a·b, b·c, c·a, a·b), less their error (3u per corner and the
+    // dot's rounding, far inside 1e-4).
+    let cosines = ux * ux.yzxy() + uy * uy.yzxy() + uz * uz.yzxy();
+    let cos_min = cosines.min_element() - 1e-4;
     // det(â, b̂, ĉ) from below: the computed |det| is within 6.5u |a||b||c| of
-    // the true one, and ra rb rc within 3.1e-5 of 1 / (|a||b||c|).
-    let d_lo = det_abs * (ra * rb * rc) * (1.0 - 1e-4) - 1e-6;
+    // the true one, and the product of the inverses within 1e-5 of
+    // 1 / (|a||b||c|).
+    let d_lo = det_abs * (inv.x * inv.y * inv.z) * (1.0 - 1e-4) - 1e-6;
     // τ <= 0.04 keeps κ <= 4τ = 2.6e-6 / D (rounded up to 3e-6 / D).
     if d_lo.is_nan() || d_lo < 1e-5 {
         return Proven::Tiny;
@@ -664,11 +677,13 @@ fn proven_box(corners: [Vec3; 3], det_abs: f32) -> Proven {
     if n < 0.5 {
         return Proven::Wide;
     }
-    let bulge = (1.0 / n - 1.0).max(e);
-    // 1e-5 for the approximate corners, 5e-5 for the range's rounding.
+    // 1/n - 1 = (1 - n)/n <= (1 - n)(1 + 2(1 - n)) for n >= 0.5, without a
+    // division (the bound is (1 - n)(1 + (1 - n)/n)).
+    let bulge = ((1.0 - n) * (1.0 + 2.0 * (1.0 - n))).max(e);
+    // 1e-5 for the corners' rounding, 5e-5 for the range's.
     let margin = e + (1.0 + e) * bulge + 6e-5;
-    let (i0, i_end) = cell_range(min3(a.x, b.x, c.x), max3(a.x, b.x, c.x), margin);
-    let (j0, j_end) = cell_range(min3(a.y, b.y, c.y), max3(a.y, b.y, c.y), margin);
+    let (i0, i_end) = cell_range(ux.min_element(), ux.max_element(), margin);
+    let (j0, j_end) = cell_range(uy.min_element(), uy.max_element(), margin);
     Proven::Cells((i0 < i_end && j0 < j_end).then_some((i0, i_end, j0, j_end)))
 }
 
@@ -828,15 +843,6 @@ fn cell_range(lo: f32, hi: f32, margin: f32) -> (usize, usize) {
 #[inline(always)]
 fn inv_sqrt_approx(x: f32) -> f32 {
     let y = f32::from_bits(0x5f37_5a86_u32.wrapping_sub(x.to_bits() >> 1));
-    y * (1.5 - 0.5 * x * y * y)
-}
-
-/// `1/sqrt(x)` to within a relative 1e-5 for `x` in `[1e-18, 1e18]`: a second
-/// Newton step on [`inv_sqrt_approx`] (the error squares, `1.5 (1.8e-3)² <
-/// 5e-6`, plus a few roundings); checked against `f64` in the tests.
-#[inline(always)]
-fn inv_sqrt_fine(x: f32) -> f32 {
-    let y = inv_sqrt_approx(x);
     y * (1.5 - 0.5 * x * y * y)
 }
 
@@ -1186,21 +1192,5 @@ mod proven_box_tests {
         }
         assert!(proven * 100 >= total * 95, "{proven} of {total} proven");
         assert!(empty > 0 && empty < total, "{empty} of {total} empty");
-    }
-
-    #[test]
-    fn inv_sqrt_fine_is_good_to_1e5() {
-        let mut x = 1e-18f32;
-        let mut worst = 0.0f64;
-        while x <= 1e18 {
-            for step in 0..64 {
-                let v = x * (1.0 + step as f32 / 64.0);
-                let exact = 1.0 / (v as f64).sqrt();
-                worst = worst.max(((inv_sqrt_fine(v) as f64) - exact).abs() / exact);
-            }
-            x *= 1.7;
-        }
-        assert!(worst < 1e-5, "worst relative error {worst}");
-        assert!(worst > 0.0);
     }
 }
