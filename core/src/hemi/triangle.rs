@@ -103,7 +103,7 @@ impl RawCone {
             Proven::Cells(None) => {}
             Proven::Cells(Some(cells)) => self.finish().or_in_proven_box(cells, mask),
             Proven::Wide => *mask |= self.finish().mask_exact_general(),
-            Proven::Tiny => *mask |= self.finish().mask_every_row(),
+            Proven::Tiny => self.finish().or_tiny_into(mask),
         }
     }
 
@@ -233,7 +233,24 @@ impl TriangleCone {
                 mask
             }
             Proven::Wide => self.mask_exact_general(),
-            Proven::Tiny => self.mask_every_row(),
+            Proven::Tiny => {
+                let mut mask = HemiMask::EMPTY;
+                self.or_tiny_into(&mut mask);
+                mask
+            }
+        }
+    }
+
+    /// ORs the exact mask of a cone too small for the corners' proven box into
+    /// `mask`: through the normals' proven box ([`proven_box_from_normals`]),
+    /// or every row for slivers and extreme scales.
+    #[inline(never)]
+    fn or_tiny_into(&self, mask: &mut HemiMask) {
+        match proven_box_from_normals(self.normals) {
+            Proven::Cells(None) => {}
+            Proven::Cells(Some(cells)) => self.or_in_proven_box(cells, mask),
+            Proven::Wide => *mask |= self.mask_exact_general(),
+            Proven::Tiny => *mask |= self.mask_every_row(),
         }
     }
 
@@ -652,23 +669,82 @@ fn proven_box(corners: [Vec3; 3], det_abs: f32) -> Proven {
     }
     // Correctly rounded square root and division: 1/|p| to within 3u.
     let inv = Vec4::ONE / lengths_sq.sqrt();
-    let (ux, uy, uz) = (xs * inv, ys * inv, zs * inv);
-    // Lanes (a·b, b·c, c·a, a·b), less their error (3u per corner and the
-    // dot's rounding, far inside 1e-4).
-    let cosines = ux * ux.yzxy() + uy * uy.yzxy() + uz * uz.yzxy();
-    let cos_min = cosines.min_element() - 1e-4;
     // det(â, b̂, ĉ) from below: the computed |det| is within 6.5u |a||b||c| of
     // the true one, and the product of the inverses within 1e-5 of
-    // 1 / (|a||b||c|).
+    // 1 / (|a||b||c|). Weights of passing cells are at least -6.5u / D
+    // (3.9e-7 / D, rounded up).
     let d_lo = det_abs * (inv.x * inv.y * inv.z) * (1.0 - 1e-4) - 1e-6;
-    // τ <= 0.04 keeps κ <= 4τ = 2.6e-6 / D (rounded up to 3e-6 / D).
-    if d_lo.is_nan() || d_lo < 1e-5 {
+    box_of_corners(xs * inv, ys * inv, zs * inv, 4e-7 / d_lo, 0.0)
+}
+
+/// The proven box of a cone from its scaled normals, for cones too small for
+/// [`proven_box`] (whose bound grows as the inverse square of the size) but
+/// not slivers: only the predicate's own rounding is left to bound.
+///
+/// The predicate sees the cone `K'` of the `f32` normals `N_k` exactly; a cell
+/// `d` passing `fl(N_k·d) >= 0` has `n̂_k·d >= -3.1u` (rounding of the dot,
+/// and of underflowing products, which are tiny against `|N_k| >= 1`). The
+/// corners of `K'` are `N_0×N_1`, `N_1×N_2`, `N_2×N_0` (positive multiples
+/// of the triangle's corners when `det(N) > 0`, which `D_n` below proves),
+/// and the weight of a passing cell on the corner opposite plane `k` is at
+/// least `-3.1u / (n̂_k·r̂)`, where `n̂_k·r̂ = D_n / |n̂_l×n̂_m| >= D_n =
+/// det(n̂_0, n̂_1, n̂_2)`: the argument of [`TriangleCone::proven_box`] with
+/// `τ = 3.1u / D_n` (about `u / size` for a small triangle, against
+/// `u / size²` from the corners). The unit normals come from a correctly
+/// rounded square root and division (3u), so the computed `D_n` is within
+/// 2e-6 and each computed corner direction within `1.5e-6 / sin θ + 1e-6`
+/// for the angle `θ` between its two planes; corners between planes closer
+/// than 1e-3 rad (slivers) give up.
+#[inline(always)]
+fn proven_box_from_normals(normals: [Vec3; 3]) -> Proven {
+    let [m0, m1, m2] = normals;
+    let xs = Vec4::new(m0.x, m1.x, m2.x, m0.x);
+    let ys = Vec4::new(m0.y, m1.y, m2.y, m0.y);
+    let zs = Vec4::new(m0.z, m1.z, m2.z, m0.z);
+    // Scaled normals have their largest component in [1, 2): no range issue.
+    let inv = Vec4::ONE / (xs * xs + ys * ys + zs * zs).sqrt();
+    let (nx, ny, nz) = (xs * inv, ys * inv, zs * inv);
+    // Corners in lanes (n0×n1, n1×n2, n2×n0, n0×n1).
+    let (px, py, pz) = (nx.yzxy(), ny.yzxy(), nz.yzxy());
+    let cx = ny * pz - py * nz;
+    let cy = nz * px - pz * nx;
+    let cz = nx * py - px * ny;
+    // det(n̂0, n̂1, n̂2) = (n̂0×n̂1)·n̂2, lane 0 against n̂2 (lane 2 of n).
+    let dn_lo = cx.x * nx.z + cy.x * ny.z + cz.x * nz.z - 2e-6;
+    let sines_sq = cx * cx + cy * cy + cz * cz;
+    let sin_min = libm::sqrtf(sines_sq.min_element()) - 7e-7;
+    if dn_lo.is_nan() || dn_lo <= 0.0 || sin_min.is_nan() || sin_min < 1e-3 {
         return Proven::Tiny;
     }
+    let inv_sin = Vec4::ONE / sines_sq.sqrt();
+    let corner_error = 1.5e-6 / sin_min + 1e-6;
+    box_of_corners(
+        cx * inv_sin,
+        cy * inv_sin,
+        cz * inv_sin,
+        2e-7 / dn_lo,
+        corner_error,
+    )
+}
+
+/// The box of the cells whose directions can have every barycentric weight
+/// at least `-tau` against unit corners (lanes `(a, b, c, a)` of `ux, uy, uz`,
+/// each coordinate within `corner_error` of the true one): see
+/// [`TriangleCone::proven_box`]. `tau <= 1/12` keeps `κ = 3τ / (1 - u - 6τ)`
+/// below `6.01 τ`.
+#[inline(always)]
+fn box_of_corners(ux: Vec4, uy: Vec4, uz: Vec4, tau: f32, corner_error: f32) -> Proven {
+    if tau.is_nan() || !(0.0..=1.0 / 12.0).contains(&tau) {
+        return Proven::Tiny;
+    }
+    // Lanes (a·b, b·c, c·a, a·b), less their error (the corners' error twice,
+    // and 3u per corner and the dot's rounding, far inside 1e-4).
+    let cosines = ux * ux.yzxy() + uy * uy.yzxy() + uz * uz.yzxy();
+    let cos_min = cosines.min_element() - 1e-4 - 2.0 * corner_error;
     if cos_min.is_nan() || cos_min < 0.5 {
         return Proven::Wide;
     }
-    let kappa = 3e-6 / d_lo;
+    let kappa = 6.01 * tau;
     // The longest chord, from the smallest cosine (which is below the true
     // one); the 1e-5 covers the square root's rounding.
     let chord = libm::sqrtf(2.0 - 2.0 * cos_min) + 1e-5;
@@ -681,7 +757,7 @@ fn proven_box(corners: [Vec3; 3], det_abs: f32) -> Proven {
     // division (the bound is (1 - n)(1 + (1 - n)/n)).
     let bulge = ((1.0 - n) * (1.0 + 2.0 * (1.0 - n))).max(e);
     // 1e-5 for the corners' rounding, 5e-5 for the range's.
-    let margin = e + (1.0 + e) * bulge + 6e-5;
+    let margin = e + (1.0 + e) * bulge + 6e-5 + corner_error;
     let (i0, i_end) = cell_range(ux.min_element(), ux.max_element(), margin);
     let (j0, j_end) = cell_range(uy.min_element(), uy.max_element(), margin);
     Proven::Cells((i0 < i_end && j0 < j_end).then_some((i0, i_end, j0, j_end)))
@@ -1147,18 +1223,40 @@ mod proven_box_tests {
             prop_assert_eq!(ored, start | reference);
             prop_assert_eq!(cone.mask_exact(), reference);
             prop_assert_eq!(cone.mask_every_row(), reference);
-            match cone.proven_box() {
-                Proven::Wide => prop_assert_eq!(cone.mask_exact_general(), reference),
-                Proven::Tiny => {}
-                Proven::Cells(None) => prop_assert_eq!(reference, HemiMask::EMPTY),
-                Proven::Cells(Some((i0, i_end, j0, j_end))) => {
-                    for (i, j) in reference.occluded_cells() {
-                        prop_assert!((i0..i_end).contains(&i) && (j0..j_end).contains(&j),
-                            "cell ({}, {}) outside {:?}", i, j, (i0, i_end, j0, j_end));
+            for proven in [cone.proven_box(), proven_box_from_normals(cone.normals)] {
+                match proven {
+                    Proven::Wide => prop_assert_eq!(cone.mask_exact_general(), reference),
+                    Proven::Tiny => {}
+                    Proven::Cells(None) => prop_assert_eq!(reference, HemiMask::EMPTY),
+                    Proven::Cells(Some((i0, i_end, j0, j_end))) => {
+                        for (i, j) in reference.occluded_cells() {
+                            prop_assert!((i0..i_end).contains(&i) && (j0..j_end).contains(&j),
+                                "cell ({}, {}) outside {:?}", i, j, (i0, i_end, j0, j_end));
+                        }
                     }
                 }
             }
         }
+    }
+
+    #[test]
+    fn tiny_triangles_take_the_normals_box() {
+        // 1e-3 rad across: too small for the corners' bound, not for the
+        // normals'; the far triangles of a 50k-triangle mesh look like this.
+        let (mut tiny, mut proven) = (0, 0);
+        for k in 0..VALID_CELL_COUNT as usize {
+            let c = cell_dir(k, Vec3::new(0.02, 0.01, 0.0)) * 5.0;
+            let (e1, e2) = c.normalize().any_orthonormal_pair();
+            let s = 5e-3;
+            let cone = TriangleCone::new(c + e1 * s, c + e2 * s, c - (e1 + e2) * s, false).unwrap();
+            assert!(matches!(cone.proven_box(), Proven::Tiny));
+            tiny += 1;
+            if matches!(proven_box_from_normals(cone.normals), Proven::Cells(_)) {
+                proven += 1;
+            }
+            assert_eq!(cone.mask_exact(), cone.mask_reference());
+        }
+        assert_eq!(proven, tiny);
     }
 
     #[test]
