@@ -102,7 +102,7 @@ impl RawCone {
         match proven_box(self.corners, self.det_abs) {
             Proven::Cells(None) => {}
             Proven::Cells(Some(cells)) => self.finish().or_in_proven_box(cells, mask),
-            Proven::Wide => *mask |= self.finish().mask_exact_general(),
+            Proven::Wide => self.finish().or_general_into(mask),
             Proven::Tiny => self.finish().or_tiny_into(mask),
         }
     }
@@ -232,7 +232,11 @@ impl TriangleCone {
                 self.or_in_proven_box(cells, &mut mask);
                 mask
             }
-            Proven::Wide => self.mask_exact_general(),
+            Proven::Wide => {
+                let mut mask = HemiMask::EMPTY;
+                self.or_general_into(&mut mask);
+                mask
+            }
             Proven::Tiny => {
                 let mut mask = HemiMask::EMPTY;
                 self.or_tiny_into(&mut mask);
@@ -249,7 +253,7 @@ impl TriangleCone {
         match proven_box_from_normals(self.normals) {
             Proven::Cells(None) => {}
             Proven::Cells(Some(cells)) => self.or_in_proven_box(cells, mask),
-            Proven::Wide => *mask |= self.mask_exact_general(),
+            Proven::Wide => self.or_general_into(mask),
             Proven::Tiny => *mask |= self.mask_every_row(),
         }
     }
@@ -276,9 +280,11 @@ impl TriangleCone {
     }
 
     /// [`TriangleCone::mask_exact`] without the proven box: the box of the cone
-    /// the normals bound ([`TriangleCone::cell_box`]), for every cone. The slow
-    /// twin the proven box is tested against, and the path of wide, thin or
-    /// extreme cones.
+    /// the normals bound ([`TriangleCone::cell_box`]), solved row by row or cell
+    /// by cell, for every cone: the slow twin of the proven boxes and of the
+    /// wide cones' path ([`TriangleCone::or_general_into`], the same box
+    /// evaluated four cells at a time).
+    #[cfg(test)]
     pub(crate) fn mask_exact_general(&self) -> HemiMask {
         let mut mask = HemiMask::EMPTY;
         let Some(CellBox { i0, i1, j0, j1 }) = self.cell_box() else {
@@ -348,10 +354,10 @@ impl TriangleCone {
 
     /// ORs the exact mask of a cone inside its proven box (columns
     /// `i0..i_end`, rows `j0..j_end`, see [`TriangleCone::proven_box`]) into
-    /// `mask`. Boxes up to 16 columns wide evaluate the predicate on four cells
-    /// at a time ([`PlaneRow`]: the same products and sums in the same order,
-    /// lane by lane, so the same bits); wider ones solve the rows and clip them
-    /// to the box.
+    /// `mask`, evaluating the predicate on four cells at a time ([`PlaneRow`]:
+    /// the same products and sums in the same order, lane by lane, so the same
+    /// bits). Branch-free per row; cheaper than solving rows even for boxes as
+    /// wide as the grid.
     #[inline(always)]
     fn or_in_proven_box(
         &self,
@@ -359,30 +365,25 @@ impl TriangleCone {
         mask: &mut HemiMask,
     ) {
         let columns = ((1u64 << i_end).wrapping_sub(1u64 << i0)) as u32;
-        if i_end <= i0 + 16 {
-            let planes = self.normals.map(PlaneRow::new);
-            for j in j0..j_end {
-                let mut row = 0;
-                let mut i = i0;
-                while i < i_end {
-                    let bits = planes[0].bits(i, j) & planes[1].bits(i, j) & planes[2].bits(i, j);
-                    row |= bits << i;
-                    i += 4;
-                }
-                mask.rows[j] |= row & columns & HemiMask::VALID.rows[j];
-            }
-            return;
-        }
-        let solvers = self.normals.map(RowSolver::new);
+        let planes = self.normals.map(PlaneRow::new);
         for j in j0..j_end {
-            let mut row = solvers[0].row(j) & columns;
-            if row != 0 {
-                row &= solvers[1].row(j);
-                if row != 0 {
-                    row &= solvers[2].row(j);
-                }
+            let mut row = 0;
+            let mut i = i0;
+            while i < i_end {
+                let bits = planes[0].bits(i, j) & planes[1].bits(i, j) & planes[2].bits(i, j);
+                row |= bits << i;
+                i += 4;
             }
-            mask.rows[j] |= row;
+            mask.rows[j] |= row & columns & HemiMask::VALID.rows[j];
+        }
+    }
+
+    /// [`TriangleCone::mask_exact_general`] ORed into `mask`, its box
+    /// evaluated four cells at a time: the path of wide cones.
+    #[inline(never)]
+    fn or_general_into(&self, mask: &mut HemiMask) {
+        if let Some(CellBox { i0, i1, j0, j1 }) = self.cell_box() {
+            self.or_in_proven_box((i0, i1 + 1, j0, j1 + 1), mask);
         }
     }
 
