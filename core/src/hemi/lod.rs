@@ -75,7 +75,7 @@ use glam::Vec3;
 use super::mask::HemiMask;
 use super::shading::{PhongLobe, glossy_transfer, mirror_direction, shade_glossy};
 use super::transfer::{TransferMethod, TransferRotation, shade_diffuse};
-use super::{Accumulator, Quality, Receiver, TriangleCone, TriangleCounts};
+use super::{Accumulator, Culled, Quality, Receiver, TriangleCone, TriangleCounts, table_raster};
 use crate::geom::MeshView;
 use crate::sh::{Sh, ShRgb};
 
@@ -437,10 +437,14 @@ pub fn scene_mask_with_counts(
     // closure: a closure called from both mesh loops was not inlined, and the call
     // per triangle cost as much as the culling itself.
     match options.quality {
-        Quality::Exact => scene_loop(scene, &receiver, position, cull, TriangleCone::mask_exact),
-        Quality::Table(table) => scene_loop(scene, &receiver, position, cull, |cone| {
-            cone.mask_table(table)
-        }),
+        Quality::Exact => scene_loop(
+            scene,
+            &receiver,
+            position,
+            cull,
+            TriangleCone::or_exact_into,
+        ),
+        Quality::Table(table) => scene_loop(scene, &receiver, position, cull, table_raster(table)),
     }
 }
 
@@ -455,7 +459,7 @@ struct Pass<M> {
     cone_mask: M,
 }
 
-impl<M: Fn(&TriangleCone) -> HemiMask + Copy> Pass<M> {
+impl<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy> Pass<M> {
     #[inline(always)]
     fn near(&self, p: Vec3) -> bool {
         (p - self.position).length_squared() <= self.r2
@@ -468,7 +472,7 @@ fn scene_loop(
     receiver: &Receiver,
     position: Vec3,
     cull: bool,
-    cone_mask: impl Fn(&TriangleCone) -> HemiMask + Copy,
+    cone_mask: impl Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy,
 ) -> (HemiMask, TriangleCounts) {
     let mut acc = Accumulator {
         receiver,
@@ -494,7 +498,7 @@ fn scene_loop(
 /// Adds the triangles of `mesh` that `select` takes, cluster by cluster when there
 /// are clusters.
 #[inline(always)]
-fn mesh_loop<M: Fn(&TriangleCone) -> HemiMask + Copy>(
+fn mesh_loop<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy>(
     mesh: &ClusteredMesh<'_>,
     acc: &mut Accumulator<'_>,
     pass: &Pass<M>,
@@ -539,7 +543,7 @@ fn mesh_loop<M: Fn(&TriangleCone) -> HemiMask + Copy>(
 
 /// Reads triangle `t`, applies the near/far rule and rasterizes it if taken.
 #[inline(always)]
-fn take<M: Fn(&TriangleCone) -> HemiMask + Copy>(
+fn take<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy>(
     view: &MeshView<'_>,
     t: usize,
     acc: &mut Accumulator<'_>,

@@ -240,6 +240,9 @@ proptest! {
                     & half_space_mask_reference(m2)
             );
             prop_assert_eq!(cone.mask_exact(), reference);
+            let mut ored = HemiMask::EMPTY;
+            prop_assert_eq!(TriangleCone::or_exact_into(a, b, c, false, &mut ored), Ok(()));
+            prop_assert_eq!(ored, reference);
         }
     }
 }

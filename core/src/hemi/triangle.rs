@@ -19,10 +19,10 @@
 //!   degenerate ones (`(a×b)·c == 0`, an edge normal that rounds to zero, or a
 //!   non-finite value), and, on request, back-facing ones (see [`Culled`]).
 
-use glam::Vec3;
+use glam::{Vec3, Vec4, Vec4Swizzles};
 
 use super::half_space::{RowSolver, inside, normalize_exponent};
-use super::mask::{GRID, HemiMask, ROW_FIRST, ROW_LAST};
+use super::mask::{CELL_COORD, CELL_Z, GRID, HemiMask, ROW_FIRST, ROW_LAST};
 use super::table::{ALL, EdgeClasses, Entry, HalfSpaceTable, and_entries};
 
 /// Why a triangle contributes nothing and was skipped.
@@ -52,6 +52,76 @@ pub struct TriangleCone {
     corners: [Vec3; 3],
     /// Inward edge normals: `a×b, b×c, c×a`, negated when `(a×b)·c < 0`.
     normals: [Vec3; 3],
+    /// `|(a×b)·c|` as computed from the `f32` cross product (before the normals'
+    /// power-of-two scaling): the size of the cone, for [`TriangleCone::proven_box`].
+    det_abs: f32,
+}
+
+/// A triangle that passed culling, its normals oriented but not yet scaled.
+#[derive(Clone, Copy)]
+struct RawCone {
+    corners: [Vec3; 3],
+    normals: [Vec3; 3],
+    det_abs: f32,
+}
+
+impl RawCone {
+    /// The culling of [`TriangleCone::new`].
+    #[inline(always)]
+    fn new(a: Vec3, b: Vec3, c: Vec3, cull_backfaces: bool) -> Result<Self, Culled> {
+        if a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0 {
+            return Err(Culled::BelowHorizon);
+        }
+        let (ab, bc, ca) = (cross(a, b), cross(b, c), cross(c, a));
+        let det = dot(ab, c);
+        let finite = det.is_finite() && (ab + bc + ca).is_finite();
+        if !finite || det == 0.0 || ab == Vec3::ZERO || bc == Vec3::ZERO || ca == Vec3::ZERO {
+            return Err(Culled::Degenerate);
+        }
+        if cull_backfaces && det > 0.0 {
+            return Err(Culled::BackFacing);
+        }
+        // Negation is exact, so a shared edge still gets exactly opposite normals
+        // in its two triangles whenever both are seen with the same orientation.
+        let normals = if det < 0.0 {
+            [-ab, -bc, -ca]
+        } else {
+            [ab, bc, ca]
+        };
+        Ok(RawCone {
+            corners: [a, b, c],
+            normals,
+            det_abs: det.abs(),
+        })
+    }
+
+    /// ORs the exact mask into `mask`, scaling the normals only when the proven
+    /// box holds a cell.
+    #[inline(always)]
+    fn or_exact_into(self, mask: &mut HemiMask) {
+        match proven_box(self.corners, self.det_abs) {
+            Proven::Cells(None) => {}
+            Proven::Cells(Some(cells)) => self.finish().or_in_proven_box(cells, mask),
+            Proven::Wide => self.finish().or_general_into(mask),
+            Proven::Tiny => self.finish().or_tiny_into(mask),
+        }
+    }
+
+    /// The cone, its normals scaled by powers of two (exact, and still exactly
+    /// opposite across a shared edge) so every quality sees the same normals.
+    #[inline(always)]
+    fn finish(self) -> TriangleCone {
+        let [m0, m1, m2] = self.normals;
+        TriangleCone {
+            corners: self.corners,
+            normals: [
+                normalize_exponent(m0),
+                normalize_exponent(m1),
+                normalize_exponent(m2),
+            ],
+            det_abs: self.det_abs,
+        }
+    }
 }
 
 /// Margin (in disk `u` and `v`) added around the cone's extent when choosing which
@@ -85,32 +155,25 @@ impl TriangleCone {
     /// Back faces are culled only when `cull_backfaces` is set.
     #[inline]
     pub fn new(a: Vec3, b: Vec3, c: Vec3, cull_backfaces: bool) -> Result<Self, Culled> {
-        if a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0 {
-            return Err(Culled::BelowHorizon);
-        }
-        let (ab, bc, ca) = (cross(a, b), cross(b, c), cross(c, a));
-        let det = dot(ab, c);
-        let finite = det.is_finite() && (ab + bc + ca).is_finite();
-        if !finite || det == 0.0 || ab == Vec3::ZERO || bc == Vec3::ZERO || ca == Vec3::ZERO {
-            return Err(Culled::Degenerate);
-        }
-        if cull_backfaces && det > 0.0 {
-            return Err(Culled::BackFacing);
-        }
-        // Negation is exact, so a shared edge still gets exactly opposite normals
-        // in its two triangles whenever both are seen with the same orientation.
-        let normals = if det < 0.0 {
-            [-ab, -bc, -ca]
-        } else {
-            [ab, bc, ca]
-        };
-        // Scaled by powers of two once here (exact, and still exactly opposite
-        // across a shared edge) so every quality sees the same normals.
-        let normals = normals.map(normalize_exponent);
-        Ok(TriangleCone {
-            corners: [a, b, c],
-            normals,
-        })
+        let raw = RawCone::new(a, b, c, cull_backfaces)?;
+        Ok(raw.finish())
+    }
+
+    /// `TriangleCone::new(a, b, c, cull_backfaces)?.mask_exact()` ORed into
+    /// `mask`, bit for bit, with less work: the proven box needs only the
+    /// corners and the determinant, so the normals are scaled only when a cell
+    /// center is within reach (for about half of a dense mesh's rasterized
+    /// triangles, none is).
+    #[inline(always)]
+    pub(crate) fn or_exact_into(
+        a: Vec3,
+        b: Vec3,
+        c: Vec3,
+        cull_backfaces: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled> {
+        RawCone::new(a, b, c, cull_backfaces)?.or_exact_into(mask);
+        Ok(())
     }
 
     /// The corners as given.
@@ -162,6 +225,67 @@ impl TriangleCone {
     /// reach are looked at: a narrow box of cells is tested cell by cell, a wider
     /// one solved row by row as in [`half_space_mask`](super::half_space_mask).
     pub fn mask_exact(&self) -> HemiMask {
+        match self.proven_box() {
+            Proven::Cells(None) => HemiMask::EMPTY,
+            Proven::Cells(Some(cells)) => {
+                let mut mask = HemiMask::EMPTY;
+                self.or_in_proven_box(cells, &mut mask);
+                mask
+            }
+            Proven::Wide => {
+                let mut mask = HemiMask::EMPTY;
+                self.or_general_into(&mut mask);
+                mask
+            }
+            Proven::Tiny => {
+                let mut mask = HemiMask::EMPTY;
+                self.or_tiny_into(&mut mask);
+                mask
+            }
+        }
+    }
+
+    /// ORs the exact mask of a cone too small for the corners' proven box into
+    /// `mask`: through the normals' proven box ([`proven_box_from_normals`]),
+    /// or every row for slivers and extreme scales.
+    #[inline(never)]
+    fn or_tiny_into(&self, mask: &mut HemiMask) {
+        match proven_box_from_normals(self.normals) {
+            Proven::Cells(None) => {}
+            Proven::Cells(Some(cells)) => self.or_in_proven_box(cells, mask),
+            Proven::Wide => self.or_general_into(mask),
+            Proven::Tiny => *mask |= self.mask_every_row(),
+        }
+    }
+
+    /// Every row solved for the three planes: exact whatever the cone (the row
+    /// solver is the half-space predicate), for the rare cones too small or
+    /// too extreme for any box ([`Proven::Tiny`]), whose rounded normals can
+    /// bound a cone far from the triangle.
+    #[cold]
+    fn mask_every_row(&self) -> HemiMask {
+        let solvers = self.normals.map(RowSolver::new);
+        let mut mask = HemiMask::EMPTY;
+        for (j, row) in mask.rows.iter_mut().enumerate() {
+            let mut bits = solvers[0].row(j);
+            if bits != 0 {
+                bits &= solvers[1].row(j);
+                if bits != 0 {
+                    bits &= solvers[2].row(j);
+                }
+            }
+            *row = bits;
+        }
+        mask
+    }
+
+    /// [`TriangleCone::mask_exact`] without the proven box: the box of the cone
+    /// the normals bound ([`TriangleCone::cell_box`]), solved row by row or cell
+    /// by cell, for every cone: the slow twin of the proven boxes and of the
+    /// wide cones' path ([`TriangleCone::or_general_into`], the same box
+    /// evaluated four cells at a time).
+    #[cfg(test)]
+    pub(crate) fn mask_exact_general(&self) -> HemiMask {
         let mut mask = HemiMask::EMPTY;
         let Some(CellBox { i0, i1, j0, j1 }) = self.cell_box() else {
             return mask;
@@ -195,6 +319,74 @@ impl TriangleCone {
         mask
     }
 
+    /// A box of cells outside which, provably, no cell passes the three `f32`
+    /// predicates ([`Proven::Cells`]; `None` when it holds no cell center, the
+    /// common case for the small, far triangles of a dense mesh), or why there
+    /// is none: [`Proven::Wide`] for cones with corners more than 60° apart,
+    /// [`Proven::Tiny`] for cones too small (`D < 1e-5`, then the rounded normals
+    /// may bound a cone far from the triangle) or too extreme in scale.
+    ///
+    /// Why no cell outside passes. Let `â, b̂, ĉ` be the unit corners, `g` their
+    /// mean, `D = |det(â, b̂, ĉ)|` and `u = 2⁻²⁴`. The `f32` normal `m = fl(a×b)`
+    /// is off by at most `3.5u |a||b|`, and the predicate `fl(m·d)` by `3u |m|`,
+    /// so a cell `d` that passes has `(â×b̂)·d >= -6.5u` (likewise for the other
+    /// edges; the power-of-two scaling and the orientation flip are exact, and
+    /// with corner lengths in `[1e-9, 1e9]` no product underflows or overflows
+    /// noticeably). Writing `d = α â + β b̂ + γ ĉ` gives `(â×b̂)·d = γ D`, so every
+    /// weight is at least `-τ`, `τ = 6.5u / D`. Then `d = σ p - 3τ g` with `p` in
+    /// the flat triangle `T` of the unit corners and `σ >= 1 - u - 3τ`, so `d` is
+    /// a positive multiple of `p + κ (p - g)` with `κ <= 3τ / (1 - u - 6τ)`: `d`
+    /// is in the cone of `T` scaled by `1 + κ` about `g`, whose points are within
+    /// `e = κ ℓ` of `T` (`ℓ` the longest chord between corners). Every point of
+    /// `T` has length at least `sqrt(cos_min) >= cos_min` (pairwise cosines at
+    /// least `cos_min >= 0`), so those of the scaled one at least `n = cos_min -
+    /// e`, and at most `1 + e`: the disk coordinates of a passing cell are within
+    /// `e + (1 + e) max(1/n - 1, e)` of the corners' box. Every quantity is
+    /// bounded from the safe side: the corners come from an inverse square root
+    /// good to 3u (a correctly rounded square root and division), `D` from the computed determinant less
+    /// its rounding, and `cos_min` less the cosines' rounding; [`cell_range`]
+    /// keeps the cells whose exact center coordinate is in the widened range (its
+    /// own rounding is far inside the extra 5e-5).
+    #[inline(always)]
+    fn proven_box(&self) -> Proven {
+        proven_box(self.corners, self.det_abs)
+    }
+
+    /// ORs the exact mask of a cone inside its proven box (columns
+    /// `i0..i_end`, rows `j0..j_end`, see [`TriangleCone::proven_box`]) into
+    /// `mask`, evaluating the predicate on four cells at a time ([`PlaneRow`]:
+    /// the same products and sums in the same order, lane by lane, so the same
+    /// bits). Branch-free per row; cheaper than solving rows even for boxes as
+    /// wide as the grid.
+    #[inline(always)]
+    fn or_in_proven_box(
+        &self,
+        (i0, i_end, j0, j_end): (usize, usize, usize, usize),
+        mask: &mut HemiMask,
+    ) {
+        let columns = ((1u64 << i_end).wrapping_sub(1u64 << i0)) as u32;
+        let planes = self.normals.map(PlaneRow::new);
+        for j in j0..j_end {
+            let mut row = 0;
+            let mut i = i0;
+            while i < i_end {
+                let bits = planes[0].bits(i, j) & planes[1].bits(i, j) & planes[2].bits(i, j);
+                row |= bits << i;
+                i += 4;
+            }
+            mask.rows[j] |= row & columns & HemiMask::VALID.rows[j];
+        }
+    }
+
+    /// [`TriangleCone::mask_exact_general`] ORed into `mask`, its box
+    /// evaluated four cells at a time: the path of wide cones.
+    #[inline(never)]
+    fn or_general_into(&self, mask: &mut HemiMask) {
+        if let Some(CellBox { i0, i1, j0, j1 }) = self.cell_box() {
+            self.or_in_proven_box((i0, i1 + 1, j0, j1 + 1), mask);
+        }
+    }
+
     /// The table mask (the paper's method, with exact edges): each edge plane
     /// either from the nearest table entry or exact, as the table's rule decides
     /// for the edge ([`HalfSpaceTable::with_exact_edges`]), then ANDed.
@@ -217,12 +409,11 @@ impl TriangleCone {
     /// play: a cell up to that far outside the cone can be on the table's side
     /// of a shared edge, and dropping it would leave it to neither triangle.
     /// Cells outside the widened box are neither in this cone nor within the
-    /// table's error of it, so leaving them out drops only table errors. With the default rule, most triangles of a
-    /// dense mesh seen from its vertices have all edges short and never touch
-    /// the table: that path costs about 45–60 ns against 95 for
-    /// [`TriangleCone::mask_exact`] (its corner box avoids the exact path's six
-    /// normalisations), which is why table quality stays faster than exact
-    /// quality while rasterizing most edges exactly.
+    /// table's error of it, so leaving them out drops only table errors. With
+    /// the default rule, most triangles of a dense mesh seen from its vertices
+    /// have all edges short and never touch the table: that path costs about
+    /// what [`TriangleCone::mask_exact`] does (its corner box is cheaper than
+    /// the exact path's proven box, its margin wider).
     #[inline]
     pub fn mask_table(&self, table: &HalfSpaceTable) -> HemiMask {
         if !table.has_exact_edges() {
@@ -461,6 +652,188 @@ impl TriangleCone {
         let (j0, j1) = cells_within(v_lo - extra, v_hi + extra)?;
         Some(CellBox { i0, i1, j0, j1 })
     }
+}
+
+/// [`TriangleCone::proven_box`] of `corners` and `|det|`.
+#[inline(always)]
+fn proven_box(corners: [Vec3; 3], det_abs: f32) -> Proven {
+    let [a, b, c] = corners;
+    // The corners in lanes (a, b, c, a): one square root and one division for
+    // all three lengths, no dependent chains per corner.
+    let xs = Vec4::new(a.x, b.x, c.x, a.x);
+    let ys = Vec4::new(a.y, b.y, c.y, a.y);
+    let zs = Vec4::new(a.z, b.z, c.z, a.z);
+    let lengths_sq = xs * xs + ys * ys + zs * zs;
+    let in_range = lengths_sq.cmpge(Vec4::splat(1e-18)) & lengths_sq.cmple(Vec4::splat(1e18));
+    if !in_range.all() {
+        return Proven::Tiny;
+    }
+    // Correctly rounded square root and division: 1/|p| to within 3u.
+    let inv = Vec4::ONE / lengths_sq.sqrt();
+    // det(â, b̂, ĉ) from below: the computed |det| is within 6.5u |a||b||c| of
+    // the true one, and the product of the inverses within 1e-5 of
+    // 1 / (|a||b||c|). Weights of passing cells are at least -6.5u / D
+    // (3.9e-7 / D, rounded up).
+    let d_lo = det_abs * (inv.x * inv.y * inv.z) * (1.0 - 1e-4) - 1e-6;
+    box_of_corners(xs * inv, ys * inv, zs * inv, 4e-7 / d_lo, 0.0)
+}
+
+/// The proven box of a cone from its scaled normals, for cones too small for
+/// [`proven_box`] (whose bound grows as the inverse square of the size) but
+/// not slivers: only the predicate's own rounding is left to bound.
+///
+/// The predicate sees the cone `K'` of the `f32` normals `N_k` exactly; a cell
+/// `d` passing `fl(N_k·d) >= 0` has `n̂_k·d >= -3.1u` (rounding of the dot,
+/// and of underflowing products, which are tiny against `|N_k| >= 1`). The
+/// corners of `K'` are `N_0×N_1`, `N_1×N_2`, `N_2×N_0` (positive multiples
+/// of the triangle's corners when `det(N) > 0`, which `D_n` below proves),
+/// and the weight of a passing cell on the corner opposite plane `k` is at
+/// least `-3.1u / (n̂_k·r̂)`, where `n̂_k·r̂ = D_n / |n̂_l×n̂_m| >= D_n =
+/// det(n̂_0, n̂_1, n̂_2)`: the argument of [`TriangleCone::proven_box`] with
+/// `τ = 3.1u / D_n` (about `u / size` for a small triangle, against
+/// `u / size²` from the corners). The unit normals come from a correctly
+/// rounded square root and division (3u), so the computed `D_n` is within
+/// 2e-6 and each computed corner direction within `1.5e-6 / sin θ + 1e-6`
+/// for the angle `θ` between its two planes; corners between planes closer
+/// than 1e-3 rad (slivers) give up.
+#[inline(always)]
+fn proven_box_from_normals(normals: [Vec3; 3]) -> Proven {
+    let [m0, m1, m2] = normals;
+    let xs = Vec4::new(m0.x, m1.x, m2.x, m0.x);
+    let ys = Vec4::new(m0.y, m1.y, m2.y, m0.y);
+    let zs = Vec4::new(m0.z, m1.z, m2.z, m0.z);
+    // Scaled normals have their largest component in [1, 2): no range issue.
+    let inv = Vec4::ONE / (xs * xs + ys * ys + zs * zs).sqrt();
+    let (nx, ny, nz) = (xs * inv, ys * inv, zs * inv);
+    // Corners in lanes (n0×n1, n1×n2, n2×n0, n0×n1).
+    let (px, py, pz) = (nx.yzxy(), ny.yzxy(), nz.yzxy());
+    let cx = ny * pz - py * nz;
+    let cy = nz * px - pz * nx;
+    let cz = nx * py - px * ny;
+    // det(n̂0, n̂1, n̂2) = (n̂0×n̂1)·n̂2, lane 0 against n̂2 (lane 2 of n).
+    let dn_lo = cx.x * nx.z + cy.x * ny.z + cz.x * nz.z - 2e-6;
+    let sines_sq = cx * cx + cy * cy + cz * cz;
+    let sin_min = libm::sqrtf(sines_sq.min_element()) - 7e-7;
+    if dn_lo.is_nan() || dn_lo <= 0.0 || sin_min.is_nan() || sin_min < 1e-3 {
+        return Proven::Tiny;
+    }
+    let inv_sin = Vec4::ONE / sines_sq.sqrt();
+    let corner_error = 1.5e-6 / sin_min + 1e-6;
+    box_of_corners(
+        cx * inv_sin,
+        cy * inv_sin,
+        cz * inv_sin,
+        2e-7 / dn_lo,
+        corner_error,
+    )
+}
+
+/// The box of the cells whose directions can have every barycentric weight
+/// at least `-tau` against unit corners (lanes `(a, b, c, a)` of `ux, uy, uz`,
+/// each coordinate within `corner_error` of the true one): see
+/// [`TriangleCone::proven_box`]. `tau <= 1/12` keeps `κ = 3τ / (1 - u - 6τ)`
+/// below `6.01 τ`.
+#[inline(always)]
+fn box_of_corners(ux: Vec4, uy: Vec4, uz: Vec4, tau: f32, corner_error: f32) -> Proven {
+    if tau.is_nan() || !(0.0..=1.0 / 12.0).contains(&tau) {
+        return Proven::Tiny;
+    }
+    // Lanes (a·b, b·c, c·a, a·b), less their error (the corners' error twice,
+    // and 3u per corner and the dot's rounding, far inside 1e-4).
+    let cosines = ux * ux.yzxy() + uy * uy.yzxy() + uz * uz.yzxy();
+    let cos_min = cosines.min_element() - 1e-4 - 2.0 * corner_error;
+    if cos_min.is_nan() || cos_min < 0.5 {
+        return Proven::Wide;
+    }
+    let kappa = 6.01 * tau;
+    // The longest chord, from the smallest cosine (which is below the true
+    // one); the 1e-5 covers the square root's rounding.
+    let chord = libm::sqrtf(2.0 - 2.0 * cos_min) + 1e-5;
+    let e = kappa * chord;
+    let n = cos_min - e;
+    if n < 0.5 {
+        return Proven::Wide;
+    }
+    // 1/n - 1 = (1 - n)/n <= (1 - n)(1 + 2(1 - n)) for n >= 0.5, without a
+    // division (the bound is (1 - n)(1 + (1 - n)/n)).
+    let bulge = ((1.0 - n) * (1.0 + 2.0 * (1.0 - n))).max(e);
+    // 1e-5 for the corners' rounding, 5e-5 for the range's.
+    let margin = e + (1.0 + e) * bulge + 6e-5 + corner_error;
+    let (i0, i_end) = cell_range(ux.min_element(), ux.max_element(), margin);
+    let (j0, j_end) = cell_range(uy.min_element(), uy.max_element(), margin);
+    Proven::Cells((i0 < i_end && j0 < j_end).then_some((i0, i_end, j0, j_end)))
+}
+
+/// One plane's predicate on four neighbouring cells of a row at once.
+#[derive(Clone, Copy)]
+struct PlaneRow {
+    m: Vec3,
+    x: Vec4,
+    z: Vec4,
+}
+
+impl PlaneRow {
+    #[inline(always)]
+    fn new(m: Vec3) -> Self {
+        PlaneRow {
+            m,
+            x: Vec4::splat(m.x),
+            z: Vec4::splat(m.z),
+        }
+    }
+
+    /// Bits 0..4: [`inside`] at cells `(i..i + 4, j)`, each lane the scalar
+    /// expression `(m.x u + m.y v) + m.z z` (no fused multiply-add in either),
+    /// so bit `k` is exactly `inside(m, i + k, j)` for valid cells; cells past
+    /// the grid read zero padding (masked off by the caller).
+    #[inline(always)]
+    fn bits(&self, i: usize, j: usize) -> u32 {
+        let u = Vec4::from_slice(&CELL_COORD_PADDED[i..i + 4]);
+        let z = Vec4::from_slice(&CELL_Z_PADDED[j][i..i + 4]);
+        let v = Vec4::splat(self.m.y * CELL_COORD[j]);
+        ((self.x * u + v) + self.z * z).cmpge(Vec4::ZERO).bitmask()
+    }
+}
+
+/// Columns past the grid, so [`PlaneRow::bits`] can read four from any column.
+const PADDED: usize = GRID + 4;
+
+/// [`CELL_COORD`] with zero padding.
+static CELL_COORD_PADDED: [f32; PADDED] = {
+    let mut out = [0.0; PADDED];
+    let mut i = 0;
+    while i < GRID {
+        out[i] = CELL_COORD[i];
+        i += 1;
+    }
+    out
+};
+
+/// [`CELL_Z`] with zero padding.
+static CELL_Z_PADDED: [[f32; PADDED]; GRID] = {
+    let mut out = [[0.0; PADDED]; GRID];
+    let mut j = 0;
+    while j < GRID {
+        let mut i = 0;
+        while i < GRID {
+            out[j][i] = CELL_Z[j][i];
+            i += 1;
+        }
+        j += 1;
+    }
+    out
+};
+
+/// What [`TriangleCone::proven_box`] found.
+#[derive(Clone, Copy, Debug)]
+enum Proven {
+    /// Columns `i0..i_end` and rows `j0..j_end` hold every cell the predicate
+    /// sets; `None` when they hold no cell center.
+    Cells(Option<(usize, usize, usize, usize)>),
+    /// Corners more than 60° apart: [`TriangleCone::cell_box`] bounds the cone.
+    Wide,
+    /// Too small or too extreme in scale to bound: every row is solved.
+    Tiny,
 }
 
 /// A rectangle of cells, bounds inclusive.
@@ -754,5 +1127,169 @@ mod table_quality_tests {
         let cone = TriangleCone::new(corners[0] * 1e-21, corners[1], corners[2], false).unwrap();
         let all_exact = HalfSpaceTable::new(16).with_exact_edges(core::f32::consts::FRAC_PI_2, 0.0);
         assert_eq!(cone.mask_table(&all_exact), cone.mask_reference());
+    }
+}
+
+#[cfg(test)]
+mod proven_box_tests {
+    //! The proven box of exact quality ([`TriangleCone::proven_box`]) against its
+    //! slow twins: the per-cell predicate on every cell and the general exact
+    //! path, on small triangles of every kind around cell centers.
+
+    use super::*;
+    use crate::hemi::mask::{VALID_CELL_COUNT, cell_directions};
+    use proptest::prelude::*;
+
+    /// The direction of valid cell `k` (row by row), nudged by `jitter`.
+    fn cell_dir(k: usize, jitter: Vec3) -> Vec3 {
+        let (_, _, d) = cell_directions()
+            .nth(k % VALID_CELL_COUNT as usize)
+            .unwrap();
+        (d + jitter).normalize()
+    }
+
+    /// Triangles the proven box is for and around its limits: small ones about a
+    /// cell center (or the horizon) at distances from 1e-4 to 1e4, with a corner
+    /// exactly on a cell's ray, slivers, nearly edge-on ones, and huge and tiny
+    /// scales where the box must give up.
+    fn small_triangle() -> impl Strategy<Value = [Vec3; 3]> {
+        let cell = 0usize..VALID_CELL_COUNT as usize;
+        let jitter = (-0.05f32..0.05, -0.05f32..0.05, -0.05f32..0.05).prop_map(Vec3::from);
+        let offset = (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0).prop_map(Vec3::from);
+        let distance = (-4.0f32..4.0).prop_map(|e| libm::powf(10.0, e));
+        let size = (-6.0f32..-0.3).prop_map(|e| libm::powf(10.0, e));
+        prop_oneof![
+            // About a cell center.
+            4 => (cell.clone(), jitter.clone(), distance.clone(), size.clone(), offset.clone(), offset.clone())
+                .prop_map(|(k, j, r, s, p, q)| {
+                    let c = cell_dir(k, j) * r;
+                    [c + p * (s * r), c + q * (s * r), c - (p + q) * (s * r)]
+                }),
+            // A corner exactly on a cell's ray (a tie for the predicate's rounding).
+            2 => (cell.clone(), distance.clone(), size.clone(), offset.clone(), offset.clone())
+                .prop_map(|(k, r, s, p, q)| {
+                    let c = cell_dir(k, Vec3::ZERO) * r;
+                    [c, c + p * (s * r), c + q * (s * r)]
+                }),
+            // Straddling the horizon.
+            2 => (-1.0f32..1.0, -0.05f32..0.05, distance.clone(), size.clone(), offset.clone(), offset.clone())
+                .prop_map(|(phi, z, r, s, p, q)| {
+                    let c = Vec3::new(libm::cosf(3.2 * phi), libm::sinf(3.2 * phi), z) * r;
+                    [c + p * (s * r), c + q * (s * r), c - (p + q) * (s * r)]
+                }),
+            // Slivers and nearly edge-on.
+            1 => (cell.clone(), distance.clone(), size.clone(), offset.clone(), -1e-4f32..1e-4)
+                .prop_map(|(k, r, s, p, e)| {
+                    let c = cell_dir(k, Vec3::ZERO) * r;
+                    let b = c + p * (s * r);
+                    [c, b, c.lerp(b, 0.4) + Vec3::splat(e * s * r)]
+                }),
+            1 => (cell.clone(), distance, size, offset.clone(), -1e-4f32..1e-4)
+                .prop_map(|(k, r, s, p, e)| {
+                    let c = cell_dir(k, Vec3::ZERO) * r;
+                    let b = c + p * (s * r);
+                    [c, b, c * 0.3 + b * 0.6 + c.cross(b) * e]
+                }),
+            // Extreme scales.
+            1 => (cell, prop_oneof![Just(1e-12f32), Just(1e-9f32), Just(1e9f32), Just(1e15f32)], 1e-3f32..0.2, offset.clone(), offset)
+                .prop_map(|(k, r, s, p, q)| {
+                    let c = cell_dir(k, Vec3::ZERO) * r;
+                    [c + p * (s * r), c + q * (s * r), c - p * (s * r)]
+                }),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(6000))]
+
+        /// The exact mask with the proven box is the per-cell predicate and the
+        /// general path, and the box holds every cell the predicate sets.
+        #[test]
+        fn proven_box_is_exact([a, b, c] in small_triangle(), cull in any::<bool>()) {
+            // The fused path culls as TriangleCone::new and ORs the same mask in.
+            let start = HemiMask { rows: core::array::from_fn(|j| 0x0f0f_0f0f_u32.rotate_left(j as u32)) }
+                & HemiMask::VALID;
+            let mut ored = start;
+            let fused = TriangleCone::or_exact_into(a, b, c, cull, &mut ored);
+            let cone = match TriangleCone::new(a, b, c, cull) {
+                Ok(cone) => cone,
+                Err(culled) => {
+                    prop_assert_eq!(fused, Err(culled));
+                    prop_assert_eq!(ored, start);
+                    return Ok(());
+                }
+            };
+            let reference = cone.mask_reference();
+            prop_assert_eq!(fused, Ok(()));
+            prop_assert_eq!(ored, start | reference);
+            prop_assert_eq!(cone.mask_exact(), reference);
+            prop_assert_eq!(cone.mask_every_row(), reference);
+            for proven in [cone.proven_box(), proven_box_from_normals(cone.normals)] {
+                match proven {
+                    Proven::Wide => prop_assert_eq!(cone.mask_exact_general(), reference),
+                    Proven::Tiny => {}
+                    Proven::Cells(None) => prop_assert_eq!(reference, HemiMask::EMPTY),
+                    Proven::Cells(Some((i0, i_end, j0, j_end))) => {
+                        for (i, j) in reference.occluded_cells() {
+                            prop_assert!((i0..i_end).contains(&i) && (j0..j_end).contains(&j),
+                                "cell ({}, {}) outside {:?}", i, j, (i0, i_end, j0, j_end));
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn tiny_triangles_take_the_normals_box() {
+        // 1e-3 rad across: too small for the corners' bound, not for the
+        // normals'; the far triangles of a 50k-triangle mesh look like this.
+        let (mut tiny, mut proven) = (0, 0);
+        for k in 0..VALID_CELL_COUNT as usize {
+            let c = cell_dir(k, Vec3::new(0.02, 0.01, 0.0)) * 5.0;
+            let (e1, e2) = c.normalize().any_orthonormal_pair();
+            let s = 5e-3;
+            let cone = TriangleCone::new(c + e1 * s, c + e2 * s, c - (e1 + e2) * s, false).unwrap();
+            assert!(matches!(cone.proven_box(), Proven::Tiny));
+            tiny += 1;
+            if matches!(proven_box_from_normals(cone.normals), Proven::Cells(_)) {
+                proven += 1;
+            }
+            assert_eq!(cone.mask_exact(), cone.mask_reference());
+        }
+        assert_eq!(proven, tiny);
+    }
+
+    #[test]
+    fn small_triangles_take_the_proven_box() {
+        // Triangles 0.02 to 0.3 rad across about every cell center: the proven
+        // box must decide nearly all of them (else the fast path is dead code),
+        // and most boxes hold no cell or only a few.
+        let (mut total, mut proven, mut empty) = (0, 0, 0);
+        for k in 0..VALID_CELL_COUNT as usize {
+            // The smallest ones sit between four cell centers (half a cell off).
+            for (s, r, off) in [
+                (0.005f32, 1.0f32, 0.031f32),
+                (0.05, 30.0, 0.013),
+                (0.15, 0.01, 0.0),
+            ] {
+                let c = cell_dir(k, Vec3::new(off, off, 0.0)) * r;
+                let (e1, e2) = c.normalize().any_orthonormal_pair();
+                let corners = [c + e1 * (s * r), c + e2 * (s * r), c - (e1 + e2) * (s * r)];
+                let cone = TriangleCone::new(corners[0], corners[1], corners[2], false).unwrap();
+                total += 1;
+                match cone.proven_box() {
+                    Proven::Cells(None) => {
+                        proven += 1;
+                        empty += 1;
+                    }
+                    Proven::Cells(Some(_)) => proven += 1,
+                    Proven::Wide | Proven::Tiny => {}
+                }
+                assert_eq!(cone.mask_exact(), cone.mask_reference());
+            }
+        }
+        assert!(proven * 100 >= total * 95, "{proven} of {total} proven");
+        assert!(empty > 0 && empty < total, "{empty} of {total} empty");
     }
 }
