@@ -729,13 +729,14 @@ fn hemicube_lists_every_relevant_edge() {
             let ss = build(soup, &light, &samples, Structure::Hemicube);
             let cube = ss.hemicube.as_deref().unwrap();
             let mut rng = SplitMix64::new(scene as u64 * 10 + 3);
-            // (1) Points inside wedges.
+            // (1) Points inside wedges (some, rounded to f32, also go to (2)).
+            let mut near: Vec<Vec3> = Vec::new();
             let light_v: Vec<DVec3> = light.vertices().iter().map(|v| v.as_dvec3()).collect();
-            for &e in ss.potential.iter().step_by(3) {
+            for &e in &ss.potential {
                 let edge = &ss.graph.edges[e as usize];
                 let at = |i: u32| ss.graph.positions[i as usize].as_dvec3();
                 let (a, b) = (at(edge.a), at(edge.b));
-                for _ in 0..4 {
+                for _ in 0..8 {
                     let x = a + (b - a) * rng.unit();
                     let w: Vec<f64> = light_v.iter().map(|_| rng.unit() + 1e-3).collect();
                     let sum: f64 = w.iter().sum();
@@ -764,6 +765,9 @@ fn hemicube_lists_every_relevant_edge() {
                         continue;
                     }
                     wedge_points += 1;
+                    if wedge_points % 4 == 0 {
+                        near.push(p.as_vec3());
+                    }
                     let mut found = false;
                     cube.for_each_candidate(p, |c| found |= c == e);
                     assert!(
@@ -772,8 +776,8 @@ fn hemicube_lists_every_relevant_edge() {
                     );
                 }
             }
-            // (2) Random receivers (free space, the floor, above the light)
-            // against the kernel.
+            // (2) Random receivers (free space, above the light) and receivers
+            // inside wedges against the kernel.
             let mut receivers = receivers_box(
                 Vec3::new(-3.0, -3.0, -0.5),
                 Vec3::new(3.0, 3.0, 3.3),
@@ -786,6 +790,7 @@ fn hemicube_lists_every_relevant_edge() {
                 8,
                 41,
             ));
+            receivers.extend(near);
             let mut in_list = vec![false; ss.graph.edges.len()];
             for &p in &receivers {
                 in_list.fill(false);
