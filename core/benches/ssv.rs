@@ -15,7 +15,8 @@
 //!   the same kind of `BvhScene`.
 //!
 //! `main` prints candidates per query, silhouettes per query, nodes and bytes
-//! of each structure before the timings. Run:
+//! of each structure before the timings, then the hemicube at 16² to 128² cells
+//! per face (candidates, memory, a rough best-of-five time per receiver). Run:
 //! `cargo bench -p antumbra-core --features bvh --bench ssv`.
 
 use antumbra_core::glam::Vec3;
@@ -180,6 +181,37 @@ fn report(tilt: f32) {
                 println!("  bits differing from the hierarchy: {mismatches}");
             }
         }
+    }
+    // The hemicube's resolution: candidates, memory and a rough mean time per
+    // receiver (the fastest of five passes over the receivers after a warm-up
+    // pass).
+    for resolution in [16, 32, 64, 128] {
+        let options = SsvOptions {
+            structure: Structure::Hemicube,
+            hemicube_resolution: resolution,
+            ..SsvOptions::default()
+        };
+        let ss =
+            SoftShadows::new(&scene.view(), scene.light.clone(), &scene.samples, options).unwrap();
+        let mut bits = [0u64; SAMPLES / 64];
+        for &p in &scene.receivers {
+            ss.query(p, &mut bits).unwrap();
+        }
+        let stats = ss.statistics();
+        let micros = (0..5)
+            .map(|_| {
+                let start = std::time::Instant::now();
+                for &p in &scene.receivers {
+                    ss.query(p, &mut bits).unwrap();
+                }
+                start.elapsed().as_secs_f64() * 1e6 / scene.receivers.len() as f64
+            })
+            .fold(f64::INFINITY, f64::min);
+        println!(
+            "  hemicube {resolution}²/face: {:.1} candidates/query, {} KiB, {micros:.1} µs/receiver (best pass)",
+            stats.candidates as f64 / stats.queries as f64,
+            stats.bytes / 1024
+        );
     }
 }
 

@@ -671,3 +671,150 @@ fn coplanar_neighbours_and_far_from_the_origin() {
     let far_receivers: Vec<Vec3> = receivers.iter().map(|&p| p + offset).collect();
     check(&far, &far_light, &far_samples, &far_receivers);
 }
+
+/// The hemicube is conservative: on a few scenes and light orientations, (1)
+/// points sampled inside an edge's penumbra wedge (`x + t (x - l)`, `x` on the
+/// edge, `l` on the light, in `f64`) where the edge's weight is clearly non-zero
+/// find the edge in their cell, and (2) at random receivers every potential edge
+/// missing from the cell's list changes no counter in the brute-force kernel.
+#[test]
+fn hemicube_lists_every_relevant_edge() {
+    let mut bumpy = sphere(Vec3::new(0.2, -0.1, 1.6), 0.7, 10);
+    bumpy.append(&grid(6, 6, |u, v| {
+        Vec3::new(6.0 * u - 3.0, 6.0 * v - 3.0, 0.0)
+    }));
+    let mut folded = grid(5, 5, |u, v| {
+        Vec3::new(
+            3.0 * u - 1.5,
+            3.0 * v - 1.5,
+            1.0 + 0.3 * libm::sinf(5.0 * u) * libm::cosf(4.0 * v),
+        )
+    });
+    let (a, b) = (Vec3::new(1.0, -0.5, 2.2), Vec3::new(1.0, 0.5, 2.2));
+    for k in 0..5 {
+        let ang = k as f32 * 1.1;
+        folded.push([
+            a,
+            b,
+            a + Vec3::new(libm::cosf(ang), 0.3, libm::sinf(ang)) * 0.6,
+        ]);
+    }
+    // A soup, some triangles crossing the light's plane outside the light.
+    let mut soup = Soup::default();
+    let mut rng = SplitMix64::new(77);
+    for _ in 0..40 {
+        let mut u = || rng.unit() as f32;
+        let c = Vec3::new(6.0 * u() - 3.0, 6.0 * u() - 3.0, 4.0 * u());
+        let (d1, d2) = (
+            Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5),
+            Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5),
+        );
+        soup.push([c, c + d1, c + d2]);
+    }
+    let mut listed = 0usize;
+    let mut wedge_points = 0usize;
+    let mut unsure = 0usize;
+    for (scene, soup) in [bumpy, folded, soup].iter().enumerate() {
+        for tilt in [0.0f32, 0.7, 1.4] {
+            let (c, s) = (libm::cosf(tilt), libm::sinf(tilt));
+            let corner = |x: f32, y: f32| Vec3::new(0.3 + x * c, 0.1 + y, 3.5 + x * s);
+            let light = LightPolygon::new(&[
+                corner(-0.6, -0.5),
+                corner(0.6, -0.5),
+                corner(0.6, 0.5),
+                corner(-0.6, 0.5),
+            ])
+            .unwrap();
+            let samples = light.samples(256, SamplePattern::Jittered, 5);
+            let ss = build(soup, &light, &samples, Structure::Hemicube);
+            let cube = ss.hemicube.as_deref().unwrap();
+            let mut rng = SplitMix64::new(scene as u64 * 10 + 3);
+            // (1) Points inside wedges (some, rounded to f32, also go to (2)).
+            let mut near: Vec<Vec3> = Vec::new();
+            let light_v: Vec<DVec3> = light.vertices().iter().map(|v| v.as_dvec3()).collect();
+            for &e in &ss.potential {
+                let edge = &ss.graph.edges[e as usize];
+                let at = |i: u32| ss.graph.positions[i as usize].as_dvec3();
+                let (a, b) = (at(edge.a), at(edge.b));
+                for _ in 0..8 {
+                    let x = a + (b - a) * rng.unit();
+                    let w: Vec<f64> = light_v.iter().map(|_| rng.unit() + 1e-3).collect();
+                    let sum: f64 = w.iter().sum();
+                    let l = light_v
+                        .iter()
+                        .zip(&w)
+                        .fold(DVec3::ZERO, |s, (v, w)| s + *v * (w / sum));
+                    let p = x + (x - l) * (4.0 * rng.unit());
+                    // The weight at p in f64; terms within rounding of zero make
+                    // the point unsure (counted, not asserted).
+                    let mut weight = 0;
+                    let mut sure = true;
+                    for &v in ss.graph.third_of(edge) {
+                        let n = (b - a).cross(at(v) - a);
+                        let d = n.dot(p - a);
+                        if d.abs() <= 1e-9 * n.length() * (p - a).length().max(1.0) {
+                            sure = false;
+                        }
+                        weight += d.signum() as i32;
+                    }
+                    if !sure {
+                        unsure += 1;
+                        continue;
+                    }
+                    if weight == 0 {
+                        continue;
+                    }
+                    wedge_points += 1;
+                    if wedge_points % 4 == 0 {
+                        near.push(p.as_vec3());
+                    }
+                    let mut found = false;
+                    cube.for_each_candidate(p, |c| found |= c == e);
+                    assert!(
+                        found,
+                        "scene {scene}, tilt {tilt}: edge {e} missing at {p:?}"
+                    );
+                }
+            }
+            // (2) Random receivers (free space, above the light) and receivers
+            // inside wedges against the kernel.
+            let mut receivers = receivers_box(
+                Vec3::new(-3.0, -3.0, -0.5),
+                Vec3::new(3.0, 3.0, 3.3),
+                24,
+                40,
+            );
+            receivers.extend(receivers_box(
+                Vec3::new(-3.0, -3.0, 3.8),
+                Vec3::new(3.0, 3.0, 5.0),
+                8,
+                41,
+            ));
+            receivers.extend(near);
+            let mut in_list = vec![false; ss.graph.edges.len()];
+            for &p in &receivers {
+                in_list.fill(false);
+                cube.for_each_candidate(p.as_dvec3(), |c| in_list[c as usize] = true);
+                listed += in_list.iter().filter(|&&x| x).count();
+                let mut kernel = Kernel::new(&ss, p);
+                let mut counters = vec![0i32; samples.len()];
+                for &e in &ss.potential {
+                    if !in_list[e as usize] {
+                        kernel.add_edge(&ss, &ss.graph.edges[e as usize], &mut counters);
+                        assert!(
+                            counters.iter().all(|&c| c == 0),
+                            "scene {scene}, tilt {tilt}: unlisted edge {e} counts at {p:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    // The sampled points really test something, and rounding rarely interferes.
+    assert!(wedge_points > 1000, "{wedge_points} wedge points");
+    assert!(
+        unsure * 100 < wedge_points,
+        "{unsure} unsure of {wedge_points}"
+    );
+    assert!(listed > 0);
+}
