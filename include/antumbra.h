@@ -517,7 +517,7 @@ typedef struct antumbra_ssv_options {
    */
   uint32_t max_depth;
   /**
-   * Hemicube: cells per cube face side, 1 to 1024; default 32.
+   * Hemicube: cells per cube face side, 1 to 1024; default 64.
    */
   uint32_t hemicube_resolution;
   /**

@@ -82,7 +82,7 @@ pub struct antumbra_ssv_options {
     /// Hierarchy: deepest level of the octree, 0 to `ANTUMBRA_SSV_MAX_DEPTH_LIMIT`
     /// (24); default 12.
     pub max_depth: u32,
-    /// Hemicube: cells per cube face side, 1 to 1024; default 32.
+    /// Hemicube: cells per cube face side, 1 to 1024; default 64.
     pub hemicube_resolution: u32,
     /// 0 (the default): `antumbra_ssv_query` runs on the calling thread. 1: the
     /// points of one query call are split across the library's worker threads (a
@@ -104,7 +104,7 @@ const DEFAULT_OPTIONS: antumbra_ssv_options = antumbra_ssv_options {
     structure: ANTUMBRA_SSV_STRUCTURE_HIERARCHY,
     leaf_edges: 64,
     max_depth: 12,
-    hemicube_resolution: 32,
+    hemicube_resolution: 64,
     parallel: 0,
     use_root_bounds: 0,
     root_min: [0.0; 3],
@@ -788,6 +788,17 @@ mod tests {
     const QUAD: [f32; 12] = [
         -0.5, -0.5, 2.0, 0.5, -0.5, 2.0, 0.5, 0.5, 2.0, -0.5, 0.5, 2.0,
     ];
+
+    /// The C defaults are written out for the header's docs; they must be core's.
+    #[test]
+    fn default_options_are_cores_defaults() {
+        let core = SsvOptions::default();
+        assert_eq!(DEFAULT_OPTIONS.structure, core.structure as u32);
+        assert_eq!(DEFAULT_OPTIONS.leaf_edges, core.leaf_edges);
+        assert_eq!(DEFAULT_OPTIONS.max_depth, core.max_depth);
+        assert_eq!(DEFAULT_OPTIONS.hemicube_resolution, core.hemicube_resolution);
+        assert_eq!(DEFAULT_OPTIONS.use_root_bounds, u32::from(core.root_bounds.is_some()));
+    }
 
     /// A small square occluder at z = 1 under the light at z = 2.
     fn blocker() -> ([f32; 12], [u32; 6]) {
