@@ -796,8 +796,14 @@ mod tests {
         assert_eq!(DEFAULT_OPTIONS.structure, core.structure as u32);
         assert_eq!(DEFAULT_OPTIONS.leaf_edges, core.leaf_edges);
         assert_eq!(DEFAULT_OPTIONS.max_depth, core.max_depth);
-        assert_eq!(DEFAULT_OPTIONS.hemicube_resolution, core.hemicube_resolution);
-        assert_eq!(DEFAULT_OPTIONS.use_root_bounds, u32::from(core.root_bounds.is_some()));
+        assert_eq!(
+            DEFAULT_OPTIONS.hemicube_resolution,
+            core.hemicube_resolution
+        );
+        assert_eq!(
+            DEFAULT_OPTIONS.use_root_bounds,
+            u32::from(core.root_bounds.is_some())
+        );
     }
 
     /// A small square occluder at z = 1 under the light at z = 2.
