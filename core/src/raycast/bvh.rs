@@ -138,20 +138,23 @@ const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
 /// magnitude of every slab distance of a node, see [`TraversalRay::entered_fast`]).
 /// It must cover the rounding of `q * s + c` with `c = (p - o) / d` and `s = e / d`
 /// (at most 5 roundings: `1/d`, `p - o`, the two products and the sum, under
-/// 6 units in the last place of the magnitude bound), the rounding of the bound
-/// itself, and the direction error of the unit direction against the query's own
-/// (`scale`, `normalize`, `length`: under 12 units in the last place): 64 units in
-/// the last place (`32 * f32::EPSILON`) leaves a factor of three.
+/// 6 units in the last place of the magnitude bound) and the rounding of the bound
+/// itself. The fast test uses the query's own direction, so there is no direction
+/// error to cover. 64 units in the last place (`32 * f32::EPSILON`) leave a
+/// factor of ten.
 const FAST_SLACK: f32 = 32.0 * f32::EPSILON;
-/// The fast box test applies when every unit-direction component is at least this
-/// (so `1/d <= 2^60`) ...
-const FAST_MIN_DIRECTION: f32 = 1.0 / (1u64 << 60) as f32;
+/// The fast box test applies when every direction component is at least this in
+/// magnitude (so `1/d <= 2^40`) ...
+const FAST_MIN_DIRECTION: f32 = 1.0 / (1u64 << 40) as f32;
+/// ... and at most this, so `1/d` is a normal number ...
+const FAST_MAX_DIRECTION: f32 = (1u64 << 40) as f32;
 /// ... and every origin coordinate at most this: with node coordinates below
-/// 2^41 (scenes stop at [`MAX_COORDINATE`]), `|c| < 2^125` and `255 |s| < 2^110`,
+/// 2^41 (scenes stop at [`MAX_COORDINATE`]), `|c| < 2^106` and `255 |s| < 2^90`,
 /// so no slab distance overflows and `0 * s` is never `0 * inf`.
 const FAST_MAX_ORIGIN: f32 = (1u128 << 64) as f32;
 
-/// Per-ray constants of the conservative box test, in units of the unit direction.
+/// Per-ray constants of the conservative box test, in units of the query's
+/// direction for the fast test and of the unit direction for the general one.
 struct TraversalRay {
     origin: Vec3A,
     /// 1/d per axis; unused on parallel axes.
@@ -167,7 +170,7 @@ struct TraversalRay {
     negative_lanes: BVec3A,
     /// Whether [`Self::entered_fast`] applies (see [`FAST_MIN_DIRECTION`]).
     fast: bool,
-    /// Query `t` to unit-direction distance.
+    /// Query `t` to box-test distance (1 for the fast test).
     length: f32,
     /// Never cull a box that could hold a hit after this distance (<= 0).
     t_min: f32,
@@ -177,23 +180,19 @@ struct TraversalRay {
 
 impl TraversalRay {
     /// `ray` must be valid (finite, non-zero direction).
+    #[inline]
     fn new(ray: &Ray) -> Self {
-        // Scale first so squaring cannot overflow for huge directions.
-        let largest = ray.direction.abs().max_element();
-        let scaled = ray.direction / largest;
-        let length = largest * scaled.length();
-        let unit = scaled.normalize();
-        let parallel = unit.to_array().map(|c| c.abs() < f32::MIN_POSITIVE);
-        let inverse = unit.to_array().map(|c| {
-            if c.abs() < f32::MIN_POSITIVE {
-                0.0
-            } else {
-                1.0 / c
-            }
-        });
-        let negative = unit.to_array().map(|c| c < 0.0);
-        let fast = unit.abs().min_element() >= FAST_MIN_DIRECTION
+        let magnitude = ray.direction.abs();
+        let fast = magnitude.min_element() >= FAST_MIN_DIRECTION
+            && magnitude.max_element() <= FAST_MAX_DIRECTION
             && ray.origin.abs().max_element() <= FAST_MAX_ORIGIN;
+        let (inverse, parallel, length) = if fast {
+            // Distances in the query's own units: no normalisation, no error.
+            (Vec3A::ONE / Vec3A::from(ray.direction), [false; 3], 1.0)
+        } else {
+            Self::unit_inverse(ray.direction)
+        };
+        let negative = ray.direction.to_array().map(|c| c < 0.0);
         // Boxes behind the origin can hold hits only for a negative t_min; round
         // that bound outwards like t_max.
         let t_min = if ray.t_min < 0.0 {
@@ -204,7 +203,7 @@ impl TraversalRay {
         };
         let mut traversal = TraversalRay {
             origin: ray.origin.into(),
-            inverse: Vec3A::from_array(inverse),
+            inverse,
             parallel,
             negative,
             negative_lanes: BVec3A::from(negative),
@@ -215,6 +214,27 @@ impl TraversalRay {
         };
         traversal.shorten(ray.t_max);
         traversal
+    }
+
+    /// For [`Self::entered_general`]: `1 / d` of the unit direction (0 on parallel
+    /// axes), the parallel axes, and the direction's length. Normalising keeps
+    /// `1 / d` finite for any finite direction.
+    #[cold]
+    fn unit_inverse(direction: Vec3) -> (Vec3A, [bool; 3], f32) {
+        // Scale first so squaring cannot overflow for huge directions.
+        let largest = direction.abs().max_element();
+        let scaled = direction / largest;
+        let length = largest * scaled.length();
+        let unit = scaled.normalize();
+        let parallel = unit.to_array().map(|c| c.abs() < f32::MIN_POSITIVE);
+        let inverse = unit.to_array().map(|c| {
+            if c.abs() < f32::MIN_POSITIVE {
+                0.0
+            } else {
+                1.0 / c
+            }
+        });
+        (Vec3A::from_array(inverse), parallel, length)
     }
 
     /// Culls boxes beyond query parameter `t`, rounded up (the product `t * length`
@@ -255,8 +275,8 @@ impl TraversalRay {
     }
 
     /// Bit `i` set when the ray may enter child `i`: the common case of
-    /// [`Self::child_hits`], for rays with no (nearly) parallel axis and an origin
-    /// in range ([`Self::fast`]).
+    /// [`Self::child_hits`], for rays whose direction and origin are in range
+    /// ([`Self::fast`]), in units of the query's direction.
     ///
     /// A child plane is `p + q e` (`p` the node's base, padded like
     /// [`Self::entered_general`] does, `e` a power of two, `q` a byte), so its slab
@@ -265,8 +285,8 @@ impl TraversalRay {
     /// near and far planes are picked by the direction's sign instead of a min and
     /// max. Every distance of the node is at most `|c| + 255 |s|` in magnitude, so
     /// widening each axis's interval by [`FAST_SLACK`] times that covers all its
-    /// rounding and the unit direction's error; the interval is then a superset of
-    /// the exact one and no child holding a hit is culled.
+    /// rounding; the interval is then a superset of the exact one and no child
+    /// holding a hit is culled.
     #[inline(always)]
     fn entered_fast(&self, node: &CwBvhNode) -> u32 {
         let extent = node.compute_extent();
