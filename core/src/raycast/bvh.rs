@@ -10,9 +10,13 @@
 //! and compares box entry with the current hit without allowing for rounding, so
 //! near hits and exact closest hits can be lost. Traversal here uses obvhs's
 //! `traverse!` with a conservative box test of our own ([`TraversalRay`]): child
-//! boxes padded against decoding rounding, exit distances rounded up as in Ize 2013,
-//! no epsilon. Exactness then rests on the watertight triangle test alone, shared
-//! with [`super::BruteForceCaster`], so the two agree bit for bit.
+//! boxes padded against decoding rounding, no epsilon. Ordinary rays (direction
+//! components within 2^-40..2^40, origin within 2^64) take a fast form, slab
+//! distances affine in the quantised planes with every interval widened by a
+//! per-node bound on its rounding; other rays (axis-parallel ones among them) take
+//! the general form, exit distances rounded up as in Ize 2013 and parallel axes
+//! decided by the origin. Exactness then rests on the watertight triangle test
+//! alone, shared with [`super::BruteForceCaster`], so the two agree bit for bit.
 
 use alloc::collections::TryReserveError;
 
