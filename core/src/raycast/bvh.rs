@@ -242,11 +242,11 @@ impl TraversalRay {
     }
 
     /// Culls boxes beyond query parameter `t`, rounded up (the product `t * length`
-    /// rounds once more).
+    /// rounds once more), towards +infinity for negative `t` too.
     #[inline]
     fn shorten(&mut self, t: f32) {
         let distance = t * self.length;
-        self.t_max = distance + distance * (4.0 * f32::EPSILON);
+        self.t_max = distance + distance.abs() * (4.0 * f32::EPSILON);
     }
 
     /// The children of `node` the ray may enter at a distance in `[t_min, t_max]`, as
