@@ -3,6 +3,10 @@
 //! own traversal with its Möller–Trumbore test (`obvhs_native_*`), which is what
 //! the exact, conservative box test and the watertight triangle test cost.
 //!
+//! The `bunny_surface_*` benches cast the rays a PRT bake or ambient occlusion
+//! casts: origins on the Stanford bunny (3,674 triangles), cosine-distributed
+//! directions about the face normal, unbounded.
+//!
 //! Run: `cargo bench -p antumbra-core --features bvh --bench raycast`.
 
 use antumbra_core::{BruteForceCaster, MeshView, Ray, RayCaster, raycast::BvhScene};
@@ -114,6 +118,109 @@ fn obvhs_native_closest_hit(bencher: divan::Bencher<'_, '_>, rings: u32) {
         .collect();
     bencher
         .counter(divan::counter::ItemsCount::new(RAYS))
+        .bench_local(|| {
+            rays.iter()
+                .filter(|&&ray| {
+                    let mut hit = RayHit::none();
+                    bvh.ray_traverse(ray, &mut hit, |r, id| {
+                        triangles[bvh.primitive_indices[id] as usize].intersect(r)
+                    })
+                })
+                .count()
+        });
+}
+
+/// The Stanford bunny of the test data (`tests/data/SOURCES.md`), parsed from its
+/// `v` and `f` lines (1-based, triangles only).
+fn bunny() -> (Vec<[f32; 3]>, Vec<u32>) {
+    let text = include_str!("../../tests/data/bunny.obj");
+    let mut positions = Vec::new();
+    let mut indices = Vec::new();
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let mut c = words.map(|w| w.parse::<f32>().unwrap());
+                positions.push([c.next().unwrap(), c.next().unwrap(), c.next().unwrap()]);
+            }
+            Some("f") => indices.extend(words.map(|w| w.parse::<u32>().unwrap() - 1)),
+            _ => {}
+        }
+    }
+    (positions, indices)
+}
+
+/// Rays from uniform points of the bunny's surface, cosine-distributed about the
+/// face normal: the rays of a transfer bake.
+fn surface_rays(mesh: &MeshView<'_>, count: usize) -> Vec<Ray> {
+    let mut rng = SmallRng::seed_from_u64(11);
+    (0..count)
+        .map(|_| {
+            let [a, b, c] = mesh.triangle(rng.random_range(0..mesh.triangle_count()));
+            let (mut s, mut t) = (rng.random::<f32>(), rng.random::<f32>());
+            if s + t > 1.0 {
+                (s, t) = (1.0 - s, 1.0 - t);
+            }
+            let origin = a + s * (b - a) + t * (c - a);
+            let normal = (b - a).cross(c - a).normalize();
+            // Malley: a uniform point of the disc lifted to the hemisphere.
+            let (u1, u2) = (rng.random::<f32>(), rng.random::<f32>());
+            let (r, phi) = (u1.sqrt(), core::f32::consts::TAU * u2);
+            let (x, y) = normal.any_orthonormal_pair();
+            let direction =
+                r * phi.cos() * x + r * phi.sin() * y + (1.0 - u1).max(0.0).sqrt() * normal;
+            Ray::new(origin, direction, f32::INFINITY)
+        })
+        .collect()
+}
+
+const SURFACE_RAYS: usize = 4096;
+
+#[divan::bench]
+fn bunny_surface_occluded(bencher: divan::Bencher<'_, '_>) {
+    let (positions, indices) = bunny();
+    let mesh = MeshView::new(&positions, &indices).unwrap();
+    let scene = BvhScene::new(&mesh).unwrap();
+    let rays = surface_rays(&mesh, SURFACE_RAYS);
+    bencher
+        .counter(divan::counter::ItemsCount::new(SURFACE_RAYS))
+        .bench_local(|| rays.iter().filter(|r| scene.occluded(r)).count());
+}
+
+#[divan::bench]
+fn bunny_surface_closest_hit(bencher: divan::Bencher<'_, '_>) {
+    let (positions, indices) = bunny();
+    let mesh = MeshView::new(&positions, &indices).unwrap();
+    let scene = BvhScene::new(&mesh).unwrap();
+    let rays = surface_rays(&mesh, SURFACE_RAYS);
+    bencher
+        .counter(divan::counter::ItemsCount::new(SURFACE_RAYS))
+        .bench_local(|| rays.iter().filter_map(|r| scene.closest_hit(r)).count());
+}
+
+/// obvhs's own traversal and Möller–Trumbore on the same surface rays (closest
+/// hit: obvhs has no any-hit entry point), for scale.
+#[divan::bench]
+fn bunny_surface_obvhs_native_closest_hit(bencher: divan::Bencher<'_, '_>) {
+    use obvhs::{BvhBuildParams, cwbvh::builder::build_cwbvh_from_tris, ray::RayHit};
+    let (positions, indices) = bunny();
+    let mesh = MeshView::new(&positions, &indices).unwrap();
+    let triangles: Vec<obvhs::triangle::Triangle> = mesh
+        .triangles()
+        .map(|[a, b, c]| obvhs::triangle::Triangle {
+            v0: a.into(),
+            v1: b.into(),
+            v2: c.into(),
+        })
+        .collect();
+    let mut build_time = core::time::Duration::ZERO;
+    let bvh = build_cwbvh_from_tris(&triangles, BvhBuildParams::medium_build(), &mut build_time);
+    let rays: Vec<obvhs::ray::Ray> = surface_rays(&mesh, SURFACE_RAYS)
+        .iter()
+        .map(|r| obvhs::ray::Ray::new_inf(r.origin.into(), r.direction.into()))
+        .collect();
+    bencher
+        .counter(divan::counter::ItemsCount::new(SURFACE_RAYS))
         .bench_local(|| {
             rays.iter()
                 .filter(|&&ray| {

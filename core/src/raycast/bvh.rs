@@ -10,16 +10,20 @@
 //! and compares box entry with the current hit without allowing for rounding, so
 //! near hits and exact closest hits can be lost. Traversal here uses obvhs's
 //! `traverse!` with a conservative box test of our own ([`TraversalRay`]): child
-//! boxes padded against decoding rounding, exit distances rounded up as in Ize 2013,
-//! no epsilon. Exactness then rests on the watertight triangle test alone, shared
-//! with [`super::BruteForceCaster`], so the two agree bit for bit.
+//! boxes padded against decoding rounding, no epsilon. Ordinary rays (direction
+//! components within 2^-40..2^40, origin within 2^64) take a fast form, slab
+//! distances affine in the quantised planes with every interval widened by a
+//! per-node bound on its rounding; other rays (axis-parallel ones among them) take
+//! the general form, exit distances rounded up as in Ize 2013 and parallel axes
+//! decided by the origin. Exactness then rests on the watertight triangle test
+//! alone, shared with [`super::BruteForceCaster`], so the two agree bit for bit.
 
 use alloc::collections::TryReserveError;
 
 use alloc::vec::Vec;
 use core::time::Duration;
 
-use glam::{UVec2, Vec3, Vec3A, Vec4};
+use glam::{BVec3A, UVec2, Vec3, Vec3A, Vec4};
 use obvhs::{
     BvhBuildParams,
     cwbvh::{CwBvh, builder::build_cwbvh_from_tris, node::CwBvhNode},
@@ -134,7 +138,27 @@ const SLAB_ROUNDING: f32 = 2.0 * (3.0 * f32::EPSILON / 2.0) / (1.0 - 3.0 * f32::
 /// Relative padding of decoded child boxes, which absorbs the rounding of
 /// `p + q * extent` (the quantised planes are exact, the sum is not).
 const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
-/// Per-ray constants of the conservative box test, in units of the unit direction.
+/// Relative slack of the fast box test, applied to `|c| + 255 |s|` (a bound on the
+/// magnitude of every slab distance of a node, see [`TraversalRay::entered_fast`]).
+/// It must cover the rounding of `q * s + c` with `c = (p - o) / d` and `s = e / d`
+/// (at most 5 roundings: `1/d`, `p - o`, the two products and the sum, under
+/// 6 units in the last place of the magnitude bound) and the rounding of the bound
+/// itself. The fast test uses the query's own direction, so there is no direction
+/// error to cover. 64 units in the last place (`32 * f32::EPSILON`) leave a
+/// factor of ten.
+const FAST_SLACK: f32 = 32.0 * f32::EPSILON;
+/// The fast box test applies when every direction component is at least this in
+/// magnitude (so `1/d <= 2^40`) ...
+const FAST_MIN_DIRECTION: f32 = 1.0 / (1u64 << 40) as f32;
+/// ... and at most this, so `1/d` is a normal number ...
+const FAST_MAX_DIRECTION: f32 = (1u64 << 40) as f32;
+/// ... and every origin coordinate at most this: with node coordinates below
+/// 2^41 (scenes stop at [`MAX_COORDINATE`]), `|c| < 2^106` and `255 |s| < 2^90`,
+/// so no slab distance overflows and `0 * s` is never `0 * inf`.
+const FAST_MAX_ORIGIN: f32 = (1u128 << 64) as f32;
+
+/// Per-ray constants of the conservative box test, in units of the query's
+/// direction for the fast test and of the unit direction for the general one.
 struct TraversalRay {
     origin: Vec3A,
     /// 1/d per axis; unused on parallel axes.
@@ -143,7 +167,14 @@ struct TraversalRay {
     /// the ray is treated as parallel to those slabs, which is exact for zero and
     /// off by less than 1.2e-38 of the distance travelled otherwise.
     parallel: [bool; 3],
-    /// Query `t` to unit-direction distance.
+    /// Axes along which the direction is negative: the near slab plane is the
+    /// box's maximum.
+    negative: [bool; 3],
+    /// The same as a lane mask.
+    negative_lanes: BVec3A,
+    /// Whether [`Self::entered_fast`] applies (see [`FAST_MIN_DIRECTION`]).
+    fast: bool,
+    /// Query `t` to box-test distance (1 for the fast test).
     length: f32,
     /// Never cull a box that could hold a hit after this distance (<= 0).
     t_min: f32,
@@ -153,20 +184,19 @@ struct TraversalRay {
 
 impl TraversalRay {
     /// `ray` must be valid (finite, non-zero direction).
+    #[inline]
     fn new(ray: &Ray) -> Self {
-        // Scale first so squaring cannot overflow for huge directions.
-        let largest = ray.direction.abs().max_element();
-        let scaled = ray.direction / largest;
-        let length = largest * scaled.length();
-        let unit = scaled.normalize();
-        let parallel = unit.to_array().map(|c| c.abs() < f32::MIN_POSITIVE);
-        let inverse = unit.to_array().map(|c| {
-            if c.abs() < f32::MIN_POSITIVE {
-                0.0
-            } else {
-                1.0 / c
-            }
-        });
+        let magnitude = ray.direction.abs();
+        let fast = magnitude.min_element() >= FAST_MIN_DIRECTION
+            && magnitude.max_element() <= FAST_MAX_DIRECTION
+            && ray.origin.abs().max_element() <= FAST_MAX_ORIGIN;
+        let (inverse, parallel, length) = if fast {
+            // Distances in the query's own units: no normalisation, no error.
+            (Vec3A::ONE / Vec3A::from(ray.direction), [false; 3], 1.0)
+        } else {
+            Self::unit_inverse(ray.direction)
+        };
+        let negative = ray.direction.to_array().map(|c| c < 0.0);
         // Boxes behind the origin can hold hits only for a negative t_min; round
         // that bound outwards like t_max.
         let t_min = if ray.t_min < 0.0 {
@@ -177,8 +207,11 @@ impl TraversalRay {
         };
         let mut traversal = TraversalRay {
             origin: ray.origin.into(),
-            inverse: Vec3A::from_array(inverse),
+            inverse,
             parallel,
+            negative,
+            negative_lanes: BVec3A::from(negative),
+            fast,
             length,
             t_min,
             t_max: 0.0,
@@ -187,32 +220,131 @@ impl TraversalRay {
         traversal
     }
 
+    /// For [`Self::entered_general`]: `1 / d` of the unit direction (0 on parallel
+    /// axes), the parallel axes, and the direction's length. Normalising keeps
+    /// `1 / d` finite for any finite direction.
+    #[cold]
+    fn unit_inverse(direction: Vec3) -> (Vec3A, [bool; 3], f32) {
+        // Scale first so squaring cannot overflow for huge directions.
+        let largest = direction.abs().max_element();
+        let scaled = direction / largest;
+        let length = largest * scaled.length();
+        let unit = scaled.normalize();
+        let parallel = unit.to_array().map(|c| c.abs() < f32::MIN_POSITIVE);
+        let inverse = unit.to_array().map(|c| {
+            if c.abs() < f32::MIN_POSITIVE {
+                0.0
+            } else {
+                1.0 / c
+            }
+        });
+        (Vec3A::from_array(inverse), parallel, length)
+    }
+
     /// Culls boxes beyond query parameter `t`, rounded up (the product `t * length`
-    /// rounds once more).
+    /// rounds once more), towards +infinity for negative `t` too.
     #[inline]
     fn shorten(&mut self, t: f32) {
         let distance = t * self.length;
-        self.t_max = distance + distance * (4.0 * f32::EPSILON);
+        self.t_max = distance + distance.abs() * (4.0 * f32::EPSILON);
     }
 
     /// The children of `node` the ray may enter at a distance in `[t_min, t_max]`, as
-    /// the hit mask obvhs's `traverse!` expects. Conservative: boxes are padded and
-    /// the exit distance is rounded up, so no child holding a hit is ever culled.
-    /// Four children at a time in `Vec4` lanes (SSE2 on x86-64).
+    /// the hit mask obvhs's `traverse!` expects. Conservative: no child holding a hit
+    /// is ever culled.
     #[inline(always)]
     fn child_hits(&self, node: &CwBvhNode, oct_inv4: u32) -> u32 {
+        let mut entered = if self.fast {
+            self.entered_fast(node)
+        } else {
+            self.entered_general(node)
+        };
+        // Empty children have no child bits, so they add nothing below.
+        let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+        let mut hits = 0;
+        while entered != 0 {
+            let child = entered.trailing_zeros();
+            entered &= entered - 1;
+            let shift = (bit_index8 >> (8 * child)) & 0xff;
+            hits |= (((child_bits8 >> (8 * child)) & 0xff) as u32) << shift;
+        }
+        hits
+    }
+
+    /// Quantised planes `q` of children `4 * half .. 4 * half + 4` as lanes.
+    #[inline(always)]
+    fn lanes(planes: &[u8; 8], half: usize) -> Vec4 {
+        let q = &planes[4 * half..4 * half + 4];
+        Vec4::new(q[0].into(), q[1].into(), q[2].into(), q[3].into())
+    }
+
+    /// Bit `i` set when the ray may enter child `i`: the common case of
+    /// [`Self::child_hits`], for rays whose direction and origin are in range
+    /// ([`Self::fast`]), in units of the query's direction.
+    ///
+    /// A child plane is `p + q e` (`p` the node's base, padded like
+    /// [`Self::entered_general`] does, `e` a power of two, `q` a byte), so its slab
+    /// distance is the affine `q s + c` with `s = e / d` and `c = (p - o) / d`,
+    /// computed once per node: two operations per plane instead of four, and the
+    /// near and far planes are picked by the direction's sign instead of a min and
+    /// max. Every distance of the node is at most `|c| + 255 |s|` in magnitude, so
+    /// widening each axis's interval by [`FAST_SLACK`] times that covers all its
+    /// rounding; the interval is then a superset of the exact one and no child
+    /// holding a hit is culled.
+    #[inline(always)]
+    fn entered_fast(&self, node: &CwBvhNode) -> u32 {
+        let extent = node.compute_extent();
+        let base = Vec3A::from(node.p);
+        let padding = (base.abs() + extent * 255.0) * BOX_PADDING;
+        let c_lo = (base - padding - self.origin) * self.inverse;
+        let c_hi = (base + padding - self.origin) * self.inverse;
+        let scale = extent * self.inverse;
+        let slack = (c_lo.abs().max(c_hi.abs()) + scale.abs() * 255.0) * FAST_SLACK;
+        let c_near = Vec3A::select(self.negative_lanes, c_hi, c_lo) - slack;
+        let c_far = Vec3A::select(self.negative_lanes, c_lo, c_hi) + slack;
+        let planes = [
+            (&node.child_min_x, &node.child_max_x),
+            (&node.child_min_y, &node.child_max_y),
+            (&node.child_min_z, &node.child_max_z),
+        ];
+        let mut entered = 0;
+        for half in 0..2 {
+            let slab = |axis: usize| {
+                let (lo, hi) = planes[axis];
+                let (near, far) = if self.negative[axis] {
+                    (hi, lo)
+                } else {
+                    (lo, hi)
+                };
+                let s = Vec4::splat(scale[axis]);
+                (
+                    Self::lanes(near, half) * s + Vec4::splat(c_near[axis]),
+                    Self::lanes(far, half) * s + Vec4::splat(c_far[axis]),
+                )
+            };
+            let (near_x, far_x) = slab(0);
+            let (near_y, far_y) = slab(1);
+            let (near_z, far_z) = slab(2);
+            let near = near_x.max(near_y).max(near_z).max(Vec4::splat(self.t_min));
+            let far = far_x.min(far_y).min(far_z).min(Vec4::splat(self.t_max));
+            entered |= near.cmple(far).bitmask() << (4 * half);
+        }
+        entered
+    }
+
+    /// Bit `i` set when the ray may enter child `i`, for any valid ray: child boxes
+    /// padded against decoding rounding, parallel axes decided by the origin, exit
+    /// distances rounded up as in Ize 2013. Four children at a time in `Vec4`
+    /// lanes (SSE2 on x86-64).
+    #[inline(never)]
+    fn entered_general(&self, node: &CwBvhNode) -> u32 {
         let extent = node.compute_extent();
         let base = Vec3A::from(node.p);
         let padding = (base.abs() + extent * 255.0) * BOX_PADDING;
         let lo_base = base - padding;
         let hi_base = base + padding;
-        let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-        let mut hits = 0;
+        let mut entered = 0;
         for half in 0..2 {
-            let lanes = |planes: &[u8; 8]| {
-                let q = &planes[4 * half..4 * half + 4];
-                Vec4::new(q[0].into(), q[1].into(), q[2].into(), q[3].into())
-            };
             // (plane - origin) / d per axis; planes are exact in the node's grid.
             let slab = |q_lo: Vec4, q_hi: Vec4, axis: usize| {
                 let o = self.origin[axis];
@@ -235,22 +367,16 @@ impl TraversalRay {
                     (t_lo.min(t_hi), t_lo.max(t_hi))
                 }
             };
+            let lanes = |planes: &[u8; 8]| Self::lanes(planes, half);
             let (near_x, far_x) = slab(lanes(&node.child_min_x), lanes(&node.child_max_x), 0);
             let (near_y, far_y) = slab(lanes(&node.child_min_y), lanes(&node.child_max_y), 1);
             let (near_z, far_z) = slab(lanes(&node.child_min_z), lanes(&node.child_max_z), 2);
             let near = near_x.max(near_y).max(near_z).max(Vec4::splat(self.t_min));
             let far = far_x.min(far_y).min(far_z);
             let far = (far + far.abs() * SLAB_ROUNDING).min(Vec4::splat(self.t_max));
-            let entered = near.cmple(far).bitmask() as usize;
-            for lane in 0..4 {
-                let child = 4 * half + lane;
-                if entered & (1 << lane) != 0 && node.child_meta[child] != 0 {
-                    let shift = (bit_index8 >> (8 * child)) & 0xff;
-                    hits |= (((child_bits8 >> (8 * child)) & 0xff) as u32) << shift;
-                }
-            }
+            entered |= near.cmple(far).bitmask() << (4 * half);
         }
-        hits
+        entered
     }
 }
 

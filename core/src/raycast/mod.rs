@@ -170,7 +170,31 @@ impl PreparedRay {
     /// The watertight test against triangle `(a, b, c)`, two-sided.
     #[inline]
     pub fn intersect(&self, a: Vec3, b: Vec3, c: Vec3) -> Option<TriangleHit> {
-        let [kx, ky, kz] = self.axes;
+        // One copy of the test per axis permutation, with constant axes: indexing
+        // a vector by a run-time axis compiles to a chain of branches per
+        // coordinate, while this is one well-predicted branch per call. The
+        // arithmetic is the same in every arm.
+        match self.axes {
+            [1, 2, 0] => self.intersect_in(a, b, c, [1, 2, 0]),
+            [2, 1, 0] => self.intersect_in(a, b, c, [2, 1, 0]),
+            [2, 0, 1] => self.intersect_in(a, b, c, [2, 0, 1]),
+            [0, 2, 1] => self.intersect_in(a, b, c, [0, 2, 1]),
+            [0, 1, 2] => self.intersect_in(a, b, c, [0, 1, 2]),
+            [1, 0, 2] => self.intersect_in(a, b, c, [1, 0, 2]),
+            axes => self.intersect_in(a, b, c, axes),
+        }
+    }
+
+    /// [`Self::intersect`] with the permuted axes `[kx, ky, kz]` (`self.axes`)
+    /// passed in, so that constant arguments fold away.
+    #[inline(always)]
+    fn intersect_in(
+        &self,
+        a: Vec3,
+        b: Vec3,
+        c: Vec3,
+        [kx, ky, kz]: [usize; 3],
+    ) -> Option<TriangleHit> {
         let s = self.shear;
         let corners = (a, b, c);
         let a = a - self.origin;

@@ -391,6 +391,38 @@ mod bvh_against_brute_force {
     }
 
     #[test]
+    fn rays_at_the_fast_box_test_limits_match_brute_force() {
+        // Direction components from 2^-45 to 2^45 in magnitude, on both sides of
+        // the range where the BVH switches from its fast box test (in the query's
+        // own units) to the general one (unit direction, parallel axes).
+        let mut rng = SmallRng::seed_from_u64(12);
+        let (positions, indices) = closed_sphere(8);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let brute = BruteForceCaster::new(mesh);
+        let bvh = BvhScene::new(&mesh).unwrap();
+        let mut hits = 0;
+        for _ in 0..8000 {
+            let mut ray = random_ray(&mut rng, 2.0);
+            let scale = 2f32.powf(rng.random_range(-45.0..45.0));
+            ray.direction *= scale;
+            ray.t_max /= scale;
+            if rng.random_bool(0.5) {
+                let axis = rng.random_range(0..3);
+                ray.direction[axis] *= 2f32.powf(-rng.random_range(0.0..50.0));
+            }
+            let expected = brute.closest_hit(&ray);
+            assert_eq!(
+                bvh.closest_hit(&ray).map(|h| h.t),
+                expected.map(|h| h.t),
+                "{ray:?}"
+            );
+            assert_eq!(bvh.occluded(&ray), expected.is_some(), "{ray:?}");
+            hits += usize::from(expected.is_some());
+        }
+        assert!(hits > 2000, "too few hits to mean anything: {hits}");
+    }
+
+    #[test]
     fn tiny_and_far_scenes_match_brute_force() {
         // Scenes far below and above unit scale, and far from the origin: obvhs's
         // fixed 1e-4 box epsilon would cull whole scenes at 1e-5 scale.
@@ -438,6 +470,40 @@ mod bvh_against_brute_force {
         assert_eq!(expected.map(|h| h.t), Some(1e11));
         assert_eq!(bvh.closest_hit(&ray).map(|h| h.t), Some(1e11));
         assert!(bvh.occluded(&ray));
+    }
+
+    #[test]
+    fn intervals_wholly_behind_the_origin_match_brute_force() {
+        // t_min < t_max < 0: the culling bound t_max is negative and must still be
+        // rounded towards +infinity. A third of the rays are axis-parallel, for the
+        // general box test.
+        let mut rng = SmallRng::seed_from_u64(13);
+        let (positions, indices) = soup(&mut rng, 300);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let brute = BruteForceCaster::new(mesh);
+        let bvh = BvhScene::new(&mesh).unwrap();
+        let mut hits = 0;
+        for _ in 0..6000 {
+            let mut ray = random_ray(&mut rng, 2.0);
+            // Turned round, so the soup lies behind the origin.
+            ray.direction = -ray.direction;
+            if rng.random_bool(0.33) {
+                let mut d = [0.0; 3];
+                d[rng.random_range(0..3)] = rng.random_range(-2.0..2.0);
+                ray.direction = Vec3::from_array(d);
+            }
+            ray.t_min = -rng.random_range(1.0..4.0);
+            ray.t_max = -rng.random_range(0.0..0.5);
+            let expected = brute.closest_hit(&ray);
+            assert_eq!(
+                bvh.closest_hit(&ray).map(|h| h.t),
+                expected.map(|h| h.t),
+                "{ray:?}"
+            );
+            assert_eq!(bvh.occluded(&ray), expected.is_some(), "{ray:?}");
+            hits += usize::from(expected.is_some());
+        }
+        assert!(hits > 300, "too few hits behind the origin: {hits}");
     }
 
     #[test]
