@@ -368,6 +368,12 @@ pub struct SoftShadows {
     /// Largest distance of a sample from the light's plane.
     sample_offset: f64,
     shape_diameter: f64,
+    /// Sample coordinates in angular order (`order`), widened to `f64` once
+    /// (exact), structure of arrays for the per-sample loop.
+    soa: [Vec<f64>; 3],
+    /// Componentwise bounds of the samples (exact `f64` of `f32`).
+    sample_lo: DVec3,
+    sample_hi: DVec3,
 }
 
 const _: () = {
@@ -503,7 +509,20 @@ impl SoftShadows {
         keyed.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
         let angles: Vec<f64> = keyed.iter().map(|k| k.0).collect();
         let order: Vec<u32> = keyed.iter().map(|k| k.1).chain(central).collect();
+        let soa = [0, 1, 2].map(|axis| {
+            order
+                .iter()
+                .map(|&o| f64::from(samples[o as usize][axis]))
+                .collect::<Vec<f64>>()
+        });
+        let (sample_lo, sample_hi) = samples.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), s| (lo.min(s.as_dvec3()), hi.max(s.as_dvec3())),
+        );
         let mut this = SoftShadows {
+            soa,
+            sample_lo,
+            sample_hi,
             order,
             angles,
             u_axis,
@@ -705,23 +724,24 @@ impl SoftShadows {
         let mut counters = [0i32; MAX_SAMPLES];
         let counters = &mut counters[..n];
         self.sweep(p, counters, &mut info);
-        let (min_index, &min) = counters
-            .iter()
-            .enumerate()
-            .min_by_key(|&(_, &r)| r)
-            .expect("at least one sample");
+        // The least counter, then its first sample (the same sample as a
+        // first-minimum scan): two simple passes the compiler vectorises.
+        let min = counters.iter().copied().min().expect("at least one sample");
+        let min_index = counters.iter().position(|&r| r == min).unwrap_or(0);
         info.rays = 1;
         if self.reference_blocked(p, self.samples[self.order[min_index] as usize]) {
             return Ok(info);
         }
-        // Counters are in angular order; bits in the caller's order.
-        for (k, &r) in counters.iter().enumerate() {
-            let i = self.order[k] as usize;
-            if r == min && !self.near_blocked(p, self.samples[i]) {
+        // Counters are in angular order; bits in the caller's order. Samples
+        // are only looked at when near-light triangles need the exact test.
+        let check_near = !self.near_light.is_empty();
+        for (&r, &o) in counters.iter().zip(&self.order) {
+            let i = o as usize;
+            if r == min && !(check_near && self.near_blocked(p, self.samples[i])) {
                 bits[i / 64] |= 1 << (i % 64);
-                info.visible += 1;
             }
         }
+        info.visible = bits.iter().map(|w| w.count_ones()).sum();
         Ok(info)
     }
 
@@ -729,7 +749,11 @@ impl SoftShadows {
     /// (`counters[k]` belongs to sample `order[k]`), from the structure's
     /// candidates (every potential edge for [`Structure::RayTrace`]).
     fn sweep(&self, p: Vec3, counters: &mut [i32], info: &mut QueryInfo) {
-        let mut kernel = Kernel::new(self, p);
+        self.sweep_with(Kernel::new(self, p), counters, info);
+    }
+
+    fn sweep_with(&self, mut kernel: Kernel<'_>, counters: &mut [i32], info: &mut QueryInfo) {
+        let p = kernel.p;
         let mut visit = |e: u32| {
             info.candidates += 1;
             if kernel.add_edge(self, &self.graph.edges[e as usize], counters) {
@@ -900,14 +924,16 @@ impl SoftShadows {
     }
 }
 
-/// Per-receiver state of the depth-complexity integration: samples relative to
-/// the receiver, in `f64`, on the stack.
-struct Kernel {
+/// Per-receiver state of the depth-complexity integration. A sample relative
+/// to the receiver is `s - p` rounded once in `f64` (computed where it is
+/// used, from the shared structure of arrays: nothing per sample is written
+/// per receiver).
+struct Kernel<'a> {
     p: Vec3,
     pw: DVec3,
-    sx: [f64; MAX_SAMPLES],
-    sy: [f64; MAX_SAMPLES],
-    sz: [f64; MAX_SAMPLES],
+    sx: &'a [f64],
+    sy: &'a [f64],
+    sz: &'a [f64],
     /// Componentwise largest |s - p| (for the error bounds).
     smax: DVec3,
     /// Centroid relative to the receiver.
@@ -918,6 +944,11 @@ struct Kernel {
     /// The receiver's side of the light plane as a direction: the sweep happens
     /// in front of p along it.
     toward: DVec3,
+    /// Tests only: every sample through the per-sample `test` (the slow twin
+    /// of the branch-free pass).
+    slow: bool,
+    /// Tests only: samples the fast pass left unsure so far.
+    unsure: u32,
 }
 
 #[inline]
@@ -925,28 +956,27 @@ fn wide(v: Vec3) -> [f64; 3] {
     [f64::from(v.x), f64::from(v.y), f64::from(v.z)]
 }
 
-impl Kernel {
-    fn new(ss: &SoftShadows, p: Vec3) -> Self {
+impl<'a> Kernel<'a> {
+    fn new(ss: &'a SoftShadows, p: Vec3) -> Self {
         let pw = p.as_dvec3();
+        // Rounding is monotone, so the largest |fl(s - p)| over the samples is
+        // reached at the samples' componentwise bounds: the same value as the
+        // maximum over every sample.
+        let smax = (ss.sample_lo - pw).abs().max((ss.sample_hi - pw).abs());
         let mut k = Kernel {
             p,
             pw,
-            sx: [0.0; MAX_SAMPLES],
-            sy: [0.0; MAX_SAMPLES],
-            sz: [0.0; MAX_SAMPLES],
-            smax: DVec3::ZERO,
+            sx: &ss.soa[0],
+            sy: &ss.soa[1],
+            sz: &ss.soa[2],
+            smax,
             cp: ss.centroid.as_dvec3() - pw,
             lights: [DVec3::ZERO; MAX_LIGHT_VERTICES],
             light_count: ss.shape.vertices.len(),
             toward: ss.plane_normal * (ss.plane_point - pw).dot(ss.plane_normal).signum(),
+            slow: false,
+            unsure: 0,
         };
-        for (i, &o) in ss.order.iter().enumerate() {
-            let d = ss.samples[o as usize].as_dvec3() - pw;
-            k.sx[i] = d.x;
-            k.sy[i] = d.y;
-            k.sz[i] = d.z;
-            k.smax = k.smax.max(d.abs());
-        }
         for (i, v) in ss.shape.vertices.iter().enumerate() {
             k.lights[i] = *v - pw;
         }
@@ -1044,7 +1074,11 @@ impl Kernel {
         // Rounding of the four-term sum, on top of each term's own bound.
         const SUM_BOUND: f64 = 4.0 * f64::EPSILON;
         let test = |i: usize| -> bool {
-            let (x, y, z) = (self.sx[i], self.sy[i], self.sz[i]);
+            let (x, y, z) = (
+                self.sx[i] - self.pw.x,
+                self.sy[i] - self.pw.y,
+                self.sz[i] - self.pw.z,
+            );
             let vs = nrm.x * x + nrm.y * y + nrm.z * z;
             let fs = sign(vs, err_n);
             if fs == Some(!want) {
@@ -1085,15 +1119,79 @@ impl Kernel {
             }
             true
         };
-        let n = counters.len();
-        match self.arc(ss, aw, bw) {
-            None => {
-                for (i, counter) in counters.iter_mut().enumerate() {
+        // The fast pass: every sample of a range classified branch-free from
+        // the certified float signs (`test`'s float half, with the wanted side
+        // folded into a factor of ±1, which is exact): certainly crossing
+        // (counted here), certainly not, or unsure (some sign within its bound
+        // and no certain rejection). Unsure samples, rare, then go through
+        // `test` (exact signs where the bounds do not settle them), so the
+        // counts are exactly `test`'s for every sample.
+        let g = if want { 1.0 } else { -1.0 };
+        let err_base = err_c + err_n + err_a + err_b;
+        let (px, py, pz) = (self.pw.x, self.pw.y, self.pw.z);
+        #[inline(always)]
+        fn classify(
+            v: [f64; 3],
+            planes: &[DVec3; 3],
+            errs: [f64; 4],
+            det: f64,
+            g: f64,
+        ) -> (bool, bool) {
+            let [nrm, amat, bmat] = planes;
+            let [err_n, err_a, err_b, err_base] = errs;
+            let [x, y, z] = v;
+            let vs = nrm.x * x + nrm.y * y + nrm.z * z;
+            let va = amat.x * x + amat.y * y + amat.z * z;
+            let vb = bmat.x * x + bmat.y * y + bmat.z * z;
+            let vo = det - vs + va - vb;
+            let err_o = err_base + SUM_BOUND * (det.abs() + vs.abs() + va.abs() + vb.abs());
+            let (sg, og) = (vs * g, vo * g);
+            let (a_pos, a_neg) = (va > err_a, va < -err_a);
+            let (b_pos, b_neg) = (vb > err_b, vb < -err_b);
+            let hit = (sg > err_n) & (og > err_o) & ((a_pos & b_neg) | (a_neg & b_pos));
+            let reject = (sg < -err_n) | (og < -err_o) | (a_pos & b_pos) | (a_neg & b_neg);
+            (hit, reject)
+        }
+        let planes = [nrm, amat, bmat];
+        let errs = [err_n, err_a, err_b, err_base];
+        let (sx, sy, sz) = (self.sx, self.sy, self.sz);
+        let slow = self.slow;
+        let mut unsure_count = 0u32;
+        let mut run = |lo: usize, hi: usize, counters: &mut [i32]| {
+            if slow {
+                for (i, c) in counters.iter_mut().enumerate().take(hi).skip(lo) {
                     if test(i) {
-                        *counter += contribution;
+                        *c += contribution;
+                    }
+                }
+                return;
+            }
+            let mut unsure = false;
+            let range = lo..hi;
+            let (xs, ys, zs) = (&sx[range.clone()], &sy[range.clone()], &sz[range.clone()]);
+            let cs = &mut counters[range];
+            for (k, c) in cs.iter_mut().enumerate() {
+                let v = [xs[k] - px, ys[k] - py, zs[k] - pz];
+                let (hit, reject) = classify(v, &planes, errs, det, g);
+                *c += if hit { contribution } else { 0 };
+                unsure |= !(hit | reject);
+            }
+            if unsure {
+                for i in lo..hi {
+                    let v = [sx[i] - px, sy[i] - py, sz[i] - pz];
+                    let (hit, reject) = classify(v, &planes, errs, det, g);
+                    if !(hit | reject) {
+                        unsure_count += 1;
+                        if test(i) {
+                            counters[i] += contribution;
+                        }
                     }
                 }
             }
+        };
+        let n = counters.len();
+        match self.arc(ss, aw, bw) {
+            None => run(0, n, counters),
             Some((lo, hi)) => {
                 // Samples by pseudo-angle about the centroid: those in the arc
                 // (a cyclic range), then those too close to the centroid for an
@@ -1101,20 +1199,16 @@ impl Kernel {
                 let angled = ss.angles.len();
                 let first = ss.angles.partition_point(|&t| t < lo);
                 let last = ss.angles.partition_point(|&t| t <= hi);
-                let mut visit = |i: usize| {
-                    if test(i) {
-                        counters[i] += contribution;
-                    }
-                };
                 if lo <= hi {
-                    (first..last).for_each(&mut visit);
+                    run(first, last, counters);
                 } else {
-                    (first..angled).for_each(&mut visit);
-                    (0..last).for_each(&mut visit);
+                    run(first, angled, counters);
+                    run(0, last, counters);
                 }
-                (angled..n).for_each(&mut visit);
+                run(angled, n, counters);
             }
         }
+        self.unsure += unsure_count;
         true
     }
 
