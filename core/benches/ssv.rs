@@ -24,7 +24,8 @@
 //! per receiver), their ratios, candidates per query, nodes and bytes, and the
 //! bits of every structure checked against the hierarchy's. Then the divan
 //! benchmarks on `bumpy` (`receiver::<S>` per structure, hierarchy warmed;
-//! `bvh_rays`). `SSV_REPORT_ONLY=1` skips divan. Run:
+//! `bvh_rays`). `SSV_REPORT_ONLY=1` skips divan; `SSV_LEAF_EDGES` and
+//! `SSV_MAX_DEPTH` override the hierarchy's defaults. Run:
 //! `cargo bench -p antumbra-core --features bvh --bench ssv`.
 
 use std::time::Instant;
@@ -271,9 +272,14 @@ impl Scene {
     }
 
     fn build(&self, structure: Structure) -> SoftShadows {
+        // SSV_LEAF_EDGES / SSV_MAX_DEPTH override the defaults (for tuning).
+        let env = |name: &str| std::env::var(name).ok().and_then(|v| v.parse().ok());
+        let defaults = SsvOptions::default();
         let options = SsvOptions {
             structure,
-            ..SsvOptions::default()
+            leaf_edges: env("SSV_LEAF_EDGES").unwrap_or(defaults.leaf_edges),
+            max_depth: env("SSV_MAX_DEPTH").unwrap_or(defaults.max_depth),
+            ..defaults
         };
         SoftShadows::new(&self.view(), self.light.clone(), &self.samples, options).unwrap()
     }

@@ -81,18 +81,23 @@
 //! for [`Structure::RayTrace`]'s rays).
 //!
 //! Measured (`cargo bench -p antumbra-core --features bvh --bench ssv`, one
-//! thread of a shared 2-core VM, 7,040-triangle bumpy sphere over a floor, 1 × 1
-//! quad light, N = 256, 256 floor receivers in and around the penumbra, medians):
-//! hierarchy 8–12 µs per receiver over light tilts 0, 0.7, 1.4 rad (51.9, 45.8
-//! and 43.7 candidate edges per query, 2–3.4 MB of nodes built lazily), the
-//! hemicube 26–62 µs (994–2,459 candidates, 53–71 MB), brute force 139–221 µs
-//! (all 9,520 potential edges), and tracing the 256 rays with `BvhScene`
-//! 110–119 µs: the hierarchy is 10–13× faster than the rays, 3.2–5.1× faster
-//! than the hemicube, and varies by 1.5× with the light's orientation. All four
-//! structures gave identical bits on this scene.
+//! thread of a shared, loaded 2-core VM, N = 256, medians of 5 interleaved
+//! passes; the ratios are per pass): on the scene of `c_examples/soft_shadows.c`
+//! (torus and sphere over a floor, 2,562 triangles, 4,096 floor receivers) the
+//! hierarchy takes 2.8–3.5 µs per receiver over light tips 0.17, 0.7 and
+//! 1.4 rad (12–20 candidate edges per query, 1,553–2,281 nodes, 0.5–0.65 MiB,
+//! built lazily in the first pass), 19–22× faster than tracing the 256 rays
+//! with `BvhScene`, 4.1–8.4× faster than the hemicube; on the bunny over a floor
+//! (3,676 triangles, 4,096 receivers) 1.7–2.9 µs (9–17 candidates, ~4,000
+//! nodes, 1.3–1.4 MiB), 17–28× the rays and 4.6–10× the hemicube; on a
+//! 7,040-triangle bumpy sphere (256 penumbra receivers) 9–27 µs (35–54
+//! candidates, 1.5–1.8 MiB; the 27 µs passes were the loaded ones: 8.9× the
+//! rays there, 26× in the quieter pass), 1.7–11× the hemicube. All structures
+//! gave identical bits on every bench scene.
 //!
 //! Queries allocate nothing: per-sample counters live on the stack (at most
-//! [`MAX_SAMPLES`] samples, about 28 KiB of stack per query).
+//! [`MAX_SAMPLES`] samples, 4 KiB of stack per query); the samples are read
+//! from an `f64` structure of arrays made at creation.
 
 mod edges;
 mod hemicube;
@@ -150,7 +155,8 @@ pub struct SsvOptions {
     /// The candidate-edge structure.
     pub structure: Structure,
     /// Hierarchy: a node with more edges than this is subdivided when a query
-    /// reaches it (default 64).
+    /// reaches it and the split pays (the children's mean list is at most 3/4
+    /// of the node's; otherwise it stays a leaf) (default 32).
     pub leaf_edges: u32,
     /// Hierarchy: deepest level (default 12).
     pub max_depth: u32,
@@ -166,7 +172,7 @@ impl Default for SsvOptions {
     fn default() -> Self {
         SsvOptions {
             structure: Structure::Hierarchy,
-            leaf_edges: 64,
+            leaf_edges: 32,
             max_depth: 12,
             root_bounds: None,
             hemicube_resolution: 32,
