@@ -46,8 +46,6 @@
 #define THREADS 4
 /* The subset checked against the other structures: at most this many points per side. */
 #define SUBSET_SIDE 32
-/* antumbra_ssv_options.max_depth of the hierarchy (see create()). */
-#define HIERARCHY_DEPTH 6
 
 /* The occluders: a torus of TORUS_RINGS x TORUS_SIDES quads, a sphere of
  * SPHERE_SLICES x SPHERE_STACKS quads (the poles' quads are triangles in effect:
@@ -250,13 +248,6 @@ static antumbra_ssv *create(const antumbra_mesh_view *view, const scene *s, cons
     antumbra_ssv_options_init(&options);
     options.structure = structure;
     options.parallel = parallel;
-    /* A shallower octree than the default 12: this image sends tens of thousands
-     * of coherent queries through the floor plane, and building the nodes they
-     * reach lazily to depth 12 costs far more than it saves here (about 11 ms per
-     * receiver over the first 32 x 32 of them, 47000 nodes, 43 MiB), while depth 6
-     * builds about 1600 nodes (4 MiB) once and culls all but ~300 of the ~3800
-     * potential silhouette edges per query. */
-    options.max_depth = HIERARCHY_DEPTH;
     check(antumbra_ssv_create(view, s->light, 4, samples, SAMPLES, &options, &ssv), what);
     if (ssv == NULL) {
         fail("%s returned OK and a NULL handle", what);
@@ -452,7 +443,7 @@ int main(int argc, char **argv)
 
     antumbra_ssv_options_init(&options);
     if (antumbra_last_error_message()[0] != '\0' || options.structure != ANTUMBRA_SSV_STRUCTURE_HIERARCHY ||
-        options.leaf_edges != 64 || options.max_depth != 12 || options.hemicube_resolution != 64 ||
+        options.leaf_edges != 32 || options.max_depth != 12 || options.hemicube_resolution != 64 ||
         options.parallel != 0 || options.use_root_bounds != 0) {
         fail("antumbra_ssv_options_init did not write the documented defaults");
     }

@@ -508,7 +508,8 @@ typedef struct antumbra_ssv_options {
   uint32_t structure;
   /**
    * Hierarchy: a node holding more candidate edges than this is subdivided when
-   * a query reaches it. At least 1; default 64.
+   * a query reaches it (and only when splitting shortens the lists). At least 1;
+   * default 32.
    */
   uint32_t leaf_edges;
   /**

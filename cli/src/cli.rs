@@ -446,13 +446,14 @@ pub struct BenchSsvArgs {
     #[arg(long)]
     pub no_embree: bool,
 
-    /// Hierarchy: subdivide a node holding more edges than this.
-    #[arg(long, value_name = "N", default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..))]
-    pub leaf_edges: u32,
+    /// Hierarchy: subdivide a node holding more edges than this [default: the
+    /// library's, `SsvOptions::default()`].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub leaf_edges: Option<u32>,
 
-    /// Hierarchy: deepest level.
-    #[arg(long, value_name = "N", default_value_t = 12, value_parser = clap::value_parser!(u32).range(0..=24))]
-    pub max_depth: u32,
+    /// Hierarchy: deepest level [default: the library's].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=24))]
+    pub max_depth: Option<u32>,
 
     /// Only these sample counts (comma-separated) [default: 16,64,256,1024].
     #[arg(long, value_name = "N,N,...", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=1024))]

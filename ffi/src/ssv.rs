@@ -77,7 +77,8 @@ pub struct antumbra_ssv_options {
     /// in speed and memory.
     pub structure: u32,
     /// Hierarchy: a node holding more candidate edges than this is subdivided when
-    /// a query reaches it. At least 1; default 64.
+    /// a query reaches it (and only when splitting shortens the lists). At least 1;
+    /// default 32.
     pub leaf_edges: u32,
     /// Hierarchy: deepest level of the octree, 0 to `ANTUMBRA_SSV_MAX_DEPTH_LIMIT`
     /// (24); default 12.
@@ -102,7 +103,7 @@ pub struct antumbra_ssv_options {
 
 const DEFAULT_OPTIONS: antumbra_ssv_options = antumbra_ssv_options {
     structure: ANTUMBRA_SSV_STRUCTURE_HIERARCHY,
-    leaf_edges: 64,
+    leaf_edges: 32,
     max_depth: 12,
     hemicube_resolution: 64,
     parallel: 0,

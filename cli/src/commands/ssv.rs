@@ -229,6 +229,8 @@ pub fn run_bench(args: &BenchSsvArgs) -> Result<()> {
     } else {
         args.samples.iter().map(|&n| n as usize).collect()
     };
+    let leaf_edges = args.leaf_edges.unwrap_or(SsvOptions::default().leaf_edges);
+    let max_depth = args.max_depth.unwrap_or(SsvOptions::default().max_depth);
     println!(
         "bench ssv: {} ({} triangles) scaled to a largest extent of 1 over a floor (2 triangles), 0.5 x 0.5 quad light \
          1.8 away; one thread; time per receiver (warm: the hierarchy's lazy nodes built by a first pass, \
@@ -236,8 +238,8 @@ pub fn run_bench(args: &BenchSsvArgs) -> Result<()> {
         mesh.name(),
         mesh.triangle_count(),
         args.min_time,
-        args.leaf_edges,
-        args.max_depth
+        leaf_edges,
+        max_depth
     );
     let bar = progress::bar(
         (orientations.len() * counts.len()) as u64,
@@ -275,8 +277,8 @@ pub fn run_bench(args: &BenchSsvArgs) -> Result<()> {
                 .map(|&(structure, _)| {
                     let options = SsvOptions {
                         structure,
-                        leaf_edges: args.leaf_edges,
-                        max_depth: args.max_depth,
+                        leaf_edges,
+                        max_depth,
                         ..SsvOptions::default()
                     };
                     time_structure(&scene, &receivers, n, options, min_time)

@@ -7,10 +7,17 @@
 //! the node's box, so a query that walks to the leaf holding its point and runs
 //! the exact tests on the leaf's list gets exactly the brute-force bits.
 //!
-//! A node with more than `leaf_edges` edges and depth below `max_depth` gets its
-//! eight children the first time a query passes through it. With `std` the
-//! children array is a `OnceLock`: concurrent queries may race to build it, one
-//! wins, the others wait for it (never a torn node). Without `std` there is no
+//! A node with more than `leaf_edges` edges and depth below `max_depth` tries a
+//! split the first time a query passes through it, and keeps the eight children
+//! only when the split pays: a query's cost is about its leaf's list length
+//! times the per-candidate cost, so a split is kept when the children's mean
+//! list is at most [`SPLIT_GAIN`] of the parent's; otherwise the node stays a
+//! leaf for good (the trial children are dropped). Near penumbrae many wedges
+//! cover a whole node and its children alike; without this rule such nodes split
+//! to the depth limit (tens of thousands of nodes for a floor of receivers), with
+//! it construction stays a small fraction of a dense image's query time. With
+//! `std` the split decision is a `OnceLock`: concurrent queries may race to make
+//! it, one wins, the others wait for it (never a torn node). Without `std` there is no
 //! portable blocking once-cell and `unsafe` is off, so the octree is subdivided
 //! eagerly at creation to depth [`super::NO_STD_EAGER_DEPTH`] and queries walk
 //! what exists.
@@ -22,10 +29,17 @@ use glam::DVec3;
 
 use super::SsvOptions;
 use super::edges::EdgeGraph;
-use super::wedge::{Aabb, LightShape, box_may_see_silhouette, box_meets_wedge};
+use super::wedge::{
+    Aabb, LightShape, box_may_see_silhouette, box_meets_wedge, octants_meeting_wedge,
+    octants_seeing_silhouette,
+};
+
+/// A split is kept when the children's mean list length is at most this
+/// fraction of the parent's (module docs).
+pub(crate) const SPLIT_GAIN: f64 = 0.75;
 
 #[cfg(feature = "std")]
-type Children = std::sync::OnceLock<Box<[Node; 8]>>;
+type Children = std::sync::OnceLock<Option<Box<[Node; 8]>>>;
 #[cfg(not(feature = "std"))]
 type Children = Option<Box<[Node; 8]>>;
 
@@ -109,7 +123,9 @@ impl Hierarchy {
         if node.edges.len() <= leaf || node.depth >= max_depth {
             return;
         }
-        let mut children = Self::split(graph, shape, node);
+        let Some(mut children) = Self::split(graph, shape, node) else {
+            return;
+        };
         *count += 8;
         *bytes += children.iter().map(node_bytes).sum::<usize>();
         for child in children.iter_mut() {
@@ -118,21 +134,39 @@ impl Hierarchy {
         node.children = Some(children);
     }
 
-    fn split(graph: &EdgeGraph, shape: &LightShape, node: &Node) -> Box<[Node; 8]> {
-        Box::new(core::array::from_fn(|i| {
-            let bounds = node.bounds.octant(i);
+    /// The node's eight children, when they pay ([`SPLIT_GAIN`]). Each edge is
+    /// tested against the eight octants at once (shared per-direction work).
+    fn split(graph: &EdgeGraph, shape: &LightShape, node: &Node) -> Option<Box<[Node; 8]>> {
+        let mut lists: [Vec<u32>; 8] = Default::default();
+        for &e in &node.edges {
+            let edge = &graph.edges[e as usize];
+            let mut mask = octants_seeing_silhouette(graph, edge, &node.bounds);
+            if mask != 0 {
+                let a = graph.positions[edge.a as usize].as_dvec3();
+                let b = graph.positions[edge.b as usize].as_dvec3();
+                mask &= octants_meeting_wedge(shape, a, b, &node.bounds);
+            }
+            for (i, list) in lists.iter_mut().enumerate() {
+                if mask >> i & 1 == 1 {
+                    list.push(e);
+                }
+            }
+        }
+        let total: usize = lists.iter().map(Vec::len).sum();
+        if total as f64 > 8.0 * SPLIT_GAIN * node.edges.len() as f64 {
+            return None;
+        }
+        let mut lists = lists.into_iter();
+        Some(Box::new(core::array::from_fn(|i| {
+            let mut edges = lists.next().unwrap_or_default();
+            edges.shrink_to_fit();
             Node {
-                bounds,
+                bounds: node.bounds.octant(i),
                 depth: node.depth + 1,
-                edges: node
-                    .edges
-                    .iter()
-                    .copied()
-                    .filter(|&e| keep(graph, shape, e, &bounds))
-                    .collect(),
+                edges,
                 children: Children::default(),
             }
-        }))
+        })))
     }
 
     pub fn nodes(&self) -> usize {
@@ -178,13 +212,15 @@ impl Hierarchy {
         shape: &LightShape,
         node: &'a Node,
     ) -> Option<&'a [Node; 8]> {
-        Some(node.children.get_or_init(|| {
-            let children = Self::split(graph, shape, node);
-            self.nodes.fetch_add(8, Ordering::Relaxed);
-            self.bytes
-                .fetch_add(children.iter().map(node_bytes).sum(), Ordering::Relaxed);
-            children
-        }))
+        node.children
+            .get_or_init(|| {
+                let children = Self::split(graph, shape, node)?;
+                self.nodes.fetch_add(8, Ordering::Relaxed);
+                self.bytes
+                    .fetch_add(children.iter().map(node_bytes).sum(), Ordering::Relaxed);
+                Some(children)
+            })
+            .as_deref()
     }
 
     #[cfg(not(feature = "std"))]

@@ -83,27 +83,23 @@
 //! for [`Structure::RayTrace`]'s rays).
 //!
 //! Measured (`cargo bench -p antumbra-core --features bvh --bench ssv`, one
-//! thread of a shared, loaded 2-core VM, 7,040-triangle bumpy sphere over a
-//! floor, 1 × 1 quad light, N = 256, 256 floor receivers in and around the
-//! penumbra, divan medians): the hierarchy 8.5–12 µs per receiver over light
-//! tilts 0, 0.7, 1.4 rad (51.9, 45.8 and 43.7 candidate edges per query,
-//! 2–3.3 MB of nodes built lazily); the hemicube at its default 64² cells per
-//! face 17.0, 12.1 and 10.0 µs (212.9, 142.3 and 77.4 candidates, 0.45–0.9
-//! MB), so the hierarchy is 1.2–1.4× faster than this 2005-style baseline
-//! here, not the 1.6× the 2006 paper reports (its scenes and its hemicube
-//! differ; this baseline lists an edge only in the cells its wedge ∩
-//! silhouette region reaches). The baseline's resolution sweep on the same
-//! scene: 16², 32², 64², 128² give 405, 273, 213, 182 candidates at tilt 0
-//! (137 KiB to 3 MB) and 182, 108, 77, 62 at tilt 1.4. Brute force 139–221 µs
-//! (all 9,520 potential edges), tracing the 256 rays with `BvhScene`
-//! 110–119 µs (earlier run): the hierarchy is 10–13× faster than the rays and
-//! varies by 1.4× with the light's orientation, the hemicube by 1.7×. All
-//! four structures gave identical bits on this scene. (Before the hemicube
-//! rasterised wedges tightly it listed 994–2,459 candidates per query in
-//! 53–71 MB and took 25–61 µs.)
+//! thread of a shared, loaded 2-core VM, N = 256, medians of 5 interleaved
+//! passes; the ratios are per pass): on the scene of `c_examples/soft_shadows.c`
+//! (torus and sphere over a floor, 2,562 triangles, 4,096 floor receivers) the
+//! hierarchy takes 2.8–3.5 µs per receiver over light tips 0.17, 0.7 and
+//! 1.4 rad (12–20 candidate edges per query, 1,553–2,281 nodes, 0.5–0.65 MiB,
+//! built lazily in the first pass), 19–22× faster than tracing the 256 rays
+//! with `BvhScene`, 4.1–8.4× faster than the hemicube; on the bunny over a floor
+//! (3,676 triangles, 4,096 receivers) 1.7–2.9 µs (9–17 candidates, ~4,000
+//! nodes, 1.3–1.4 MiB), 17–28× the rays and 4.6–10× the hemicube; on a
+//! 7,040-triangle bumpy sphere (256 penumbra receivers) 9–27 µs (35–54
+//! candidates, 1.5–1.8 MiB; the 27 µs passes were the loaded ones: 8.9× the
+//! rays there, 26× in the quieter pass), 1.7–11× the hemicube. All structures
+//! gave identical bits on every bench scene.
 //!
 //! Queries allocate nothing: per-sample counters live on the stack (at most
-//! [`MAX_SAMPLES`] samples, about 28 KiB of stack per query).
+//! [`MAX_SAMPLES`] samples, 4 KiB of stack per query); the samples are read
+//! from an `f64` structure of arrays made at creation.
 
 mod edges;
 mod hemicube;
@@ -161,7 +157,8 @@ pub struct SsvOptions {
     /// The candidate-edge structure.
     pub structure: Structure,
     /// Hierarchy: a node with more edges than this is subdivided when a query
-    /// reaches it (default 64).
+    /// reaches it and the split pays (the children's mean list is at most 3/4
+    /// of the node's; otherwise it stays a leaf) (default 32).
     pub leaf_edges: u32,
     /// Hierarchy: deepest level (default 12).
     pub max_depth: u32,
@@ -179,7 +176,7 @@ impl Default for SsvOptions {
     fn default() -> Self {
         SsvOptions {
             structure: Structure::Hierarchy,
-            leaf_edges: 64,
+            leaf_edges: 32,
             max_depth: 12,
             root_bounds: None,
             hemicube_resolution: 64,
@@ -381,6 +378,12 @@ pub struct SoftShadows {
     /// Largest distance of a sample from the light's plane.
     sample_offset: f64,
     shape_diameter: f64,
+    /// Sample coordinates in angular order (`order`), widened to `f64` once
+    /// (exact), structure of arrays for the per-sample loop.
+    soa: [Vec<f64>; 3],
+    /// Componentwise bounds of the samples (exact `f64` of `f32`).
+    sample_lo: DVec3,
+    sample_hi: DVec3,
 }
 
 const _: () = {
@@ -516,7 +519,20 @@ impl SoftShadows {
         keyed.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
         let angles: Vec<f64> = keyed.iter().map(|k| k.0).collect();
         let order: Vec<u32> = keyed.iter().map(|k| k.1).chain(central).collect();
+        let soa = [0, 1, 2].map(|axis| {
+            order
+                .iter()
+                .map(|&o| f64::from(samples[o as usize][axis]))
+                .collect::<Vec<f64>>()
+        });
+        let (sample_lo, sample_hi) = samples.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), s| (lo.min(s.as_dvec3()), hi.max(s.as_dvec3())),
+        );
         let mut this = SoftShadows {
+            soa,
+            sample_lo,
+            sample_hi,
             order,
             angles,
             u_axis,
@@ -718,23 +734,24 @@ impl SoftShadows {
         let mut counters = [0i32; MAX_SAMPLES];
         let counters = &mut counters[..n];
         self.sweep(p, counters, &mut info);
-        let (min_index, &min) = counters
-            .iter()
-            .enumerate()
-            .min_by_key(|&(_, &r)| r)
-            .expect("at least one sample");
+        // The least counter, then its first sample (the same sample as a
+        // first-minimum scan): two simple passes the compiler vectorises.
+        let min = counters.iter().copied().min().expect("at least one sample");
+        let min_index = counters.iter().position(|&r| r == min).unwrap_or(0);
         info.rays = 1;
         if self.reference_blocked(p, self.samples[self.order[min_index] as usize]) {
             return Ok(info);
         }
-        // Counters are in angular order; bits in the caller's order.
-        for (k, &r) in counters.iter().enumerate() {
-            let i = self.order[k] as usize;
-            if r == min && !self.near_blocked(p, self.samples[i]) {
+        // Counters are in angular order; bits in the caller's order. Samples
+        // are only looked at when near-light triangles need the exact test.
+        let check_near = !self.near_light.is_empty();
+        for (&r, &o) in counters.iter().zip(&self.order) {
+            let i = o as usize;
+            if r == min && !(check_near && self.near_blocked(p, self.samples[i])) {
                 bits[i / 64] |= 1 << (i % 64);
-                info.visible += 1;
             }
         }
+        info.visible = bits.iter().map(|w| w.count_ones()).sum();
         Ok(info)
     }
 
@@ -742,7 +759,11 @@ impl SoftShadows {
     /// (`counters[k]` belongs to sample `order[k]`), from the structure's
     /// candidates (every potential edge for [`Structure::RayTrace`]).
     fn sweep(&self, p: Vec3, counters: &mut [i32], info: &mut QueryInfo) {
-        let mut kernel = Kernel::new(self, p);
+        self.sweep_with(Kernel::new(self, p), counters, info);
+    }
+
+    fn sweep_with(&self, mut kernel: Kernel<'_>, counters: &mut [i32], info: &mut QueryInfo) {
+        let p = kernel.p;
         let mut visit = |e: u32| {
             info.candidates += 1;
             if kernel.add_edge(self, &self.graph.edges[e as usize], counters) {
@@ -913,14 +934,16 @@ impl SoftShadows {
     }
 }
 
-/// Per-receiver state of the depth-complexity integration: samples relative to
-/// the receiver, in `f64`, on the stack.
-struct Kernel {
+/// Per-receiver state of the depth-complexity integration. A sample relative
+/// to the receiver is `s - p` rounded once in `f64` (computed where it is
+/// used, from the shared structure of arrays: nothing per sample is written
+/// per receiver).
+struct Kernel<'a> {
     p: Vec3,
     pw: DVec3,
-    sx: [f64; MAX_SAMPLES],
-    sy: [f64; MAX_SAMPLES],
-    sz: [f64; MAX_SAMPLES],
+    sx: &'a [f64],
+    sy: &'a [f64],
+    sz: &'a [f64],
     /// Componentwise largest |s - p| (for the error bounds).
     smax: DVec3,
     /// Centroid relative to the receiver.
@@ -931,6 +954,11 @@ struct Kernel {
     /// The receiver's side of the light plane as a direction: the sweep happens
     /// in front of p along it.
     toward: DVec3,
+    /// Tests only: every sample through the per-sample `test` (the slow twin
+    /// of the branch-free pass).
+    slow: bool,
+    /// Tests only: samples the fast pass left unsure so far.
+    unsure: u32,
 }
 
 #[inline]
@@ -938,28 +966,27 @@ fn wide(v: Vec3) -> [f64; 3] {
     [f64::from(v.x), f64::from(v.y), f64::from(v.z)]
 }
 
-impl Kernel {
-    fn new(ss: &SoftShadows, p: Vec3) -> Self {
+impl<'a> Kernel<'a> {
+    fn new(ss: &'a SoftShadows, p: Vec3) -> Self {
         let pw = p.as_dvec3();
+        // Rounding is monotone, so the largest |fl(s - p)| over the samples is
+        // reached at the samples' componentwise bounds: the same value as the
+        // maximum over every sample.
+        let smax = (ss.sample_lo - pw).abs().max((ss.sample_hi - pw).abs());
         let mut k = Kernel {
             p,
             pw,
-            sx: [0.0; MAX_SAMPLES],
-            sy: [0.0; MAX_SAMPLES],
-            sz: [0.0; MAX_SAMPLES],
-            smax: DVec3::ZERO,
+            sx: &ss.soa[0],
+            sy: &ss.soa[1],
+            sz: &ss.soa[2],
+            smax,
             cp: ss.centroid.as_dvec3() - pw,
             lights: [DVec3::ZERO; MAX_LIGHT_VERTICES],
             light_count: ss.shape.vertices.len(),
             toward: ss.plane_normal * (ss.plane_point - pw).dot(ss.plane_normal).signum(),
+            slow: false,
+            unsure: 0,
         };
-        for (i, &o) in ss.order.iter().enumerate() {
-            let d = ss.samples[o as usize].as_dvec3() - pw;
-            k.sx[i] = d.x;
-            k.sy[i] = d.y;
-            k.sz[i] = d.z;
-            k.smax = k.smax.max(d.abs());
-        }
         for (i, v) in ss.shape.vertices.iter().enumerate() {
             k.lights[i] = *v - pw;
         }
@@ -1057,7 +1084,11 @@ impl Kernel {
         // Rounding of the four-term sum, on top of each term's own bound.
         const SUM_BOUND: f64 = 4.0 * f64::EPSILON;
         let test = |i: usize| -> bool {
-            let (x, y, z) = (self.sx[i], self.sy[i], self.sz[i]);
+            let (x, y, z) = (
+                self.sx[i] - self.pw.x,
+                self.sy[i] - self.pw.y,
+                self.sz[i] - self.pw.z,
+            );
             let vs = nrm.x * x + nrm.y * y + nrm.z * z;
             let fs = sign(vs, err_n);
             if fs == Some(!want) {
@@ -1098,15 +1129,79 @@ impl Kernel {
             }
             true
         };
-        let n = counters.len();
-        match self.arc(ss, aw, bw) {
-            None => {
-                for (i, counter) in counters.iter_mut().enumerate() {
+        // The fast pass: every sample of a range classified branch-free from
+        // the certified float signs (`test`'s float half, with the wanted side
+        // folded into a factor of ±1, which is exact): certainly crossing
+        // (counted here), certainly not, or unsure (some sign within its bound
+        // and no certain rejection). Unsure samples, rare, then go through
+        // `test` (exact signs where the bounds do not settle them), so the
+        // counts are exactly `test`'s for every sample.
+        let g = if want { 1.0 } else { -1.0 };
+        let err_base = err_c + err_n + err_a + err_b;
+        let (px, py, pz) = (self.pw.x, self.pw.y, self.pw.z);
+        #[inline(always)]
+        fn classify(
+            v: [f64; 3],
+            planes: &[DVec3; 3],
+            errs: [f64; 4],
+            det: f64,
+            g: f64,
+        ) -> (bool, bool) {
+            let [nrm, amat, bmat] = planes;
+            let [err_n, err_a, err_b, err_base] = errs;
+            let [x, y, z] = v;
+            let vs = nrm.x * x + nrm.y * y + nrm.z * z;
+            let va = amat.x * x + amat.y * y + amat.z * z;
+            let vb = bmat.x * x + bmat.y * y + bmat.z * z;
+            let vo = det - vs + va - vb;
+            let err_o = err_base + SUM_BOUND * (det.abs() + vs.abs() + va.abs() + vb.abs());
+            let (sg, og) = (vs * g, vo * g);
+            let (a_pos, a_neg) = (va > err_a, va < -err_a);
+            let (b_pos, b_neg) = (vb > err_b, vb < -err_b);
+            let hit = (sg > err_n) & (og > err_o) & ((a_pos & b_neg) | (a_neg & b_pos));
+            let reject = (sg < -err_n) | (og < -err_o) | (a_pos & b_pos) | (a_neg & b_neg);
+            (hit, reject)
+        }
+        let planes = [nrm, amat, bmat];
+        let errs = [err_n, err_a, err_b, err_base];
+        let (sx, sy, sz) = (self.sx, self.sy, self.sz);
+        let slow = self.slow;
+        let mut unsure_count = 0u32;
+        let mut run = |lo: usize, hi: usize, counters: &mut [i32]| {
+            if slow {
+                for (i, c) in counters.iter_mut().enumerate().take(hi).skip(lo) {
                     if test(i) {
-                        *counter += contribution;
+                        *c += contribution;
+                    }
+                }
+                return;
+            }
+            let mut unsure = false;
+            let range = lo..hi;
+            let (xs, ys, zs) = (&sx[range.clone()], &sy[range.clone()], &sz[range.clone()]);
+            let cs = &mut counters[range];
+            for (k, c) in cs.iter_mut().enumerate() {
+                let v = [xs[k] - px, ys[k] - py, zs[k] - pz];
+                let (hit, reject) = classify(v, &planes, errs, det, g);
+                *c += if hit { contribution } else { 0 };
+                unsure |= !(hit | reject);
+            }
+            if unsure {
+                for i in lo..hi {
+                    let v = [sx[i] - px, sy[i] - py, sz[i] - pz];
+                    let (hit, reject) = classify(v, &planes, errs, det, g);
+                    if !(hit | reject) {
+                        unsure_count += 1;
+                        if test(i) {
+                            counters[i] += contribution;
+                        }
                     }
                 }
             }
+        };
+        let n = counters.len();
+        match self.arc(ss, aw, bw) {
+            None => run(0, n, counters),
             Some((lo, hi)) => {
                 // Samples by pseudo-angle about the centroid: those in the arc
                 // (a cyclic range), then those too close to the centroid for an
@@ -1114,20 +1209,16 @@ impl Kernel {
                 let angled = ss.angles.len();
                 let first = ss.angles.partition_point(|&t| t < lo);
                 let last = ss.angles.partition_point(|&t| t <= hi);
-                let mut visit = |i: usize| {
-                    if test(i) {
-                        counters[i] += contribution;
-                    }
-                };
                 if lo <= hi {
-                    (first..last).for_each(&mut visit);
+                    run(first, last, counters);
                 } else {
-                    (first..angled).for_each(&mut visit);
-                    (0..last).for_each(&mut visit);
+                    run(first, angled, counters);
+                    run(0, last, counters);
                 }
-                (angled..n).for_each(&mut visit);
+                run(angled, n, counters);
             }
         }
+        self.unsure += unsure_count;
         true
     }
 

@@ -188,3 +188,185 @@ pub(crate) fn box_may_see_silhouette(graph: &EdgeGraph, edge: &Edge, bx: &Aabb) 
     }
     weight != 0
 }
+
+/// [`box_meets_wedge`] for the eight octants of `parent` at once (bit `i`:
+/// octant `i`, [`Aabb::octant`]), sharing each direction's wedge extent among
+/// them. Each octant's own reach bounds its rays; the slack uses the parent's
+/// scale (at least the octant's), so a bit is clear only where the single-box
+/// test would also say no, up to that larger slack.
+pub(crate) fn octants_meeting_wedge(light: &LightShape, a: DVec3, b: DVec3, parent: &Aabb) -> u8 {
+    let (pc, ph) = (parent.center(), parent.half());
+    let scale = a.abs().max(b.abs()).max(pc.abs() + ph).max_element().max(
+        light
+            .vertices
+            .iter()
+            .fold(0.0f64, |m, v| m.max(v.abs().max_element())),
+    );
+    let slack = SLACK * scale + light.tolerance;
+    let children: [Aabb; 8] = core::array::from_fn(|i| parent.octant(i));
+    let l0 = light.vertices[0];
+    let (ha, hb) = (light.normal.dot(a - l0), light.normal.dot(b - l0));
+    let reach: [f64; 8] = core::array::from_fn(|i| {
+        let (c, h) = (children[i].center(), children[i].half());
+        let (hbox_mid, hbox_rad) = (light.normal.dot(c - l0), light.normal.abs().dot(h));
+        if ha > slack && hb > slack {
+            (hbox_mid + hbox_rad).max(0.0) / ha.min(hb)
+        } else if ha < -slack && hb < -slack {
+            (-(hbox_mid - hbox_rad)).max(0.0) / (-ha.max(hb))
+        } else {
+            f64::INFINITY
+        }
+    });
+    let mut mask = 0xFFu8;
+    let separate = |n: DVec3, mask: &mut u8| {
+        let len = n.length();
+        if len.is_nan() || len <= 0.0 {
+            return;
+        }
+        let n = n / len;
+        let (ea, eb) = (n.dot(a), n.dot(b));
+        let (emin, emax) = (ea.min(eb), ea.max(eb));
+        let (mut lmin, mut lmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for v in &light.vertices {
+            let d = n.dot(*v);
+            lmin = lmin.min(d);
+            lmax = lmax.max(d);
+        }
+        let climb = (emax - lmin + slack).max(0.0);
+        let fall = (lmax - emin + slack).max(0.0);
+        let brad = n.abs().dot(children[0].half());
+        for (i, child) in children.iter().enumerate() {
+            if *mask >> i & 1 == 0 {
+                continue;
+            }
+            let hi = if climb == 0.0 {
+                emax
+            } else {
+                emax + reach[i] * climb
+            };
+            let lo = if fall == 0.0 {
+                emin
+            } else {
+                emin - reach[i] * fall
+            };
+            let bmid = n.dot(child.center());
+            if bmid - brad > hi + slack || bmid + brad < lo - slack {
+                *mask &= !(1 << i);
+            }
+        }
+    };
+    for n in [DVec3::X, DVec3::Y, DVec3::Z, light.normal] {
+        separate(n, &mut mask);
+        if mask == 0 {
+            return 0;
+        }
+    }
+    let k = light.vertices.len();
+    for i in 0..k {
+        let (l0, l1) = (light.vertices[i], light.vertices[(i + 1) % k]);
+        for n in [
+            (b - a).cross(l0 - a),
+            (l1 - l0).cross(a - l0),
+            (l1 - l0).cross(b - l0),
+        ] {
+            separate(n, &mut mask);
+            if mask == 0 {
+                return 0;
+            }
+        }
+    }
+    mask
+}
+
+/// [`box_may_see_silhouette`] for the eight octants of `parent` at once (bit
+/// `i`: octant `i`), the same test per octant.
+pub(crate) fn octants_seeing_silhouette(graph: &EdgeGraph, edge: &Edge, parent: &Aabb) -> u8 {
+    let p = |i: u32| graph.positions[i as usize].as_dvec3();
+    let (a, b) = (p(edge.a), p(edge.b));
+    let children: [Aabb; 8] = core::array::from_fn(|i| parent.octant(i));
+    let mut weight = [0i32; 8];
+    let mut open = 0u8;
+    for &v in graph.third_of(edge) {
+        let n = (b - a).cross(p(v) - a);
+        for (i, child) in children.iter().enumerate() {
+            if open >> i & 1 == 1 {
+                continue;
+            }
+            let (c, h) = (child.center(), child.half());
+            let mid = n.dot(c - a);
+            let rad = n.abs().dot(h);
+            let slack = SLACK * n.abs().dot((c - a).abs() + h + b.abs() + a.abs());
+            if mid - rad > slack {
+                weight[i] += 1;
+            } else if mid + rad < -slack {
+                weight[i] -= 1;
+            } else {
+                open |= 1 << i;
+            }
+        }
+    }
+    (0..8).fold(open, |m, i| m | u8::from(weight[i] != 0) << i)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::SplitMix64;
+    use super::*;
+    use glam::Vec3;
+
+    /// The eight-octant masks against the single-box tests on random edges,
+    /// lights and boxes: the silhouette mask is the same test per octant
+    /// (equal), the wedge mask may only keep more (its slack uses the parent's
+    /// scale), and it keeps every octant the single-box test keeps.
+    #[test]
+    fn octant_masks_agree_with_single_boxes() {
+        let mut rng = SplitMix64::new(11);
+        let mut r = |lo: f32, hi: f32| lo + (hi - lo) * rng.unit() as f32;
+        let (mut kept, mut extra) = (0usize, 0usize);
+        for _ in 0..400 {
+            let mut v = || Vec3::new(r(-1.0, 1.0), r(-1.0, 1.0), r(0.5, 2.0));
+            let (a, b, c, d) = (v(), v(), v(), v());
+            let graph = EdgeGraph::new([[a, b, c], [b, a, d]].into_iter());
+            let (z, tilt, size) = (r(2.5, 4.0), r(-1.0, 1.0), r(0.1, 1.0));
+            let light = LightShape {
+                vertices: [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                    .iter()
+                    .map(|&(x, y): &(f64, f64)| {
+                        let x = x * f64::from(size);
+                        DVec3::new(x, y * f64::from(size), f64::from(z) + x * f64::from(tilt))
+                    })
+                    .collect(),
+                normal: DVec3::new(-f64::from(tilt), 0.0, 1.0).normalize(),
+                tolerance: 1e-6,
+            };
+            let lo = DVec3::new(f64::from(r(-3.0, 1.0)), f64::from(r(-3.0, 1.0)), -1.0);
+            let parent = Aabb {
+                min: lo,
+                max: lo + DVec3::splat(f64::from(r(0.05, 3.0))),
+            };
+            for edge in &graph.edges {
+                let (pa, pb) = (
+                    graph.positions[edge.a as usize].as_dvec3(),
+                    graph.positions[edge.b as usize].as_dvec3(),
+                );
+                let sil = octants_seeing_silhouette(&graph, edge, &parent);
+                let wedge = octants_meeting_wedge(&light, pa, pb, &parent);
+                for i in 0..8 {
+                    let child = parent.octant(i);
+                    assert_eq!(
+                        sil >> i & 1 == 1,
+                        box_may_see_silhouette(&graph, edge, &child)
+                    );
+                    let single = box_meets_wedge(&light, pa, pb, &child);
+                    let bit = wedge >> i & 1 == 1;
+                    assert!(bit || !single, "octant {i} dropped, single box keeps it");
+                    kept += usize::from(single);
+                    extra += usize::from(bit && !single);
+                }
+            }
+        }
+        // The tests are not vacuous, and the shared slack rarely keeps more.
+        assert!(kept > 1000, "{kept}");
+        assert!(extra * 100 <= kept, "{extra} of {kept}");
+    }
+}

@@ -40,10 +40,6 @@ const BUNNY_ALBEDO: Vec3 = Vec3::new(0.80, 0.78, 0.74);
 const FLOOR_ALBEDO: Vec3 = Vec3::splat(0.55);
 /// Constant ambient irradiance relative to the light's direct term at the floor's centre.
 const AMBIENT: f32 = 0.06;
-/// Hierarchy depth limit: the default (12) lets the lazy octree grow to over a
-/// million nodes (about 2 GiB, minutes) under a picture's dense receivers, because
-/// nodes near the bunny keep more than `leaf_edges` candidates down to the limit.
-const MAX_DEPTH: u32 = 7;
 /// Radiance of pixels that see nothing.
 const BACKGROUND: Vec3 = Vec3::new(0.015, 0.016, 0.02);
 
@@ -111,7 +107,6 @@ impl SsvStage {
         let make = |structure| {
             let options = SsvOptions {
                 structure,
-                max_depth: MAX_DEPTH,
                 ..SsvOptions::default()
             };
             SoftShadows::new(&view, light.clone(), &samples, options)
