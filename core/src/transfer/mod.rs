@@ -142,7 +142,7 @@ mod tests;
 use alloc::vec::Vec;
 use core::fmt;
 
-pub use engine::{MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_serial};
+pub use engine::{BakeRay, MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_rays, bake_serial};
 pub use format::FormatError;
 pub use mrt::{
     Brdf, BrdfInfo, MrtTap, PhongBrdf, WardBrdf, hemi_oct_decode, hemi_oct_encode, mrt_tap,
@@ -150,8 +150,8 @@ pub use mrt::{
 };
 pub use pca::{Pca, PcaError, PcaLevel};
 pub use shade::{
-    GlossyLobe, Material, ShadeError, View, lighting_from_sh_rgb, shade_diffuse, shade_glossy_sh,
-    shade_glossy_sh_reference, shade_mrt, shade_mrt_pca, shade_mrt_reference,
+    GlossyLobe, Material, ShLighting, ShadeError, View, lighting_from_sh_rgb, shade_diffuse,
+    shade_glossy_sh, shade_glossy_sh_reference, shade_mrt, shade_mrt_pca, shade_mrt_reference,
 };
 
 /// Which measurement a transfer set holds (also its code in bake files).
@@ -368,7 +368,18 @@ pub struct TransferSet {
     pub(crate) info: BakeInfo,
     pub(crate) positions: Vec<[f32; 3]>,
     pub(crate) normals: Vec<[f32; 3]>,
+    /// [`Frame::from_normal`](crate::Frame::from_normal) of every normal, built
+    /// once with the set so that shading does not rebuild a frame per vertex.
+    pub(crate) frames: Vec<crate::Frame>,
     pub(crate) payload: Payload,
+}
+
+/// The vertex frames of unit normals (the bake's and the run time's).
+pub(crate) fn frames_of(normals: &[[f32; 3]]) -> Vec<crate::Frame> {
+    normals
+        .iter()
+        .map(|n| crate::Frame::from_normal(glam::Vec3::from_array(*n)))
+        .collect()
 }
 
 impl TransferSet {

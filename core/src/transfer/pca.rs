@@ -421,6 +421,7 @@ impl TransferSet {
             info: self.info,
             positions: self.positions.clone(),
             normals: self.normals.clone(),
+            frames: self.frames.clone(),
             payload: Payload::Dense(Vec::new()),
         }
     }
