@@ -289,6 +289,21 @@ pub fn shade_mrt(
     with_coeff_count!(n, mrt_n, (matrix, lighting, tap))
 }
 
+/// `row · lighting` per channel for a row of a supported square length (the
+/// vectorised form of [`shade_diffuse`]); zero for another length.
+#[inline]
+pub(crate) fn row_dot(row: &[f32], lighting: &ShLighting) -> Vec3 {
+    with_coeff_count!(row.len(), row_dot_n, (row, lighting))
+}
+
+#[inline(always)]
+fn row_dot_n<const N: usize>(row: &[f32], lighting: &ShLighting) -> Vec3 {
+    match row.first_chunk::<N>() {
+        Some(r) => blend_dot([r], [1.0], &lighting.planes),
+        None => Vec3::ZERO,
+    }
+}
+
 /// The PCA weights of one vertex blended at a tap: `Σ_nodes w (r_0 + Σ_k c_k r_k)`
 /// (the second half of [`shade_mrt_pca`]); zero for a node past `frame_terms`.
 #[inline(always)]
