@@ -3,7 +3,7 @@
 //! same rays, and PCA error and memory against the component count — all measured
 //! in one run on one mesh, so the ratios compare like with like.
 //!
-//! Shading is timed two ways, one thread, the eye at a fixed point: through
+//! Every time is the median of several repeats. Shading is timed two ways, one thread, the eye at a fixed point: through
 //! `TransferSet::shade` over every vertex (the batch call: it also builds each
 //! vertex's frame and view direction), and through the per-vertex kernels
 //! (`shade_diffuse`, `shade_glossy_sh`, `shade_mrt`, `shade_mrt_pca`) with the
@@ -41,6 +41,19 @@ const EXPONENT: f32 = 32.0;
 
 /// Seed of the bakes.
 const SEED: u64 = 7;
+
+/// Repeats of every timing; the median is reported (the machine may be shared).
+const REPEATS: u32 = 7;
+
+/// The median over [`REPEATS`] runs of [`time_per_call`], each for
+/// `min_time / REPEATS`.
+fn median_time(min_time: Duration, mut work: impl FnMut()) -> Duration {
+    let mut times: Vec<Duration> = (0..REPEATS)
+        .map(|_| time_per_call(min_time / REPEATS, &mut work))
+        .collect();
+    times.sort();
+    times[times.len() / 2]
+}
 
 /// Runs the benchmark.
 pub fn run(args: &BenchTransferArgs) -> Result<()> {
@@ -87,7 +100,12 @@ fn ray_throughput(mesh: &TriangleMesh, args: &BenchTransferArgs, min_time: Durat
     let bands = args.bands.first().copied().unwrap_or(4);
     let diffuse = config(Kind::Diffuse, bands, args)?;
     let _ = prt::bake_mesh(mesh, &diffuse, true, None)?; // warm-up
-    let serial = prt::bake_mesh(mesh, &diffuse, true, None)?;
+    // The median of three one-thread bakes.
+    let mut serials = (0..3)
+        .map(|_| prt::bake_mesh(mesh, &diffuse, true, None))
+        .collect::<Result<Vec<_>>>()?;
+    serials.sort_by_key(|b| b.elapsed);
+    let serial = serials.swap_remove(1);
     let parallel = prt::bake_mesh(mesh, &diffuse, false, None)?;
     let bake_serial = serial.rays_cast as f64 / serial.elapsed.as_secs_f64();
     let bake_parallel = parallel.rays_cast as f64 / parallel.elapsed.as_secs_f64();
@@ -101,7 +119,7 @@ fn ray_throughput(mesh: &TriangleMesh, args: &BenchTransferArgs, min_time: Durat
         )));
     }
     let bvh = BvhScene::new(&mesh.view()).map_err(|e| Error::msg(e.to_string()))?;
-    let elapsed = time_per_call(min_time, || {
+    let elapsed = median_time(min_time, || {
         for ray in &rays {
             black_box(bvh.occluded(black_box(ray)));
         }
@@ -197,7 +215,7 @@ fn time_shade(
     let mut out = vec![[0.0f32; 3]; set.vertex_count()];
     set.shade(lighting, View::Eye(eye), &material, components, &mut out)
         .map_err(|e| Error::msg(format!("cannot shade: {e}")))?;
-    let elapsed = time_per_call(min_time, || {
+    let elapsed = median_time(min_time, || {
         let _ = set.shade(
             black_box(lighting),
             View::Eye(eye),
@@ -244,12 +262,12 @@ fn kernel_costs(
     let planar = ShLighting::new(lighting).ok_or_else(|| Error::msg("too many coefficients"))?;
     let per_vertex = |elapsed: Duration| elapsed.as_secs_f64() * 1e9 / vertices.max(1) as f64;
     let mut out = Vec::new();
-    out.push(per_vertex(time_per_call(min_time, || {
+    out.push(per_vertex(median_time(min_time, || {
         for block in d.chunks_exact(n) {
             black_box(shade_diffuse(black_box(block), lighting));
         }
     })));
-    out.push(per_vertex(time_per_call(min_time, || {
+    out.push(per_vertex(median_time(min_time, || {
         for (v, block) in g.chunks_exact(n * n).enumerate() {
             black_box(shade_glossy_sh(
                 black_box(block),
@@ -262,7 +280,7 @@ fn kernel_costs(
     })));
     let len = mrt.block_len();
     let grid = mrt.grid();
-    out.push(per_vertex(time_per_call(min_time, || {
+    out.push(per_vertex(median_time(min_time, || {
         for (v, block) in m.chunks_exact(len).enumerate() {
             black_box(shade_mrt(
                 black_box(block),
@@ -279,7 +297,7 @@ fn kernel_costs(
     let baked = pca.components();
     for &k in ks {
         let mut terms = vec![[0.0f32; 3]; pca.frame_terms_len(k)];
-        out.push(per_vertex(time_per_call(min_time, || {
+        out.push(per_vertex(median_time(min_time, || {
             pca.frame_terms(lighting, k, &mut terms);
             for v in 0..vertices {
                 let w = &pca.weights()[v * baked..v * baked + k];

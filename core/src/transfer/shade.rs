@@ -1,9 +1,11 @@
 //! Run-time shading of transfer sets: per-vertex kernels for the three kinds and
 //! the compressed MRT form, and the batch [`TransferSet::shade`].
 //!
-//! Every kernel takes lighting as `bands²` RGB triples and returns one RGB value;
-//! none allocates. Each fast kernel has a slow, obviously right twin it is tested
-//! against (`*_reference`).
+//! Every kernel takes lighting as `bands²` RGB coefficients and returns one RGB
+//! value; none allocates. The glossy SH and MRT kernels take it split per channel
+//! ([`ShLighting`], built once per frame) so that their dot products vectorise;
+//! each fast kernel has a slow, obviously right twin it is tested against
+//! (`*_reference`, coefficient-major `[[f32; 3]]` lighting, serial sums).
 
 use alloc::vec;
 use core::fmt;
@@ -364,9 +366,9 @@ pub fn shade_mrt_reference(
 /// MRT from its PCA (P2 §4): `frame_terms` are the per-frame products
 /// ([`Pca::frame_terms`](super::Pca::frame_terms)) for `components` components,
 /// laid out node-major (`grid² × (components + 1)` RGB triples, the mean's first);
-/// `weights` the vertex's first `components` PCA weights. Per vertex
-/// `4 (components + 1)` RGB multiply-adds. Zero for a viewer behind the surface or
-/// slices too short.
+/// `weights` the vertex's first `components` PCA weights; `to_eye` of any length.
+/// Per vertex `4 (components + 1)` RGB multiply-adds. Zero for a viewer behind the
+/// surface or slices too short.
 #[inline]
 pub fn shade_mrt_pca(
     weights: &[f32],
@@ -554,7 +556,11 @@ impl TransferSet {
     /// MRT set compressed with PCA, `components` (clamped to the baked count; `None`
     /// = all) selects how many are used. Allocates one per-frame buffer for the
     /// compressed form, nothing per vertex; vertices run on rayon's pool with the
-    /// `parallel` feature. On error `out` is untouched.
+    /// `parallel` feature. Per call the lighting is split per channel; per vertex
+    /// the set's cached frame is used, and MRT takes the raw view vector (its map
+    /// is scale-invariant) and computes the taps of a block of vertices before
+    /// reading their rows. Each vertex's value is that of the kernels given
+    /// [`Frame::from_normal`] of its normal. On error `out` is untouched.
     pub fn shade(
         &self,
         lighting: &[[f32; 3]],
