@@ -133,9 +133,12 @@
 //! closest-hit bounce (SH work included); before the fixed-band gather 1.13 M and
 //! 1.09 M in the same session. `antumbra bench transfer` casts exactly the
 //! bake's rays ([`bake_rays`]) through obvhs and Embree: on the built-in bunny,
-//! 64 rays per vertex, one thread, the bake ran 1.76 M rays/s, obvhs alone
-//! 1.93 M, Embree 3.11 M (bake / Embree 0.57: within the 2× goal; the rest is
-//! the BVH's `occluded`). Compare figures only within one run.
+//! 64 rays per vertex, one thread, three runs gave bake / obvhs alone 0.89, 0.91,
+//! 0.89 (the bake loop's own cost is ~10 % of its time) and bake / Embree 0.54,
+//! 0.57 and 0.29 (e.g. 1.76 M vs 1.93 M vs 3.11 M rays/s; Embree is timed in its
+//! own process, so the shared machine's load hits the two differently): within
+//! the 2× goal in two runs of three, and what remains is the BVH's `occluded`.
+//! Compare figures only within one run.
 
 mod engine;
 pub mod format;
