@@ -129,6 +129,28 @@ pub fn unit_normals(mesh: &TriangleMesh) -> Vec<Vec3> {
         .collect()
 }
 
+/// The core options of a bake of `mesh` with `config`, without a progress report
+/// (the bake, and `bench transfer` enumerating the bake's rays, share them).
+pub fn bake_options<'a>(mesh: &TriangleMesh, config: &'a BakeConfig) -> BakeOptions<'a> {
+    let measurement = match config.kind {
+        Kind::Diffuse => Measurement::Diffuse,
+        Kind::GlossySh => Measurement::GlossySh,
+        Kind::Mrt => Measurement::Mrt {
+            grid: config.grid,
+            brdf: config.brdf.as_dyn(),
+        },
+    };
+    BakeOptions {
+        bands: config.bands,
+        rays: config.rays,
+        bounces: config.bounces,
+        albedo: config.albedo,
+        ray_offset: OFFSET_OF_DIAGONAL * mesh.bounds().diagonal(),
+        seed: config.seed,
+        ..BakeOptions::new(measurement)
+    }
+}
+
 /// Bakes `mesh` (on all cores, or one with `serial`), advancing `bar` by one per
 /// vertex pass when given.
 pub fn bake_mesh(
@@ -145,23 +167,9 @@ pub fn bake_mesh(
             bar.inc(1);
         }
     };
-    let measurement = match config.kind {
-        Kind::Diffuse => Measurement::Diffuse,
-        Kind::GlossySh => Measurement::GlossySh,
-        Kind::Mrt => Measurement::Mrt {
-            grid: config.grid,
-            brdf: config.brdf.as_dyn(),
-        },
-    };
     let options = BakeOptions {
-        bands: config.bands,
-        rays: config.rays,
-        bounces: config.bounces,
-        albedo: config.albedo,
-        ray_offset: OFFSET_OF_DIAGONAL * mesh.bounds().diagonal(),
-        seed: config.seed,
         progress: Some(&progress),
-        ..BakeOptions::new(measurement)
+        ..bake_options(mesh, config)
     };
     let started = Instant::now();
     let set = if serial {

@@ -2,12 +2,14 @@
 //! the same run:
 //!
 //! - per-vertex shading (`shade/*`, 32 (in cache) or 2,048 vertices per iteration, one view and one
-//!   random normal per vertex, RGB lighting) at 3, 4 and 5 bands: diffuse PRT (a
+//!   random normal per vertex, RGB lighting) at 4, 5 and 6 bands: diffuse PRT (a
 //!   dot product), glossy SH transfer (the 2002 baseline: view-first `(Tᵀw)·l`, and
 //!   the textbook form `T·l` per channel), MRT 12×12 (four rows blended) and MRT
 //!   from its PCA at K = 4, 8 and 16 (per vertex only; the per-frame products are
 //!   `pca_frame_terms`). MRT's cost does not depend on the grid size (always four
 //!   rows), only its memory does.
+//! - the batch entry `TransferSet::shade` (`shade_batch/*`) at 4, 5 and 6 bands on
+//!   a 2,112-vertex mesh: what an engine pays per vertex, per-call work included.
 //! - bake throughput (`bake/*`): rays per second through the obvhs BVH on a
 //!   4,000-triangle bumpy sphere, occlusion rays only (0 bounces) and with one
 //!   closest-hit bounce, one thread.
@@ -18,8 +20,8 @@ use antumbra_core::Frame;
 use antumbra_core::MeshView;
 use antumbra_core::raycast::BvhScene;
 use antumbra_core::transfer::{
-    BakeOptions, GlossyLobe, Measurement, Pca, PhongBrdf, bake_serial, shade_diffuse,
-    shade_glossy_sh, shade_glossy_sh_reference, shade_mrt, shade_mrt_pca,
+    BakeOptions, GlossyLobe, Measurement, Pca, PhongBrdf, ShLighting, bake_serial, mrt_tap,
+    shade_diffuse, shade_glossy_sh, shade_glossy_sh_reference, shade_mrt, shade_mrt_pca,
 };
 use glam::Vec3;
 use rand::{Rng, SeedableRng, rngs::SmallRng};
@@ -39,6 +41,8 @@ struct Inputs {
     frames: Vec<Frame>,
     views: Vec<Vec3>,
     lighting: Vec<[f32; 3]>,
+    /// The same lighting split per channel (built once per frame by a renderer).
+    planar: ShLighting,
     data: Vec<f32>,
 }
 
@@ -67,13 +71,15 @@ fn inputs(n: usize, block: usize, vertices: usize) -> Inputs {
             (if v.dot(nrm) < 0.0 { -v } else { v } + 0.2 * nrm).normalize()
         })
         .collect();
+    let lighting: Vec<[f32; 3]> = (0..n)
+        .map(|_| [rng.random(), rng.random(), rng.random()])
+        .collect();
     Inputs {
         frames: normals.iter().map(|&n| Frame::from_normal(n)).collect(),
         normals,
         views,
-        lighting: (0..n)
-            .map(|_| [rng.random(), rng.random(), rng.random()])
-            .collect(),
+        planar: ShLighting::new(&lighting).unwrap(),
+        lighting,
         data: (0..vertices * block)
             .map(|_| rng.random_range(-1.0..1.0))
             .collect(),
@@ -84,7 +90,7 @@ fn inputs(n: usize, block: usize, vertices: usize) -> Inputs {
 mod shade {
     use super::*;
 
-    #[divan::bench(consts = [9, 16, 25], args = VERTEX_COUNTS)]
+    #[divan::bench(consts = [16, 25, 36], args = VERTEX_COUNTS)]
     fn diffuse<const N: usize>(bencher: divan::Bencher<'_, '_>, vertices: usize) {
         let inp = inputs(N, N, vertices);
         bencher
@@ -98,7 +104,7 @@ mod shade {
             });
     }
 
-    #[divan::bench(consts = [9, 16, 25], args = VERTEX_COUNTS)]
+    #[divan::bench(consts = [16, 25, 36], args = VERTEX_COUNTS)]
     fn glossy_sh<const N: usize>(bencher: divan::Bencher<'_, '_>, vertices: usize) {
         let inp = inputs(N, N * N, vertices);
         let bands = (N as f32).sqrt() as u32;
@@ -111,7 +117,7 @@ mod shade {
                     acc += shade_glossy_sh(
                         &inp.data[v * N * N..(v + 1) * N * N],
                         &lobe,
-                        &inp.lighting,
+                        &inp.planar,
                         inp.normals[v],
                         inp.views[v],
                     );
@@ -120,7 +126,7 @@ mod shade {
             });
     }
 
-    #[divan::bench(consts = [9, 16, 25], args = VERTEX_COUNTS)]
+    #[divan::bench(consts = [16, 25, 36], args = VERTEX_COUNTS)]
     fn glossy_sh_textbook<const N: usize>(bencher: divan::Bencher<'_, '_>, vertices: usize) {
         let inp = inputs(N, N * N, vertices);
         let bands = (N as f32).sqrt() as u32;
@@ -142,7 +148,7 @@ mod shade {
             });
     }
 
-    #[divan::bench(consts = [9, 16, 25], args = VERTEX_COUNTS)]
+    #[divan::bench(consts = [16, 25, 36], args = VERTEX_COUNTS)]
     fn mrt<const N: usize>(bencher: divan::Bencher<'_, '_>, vertices: usize) {
         let block = (GRID * GRID) as usize * N;
         let inp = inputs(N, block, vertices);
@@ -154,10 +160,28 @@ mod shade {
                     acc += shade_mrt(
                         &inp.data[v * block..(v + 1) * block],
                         GRID,
-                        &inp.lighting,
+                        &inp.planar,
                         &inp.frames[v],
                         inp.views[v],
                     );
+                }
+                divan::black_box(acc)
+            });
+    }
+
+    /// The view-dependent part of MRT alone: view to local frame, hemi-octahedral
+    /// cell, four node indices and weights.
+    #[divan::bench(args = VERTEX_COUNTS)]
+    fn mrt_tap_only(bencher: divan::Bencher<'_, '_>, vertices: usize) {
+        let inp = inputs(1, 1, vertices);
+        bencher
+            .counter(divan::counter::ItemsCount::new(vertices))
+            .bench_local(|| {
+                let mut acc = 0.0f32;
+                for v in 0..vertices {
+                    if let Some(t) = mrt_tap(GRID, inp.frames[v].to_local(inp.views[v])) {
+                        acc += t.weights[0] + t.nodes[3] as f32;
+                    }
                 }
                 divan::black_box(acc)
             });
@@ -255,6 +279,79 @@ mod bake_group {
     #[divan::bench]
     fn one_bounce_rays(bencher: divan::Bencher<'_, '_>) {
         run(bencher, 1);
+    }
+}
+
+/// The batch entry `TransferSet::shade` (what the C ABI and the CLI call) over a
+/// 2,112-vertex bumpy sphere, one thread, eye outside: per-vertex cost including
+/// the per-call work (lighting split, PCA frame terms) and the view vectors.
+#[divan::bench_group(name = "shade_batch", sample_count = 30)]
+mod shade_batch {
+    use super::*;
+    use antumbra_core::transfer::{Material, TransferSet, View};
+
+    fn set(measurement: Measurement<'_>, bands: u32) -> TransferSet {
+        let (positions, indices, normals) = bumpy_sphere(32, 64);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let bvh = BvhScene::new(&mesh).unwrap();
+        let options = BakeOptions {
+            bands,
+            rays: 4,
+            ray_offset: 1e-3,
+            ..BakeOptions::new(measurement)
+        };
+        bake_serial(&mesh, &normals, &bvh, &options).unwrap()
+    }
+
+    fn run(bencher: divan::Bencher<'_, '_>, set: &TransferSet, k: Option<usize>) {
+        let n = set.coeff_count();
+        let lighting: Vec<[f32; 3]> = (0..n).map(|i| [0.5, 0.4, 0.3 / (i + 1) as f32]).collect();
+        let mut out = vec![[0.0f32; 3]; set.vertex_count()];
+        let material = Material::default();
+        bencher
+            .counter(divan::counter::ItemsCount::new(set.vertex_count()))
+            .bench_local(|| {
+                set.shade(
+                    &lighting,
+                    View::Eye([0.3, 2.5, 3.0]),
+                    &material,
+                    k,
+                    &mut out,
+                )
+                .unwrap();
+                divan::black_box(out[0])
+            });
+    }
+
+    #[divan::bench(args = [4, 5, 6])]
+    fn diffuse(bencher: divan::Bencher<'_, '_>, bands: u32) {
+        run(bencher, &set(Measurement::Diffuse, bands), None);
+    }
+
+    #[divan::bench(args = [4, 5, 6])]
+    fn glossy_sh(bencher: divan::Bencher<'_, '_>, bands: u32) {
+        run(bencher, &set(Measurement::GlossySh, bands), None);
+    }
+
+    #[divan::bench(args = [4, 5, 6])]
+    fn mrt(bencher: divan::Bencher<'_, '_>, bands: u32) {
+        let brdf = PhongBrdf::new(16.0).unwrap();
+        let m = Measurement::Mrt {
+            grid: GRID,
+            brdf: &brdf,
+        };
+        run(bencher, &set(m, bands), None);
+    }
+
+    /// MRT from its PCA with K = 4 (per-frame products included).
+    #[divan::bench(args = [4, 5, 6])]
+    fn mrt_pca_k4(bencher: divan::Bencher<'_, '_>, bands: u32) {
+        let brdf = PhongBrdf::new(16.0).unwrap();
+        let m = Measurement::Mrt {
+            grid: GRID,
+            brdf: &brdf,
+        };
+        run(bencher, &set(m, bands).compress(4).unwrap(), Some(4));
     }
 }
 

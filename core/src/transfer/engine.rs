@@ -31,7 +31,7 @@ use super::rng::{Sampling, SplitMix64, Stratified, hemisphere_direction};
 use super::{BakeError, BakeOptions, Measurement, Payload, TransferKind, TransferSet};
 use crate::geom::{Frame, MeshView};
 use crate::raycast::{Ray, RayCaster};
-use crate::sh::{MAX_BANDS, MAX_COEFFS, eval_basis_into};
+use crate::sh::{MAX_BANDS, eval_basis};
 
 /// Largest ray count per vertex and pass.
 pub const MAX_RAYS: u32 = 1 << 22;
@@ -71,6 +71,31 @@ fn validate(
     normals: &[Vec3],
     options: &BakeOptions<'_>,
 ) -> Result<usize, BakeError> {
+    validate_options(options)?;
+    if normals.len() != mesh.vertex_count() {
+        return Err(BakeError::NormalCount {
+            normals: normals.len(),
+            vertices: mesh.vertex_count(),
+        });
+    }
+    if mesh.vertex_count() > u32::MAX as usize {
+        return Err(BakeError::TooManyVertices(mesh.vertex_count()));
+    }
+    for (index, n) in normals.iter().enumerate() {
+        if !unit_normal(*n) {
+            return Err(BakeError::Normal { index });
+        }
+    }
+    Ok((options.bands * options.bands) as usize)
+}
+
+/// What [`bake`] accepts as a normal.
+fn unit_normal(n: Vec3) -> bool {
+    n.is_finite() && (n.length() - 1.0).abs() < 1e-3
+}
+
+/// The checks of [`validate`] that do not look at the mesh.
+fn validate_options(options: &BakeOptions<'_>) -> Result<(), BakeError> {
     if !(1..=MAX_BANDS as u32).contains(&options.bands) {
         return Err(BakeError::Bands(options.bands));
     }
@@ -91,21 +116,97 @@ fn validate(
             return Err(BakeError::Grid(grid));
         }
     }
-    if normals.len() != mesh.vertex_count() {
-        return Err(BakeError::NormalCount {
-            normals: normals.len(),
-            vertices: mesh.vertex_count(),
-        });
+    Ok(())
+}
+
+/// The hemisphere sampling of a measurement: cosine-weighted for diffuse transfer
+/// (irradiance only), uniform for the projections.
+fn sampling_of(measurement: &Measurement<'_>) -> Sampling {
+    match measurement {
+        Measurement::Diffuse => Sampling::Cosine,
+        Measurement::GlossySh | Measurement::Mrt { .. } => Sampling::Uniform,
     }
-    if mesh.vertex_count() > u32::MAX as usize {
-        return Err(BakeError::TooManyVertices(mesh.vertex_count()));
+}
+
+/// One ray a bake casts: the ray (world) and its direction in the vertex frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BakeRay {
+    /// The ray, from the vertex position moved `ray_offset` along the normal, with
+    /// `t_max = ∞`. Pass 0 casts it with [`RayCaster::occluded`], later passes with
+    /// [`RayCaster::closest_hit`].
+    pub ray: Ray,
+    /// Its direction in the vertex frame ([`Frame::from_normal`] of the normal;
+    /// `z ≥ 0`, unit).
+    pub local: Vec3,
+}
+
+/// Calls `f` with exactly the rays [`bake`] casts from one vertex in pass `pass`
+/// (0 = direct light; `k ≥ 1` = bounce `k`), in the order it casts them: the
+/// vertex at `position` with unit `normal`, `vertex` its index in the mesh (it
+/// selects the random stream), `options` those of the bake. The engine draws its
+/// rays through the same function, so the two cannot drift apart; benchmarks use
+/// it to cast the bake's own rays through other ray casters.
+///
+/// Errors: the option errors of [`bake`], and [`BakeError::Normal`] (with index
+/// `vertex`) for a normal that is not finite and unit. `pass` above
+/// `options.bounces` is allowed (the bake would not cast those rays).
+pub fn bake_rays(
+    position: Vec3,
+    normal: Vec3,
+    vertex: usize,
+    pass: u32,
+    options: &BakeOptions<'_>,
+    mut f: impl FnMut(&BakeRay),
+) -> Result<(), BakeError> {
+    validate_options(options)?;
+    if !unit_normal(normal) {
+        return Err(BakeError::Normal { index: vertex });
     }
-    for (index, n) in normals.iter().enumerate() {
-        if !(n.is_finite() && (n.length() - 1.0).abs() < 1e-3) {
-            return Err(BakeError::Normal { index });
+    for_each_ray(
+        position,
+        normal,
+        options.ray_offset,
+        options.seed,
+        vertex,
+        pass,
+        options.rays,
+        sampling_of(&options.measurement),
+        |r| {
+            f(r);
+            true
+        },
+    );
+    Ok(())
+}
+
+/// The rays of one vertex and pass, in cast order: stratified `(u, v)` from the
+/// vertex's own stream, mapped to the hemisphere by `sampling`, then to the world
+/// by the vertex frame. `f` returning `false` stops early. The one code path of
+/// [`bake`] (through `gather`) and [`bake_rays`].
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn for_each_ray(
+    position: Vec3,
+    normal: Vec3,
+    ray_offset: f32,
+    seed: u64,
+    vertex: usize,
+    pass: u32,
+    rays: u32,
+    sampling: Sampling,
+    mut f: impl FnMut(&BakeRay) -> bool,
+) {
+    let frame = Frame::from_normal(normal);
+    let origin = position + normal * ray_offset;
+    let mut rng = SplitMix64::for_vertex(seed, vertex as u64, u64::from(pass));
+    let mut strata = Stratified::new(rays);
+    while let Some((u, v)) = strata.next(&mut rng) {
+        let local = hemisphere_direction(sampling, u, v);
+        let ray = Ray::new(origin, frame.to_world(local), f32::INFINITY);
+        if !f(&BakeRay { ray, local }) {
+            return;
         }
     }
-    Ok((options.bands * options.bands) as usize)
 }
 
 /// Bakes a transfer set: every vertex of `mesh` with its unit normal, rays cast
@@ -143,21 +244,12 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
 ) -> Result<TransferSet, BakeError> {
     let coeffs = validate(mesh, normals, options)?;
     let vertices = mesh.vertex_count();
-    let (kind, projection, sampling, grid) = match options.measurement {
-        Measurement::Diffuse => (TransferKind::Diffuse, Projection::None, Sampling::Cosine, 0),
-        Measurement::GlossySh => (
-            TransferKind::GlossySh,
-            Projection::World,
-            Sampling::Uniform,
-            0,
-        ),
-        Measurement::Mrt { grid, .. } => (
-            TransferKind::Mrt,
-            Projection::Local,
-            Sampling::Uniform,
-            grid,
-        ),
+    let (kind, projection, grid) = match options.measurement {
+        Measurement::Diffuse => (TransferKind::Diffuse, Projection::None, 0),
+        Measurement::GlossySh => (TransferKind::GlossySh, Projection::World, 0),
+        Measurement::Mrt { grid, .. } => (TransferKind::Mrt, Projection::Local, grid),
     };
+    let sampling = sampling_of(&options.measurement);
     // The BRDF matrix first: it is cheap next to the rays, and a BRDF that gives
     // non-finite values is refused before any ray is cast.
     let brdf_nodes = match options.measurement {
@@ -195,8 +287,8 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
             previous: &previous,
         };
         let progress = options.progress;
-        let work = |vertex: usize, irr: &mut [f32], meas: &mut [f32], scratch: &mut Scratch| {
-            gather(&ctx, vertex, irr, meas, scratch);
+        let work = |vertex: usize, irr: &mut [f32], meas: &mut [f32]| {
+            gather(&ctx, vertex, irr, meas);
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             if let Some(progress) = progress {
                 progress(d, total);
@@ -238,6 +330,7 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
     } else {
         measured
     };
+    let normals: Vec<[f32; 3]> = normals.iter().map(|n| n.to_array()).collect();
     Ok(TransferSet {
         kind,
         bands: options.bands,
@@ -252,29 +345,13 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
             },
         },
         positions: (0..vertices).map(|v| mesh.position(v).to_array()).collect(),
-        normals: normals.iter().map(|n| n.to_array()).collect(),
+        frames: super::frames_of(&normals),
+        normals,
         payload: Payload::Dense(data),
     })
 }
 
-/// Per-thread buffers for one vertex.
-struct Scratch {
-    basis: [f32; MAX_COEFFS],
-    local_basis: [f32; MAX_COEFFS],
-    contribution: [f32; MAX_COEFFS],
-}
-
-impl Scratch {
-    fn new() -> Self {
-        Scratch {
-            basis: [0.0; MAX_COEFFS],
-            local_basis: [0.0; MAX_COEFFS],
-            contribution: [0.0; MAX_COEFFS],
-        }
-    }
-}
-
-type VertexWork<'a> = dyn Fn(usize, &mut [f32], &mut [f32], &mut Scratch) + Sync + 'a;
+type VertexWork<'a> = dyn Fn(usize, &mut [f32], &mut [f32]) + Sync + 'a;
 
 /// Runs `work(vertex, irradiance_chunk, measured_chunk)` for every vertex.
 fn run_vertices(
@@ -293,19 +370,16 @@ fn run_vertices(
             .par_chunks_mut(irr_len)
             .zip(measured.par_chunks_mut(meas_len))
             .enumerate()
-            .for_each_init(Scratch::new, |scratch, (v, (irr, meas))| {
-                work(v, irr, meas, scratch)
-            });
+            .for_each(|(v, (irr, meas))| work(v, irr, meas));
         return;
     }
     let _ = parallel;
-    let mut scratch = Scratch::new();
     for (v, (irr, meas)) in irradiance
         .chunks_mut(irr_len)
         .zip(measured.chunks_mut(meas_len))
         .enumerate()
     {
-        work(v, irr, meas, &mut scratch);
+        work(v, irr, meas);
     }
 }
 
@@ -331,85 +405,97 @@ fn map_vertices(
 }
 
 /// One pass over one vertex: writes its irradiance transfer `E_pass` and adds the
-/// pass's projection to `measured`.
+/// pass's projection to `measured`. Dispatches to [`gather_n`] compiled for the
+/// coefficient count, so the SH basis per ray is the fixed-band evaluation and the
+/// accumulations are fixed-size loops.
 fn gather<C: RayCaster + ?Sized>(
     ctx: &PassContext<'_, C>,
     vertex: usize,
     irradiance: &mut [f32],
     measured: &mut [f32],
-    scratch: &mut Scratch,
 ) {
-    let n = ctx.coeffs;
-    let normal = ctx.normals[vertex];
-    let frame = Frame::from_normal(normal);
-    let origin = ctx.mesh.position(vertex) + normal * ctx.ray_offset;
-    let mut rng = SplitMix64::for_vertex(ctx.seed, vertex as u64, u64::from(ctx.pass));
-    let mut strata = Stratified::new(ctx.rays);
+    match ctx.coeffs {
+        1 => gather_n::<C, 1>(ctx, vertex, irradiance, measured),
+        4 => gather_n::<C, 4>(ctx, vertex, irradiance, measured),
+        9 => gather_n::<C, 9>(ctx, vertex, irradiance, measured),
+        16 => gather_n::<C, 16>(ctx, vertex, irradiance, measured),
+        25 => gather_n::<C, 25>(ctx, vertex, irradiance, measured),
+        36 => gather_n::<C, 36>(ctx, vertex, irradiance, measured),
+        49 => gather_n::<C, 49>(ctx, vertex, irradiance, measured),
+        64 => gather_n::<C, 64>(ctx, vertex, irradiance, measured),
+        // `validate` admits only 1..=MAX_BANDS bands.
+        n => unreachable!("{n} coefficients"),
+    }
+}
+
+fn gather_n<C: RayCaster + ?Sized, const N: usize>(
+    ctx: &PassContext<'_, C>,
+    vertex: usize,
+    irradiance: &mut [f32],
+    measured: &mut [f32],
+) {
+    let Some(irradiance) = irradiance.first_chunk_mut::<N>() else {
+        return;
+    };
     let count = ctx.rays as f32;
     let albedo_over_pi = ctx.albedo / PI;
-    while let Some((u, v)) = strata.next(&mut rng) {
-        let local = hemisphere_direction(ctx.sampling, u, v);
-        let world = frame.to_world(local);
-        let contribution = &mut scratch.contribution[..n];
-        if ctx.pass == 0 {
-            if ctx.caster.occluded(&Ray::new(origin, world, f32::INFINITY)) {
-                continue;
-            }
-            // The lighting basis itself: column j of the transfer sees Y_j(ω).
-            let _ = eval_basis_into(world, contribution);
-        } else {
-            let Some(hit) = ctx
-                .caster
-                .closest_hit(&Ray::new(origin, world, f32::INFINITY))
-            else {
-                continue;
+    // Projection of incident radiance on Y_i (uniform sampling, 2π/N).
+    let w = 2.0 * PI / count;
+    for_each_ray(
+        ctx.mesh.position(vertex),
+        ctx.normals[vertex],
+        ctx.ray_offset,
+        ctx.seed,
+        vertex,
+        ctx.pass,
+        ctx.rays,
+        ctx.sampling,
+        |cast| {
+            let (world, local) = (cast.ray.direction, cast.local);
+            let contribution: [f32; N] = if ctx.pass == 0 {
+                if ctx.caster.occluded(&cast.ray) {
+                    return true;
+                }
+                // The lighting basis itself: column j of the transfer sees Y_j(ω).
+                eval_basis::<N>(world)
+            } else {
+                let Some(hit) = ctx.caster.closest_hit(&cast.ray) else {
+                    return true;
+                };
+                let [a, b, c] = ctx.mesh.triangle_indices(hit.triangle as usize);
+                let (a, b, c) = (a as usize, b as usize, c as usize);
+                let (wa, wb, wc) = (1.0 - hit.u - hit.v, hit.u, hit.v);
+                let hit_normal = wa * ctx.normals[a] + wb * ctx.normals[b] + wc * ctx.normals[c];
+                if hit_normal.dot(world) >= 0.0 {
+                    // The back of a surface: its outgoing radiance is not modelled.
+                    return true;
+                }
+                let corner = |i: usize| ctx.previous[i * N..].first_chunk::<N>();
+                let (Some(ea), Some(eb), Some(ec)) = (corner(a), corner(b), corner(c)) else {
+                    return true;
+                };
+                core::array::from_fn(|j| albedo_over_pi * (wa * ea[j] + wb * eb[j] + wc * ec[j]))
             };
-            let [a, b, c] = ctx.mesh.triangle_indices(hit.triangle as usize);
-            let (a, b, c) = (a as usize, b as usize, c as usize);
-            let (wa, wb, wc) = (1.0 - hit.u - hit.v, hit.u, hit.v);
-            let hit_normal = wa * ctx.normals[a] + wb * ctx.normals[b] + wc * ctx.normals[c];
-            if hit_normal.dot(world) >= 0.0 {
-                // The back of a surface: its outgoing radiance is not modelled.
-                continue;
+            // Irradiance: ∫ L cos θ dω.
+            let w_irr = match ctx.sampling {
+                Sampling::Cosine => PI / count,
+                Sampling::Uniform => 2.0 * PI * local.z / count,
+            };
+            for (e, c) in irradiance.iter_mut().zip(&contribution) {
+                *e += w_irr * c;
             }
-            let (ea, eb, ec) = (
-                &ctx.previous[a * n..(a + 1) * n],
-                &ctx.previous[b * n..(b + 1) * n],
-                &ctx.previous[c * n..(c + 1) * n],
-            );
-            for j in 0..n {
-                contribution[j] = albedo_over_pi * (wa * ea[j] + wb * eb[j] + wc * ec[j]);
+            let basis = match ctx.projection {
+                Projection::None => return true,
+                Projection::World => eval_basis::<N>(world),
+                Projection::Local => eval_basis::<N>(local),
+            };
+            for (row, &yi) in measured.chunks_exact_mut(N).zip(&basis) {
+                let s = w * yi;
+                for (t, c) in row.iter_mut().zip(&contribution) {
+                    *t += s * c;
+                }
             }
-        }
-        // Irradiance: ∫ L cos θ dω.
-        let w_irr = match ctx.sampling {
-            Sampling::Cosine => PI / count,
-            Sampling::Uniform => 2.0 * PI * local.z / count,
-        };
-        for (e, c) in irradiance.iter_mut().zip(contribution.iter()) {
-            *e += w_irr * c;
-        }
-        // Projection of incident radiance on Y_i (uniform sampling, 2π/N).
-        let w = 2.0 * PI / count;
-        let basis: &[f32] = match ctx.projection {
-            Projection::None => continue,
-            Projection::World => {
-                let _ = eval_basis_into(world, &mut scratch.basis[..n]);
-                &scratch.basis[..n]
-            }
-            Projection::Local => {
-                let _ = eval_basis_into(local, &mut scratch.local_basis[..n]);
-                &scratch.local_basis[..n]
-            }
-        };
-        for (i, &yi) in basis.iter().enumerate() {
-            let s = w * yi;
-            for (t, c) in measured[i * n..(i + 1) * n]
-                .iter_mut()
-                .zip(contribution.iter())
-            {
-                *t += s * c;
-            }
-        }
-    }
+            true
+        },
+    );
 }

@@ -421,6 +421,7 @@ impl TransferSet {
                 },
             },
             positions,
+            frames: super::frames_of(&normals),
             normals,
             payload,
         })

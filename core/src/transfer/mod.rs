@@ -105,29 +105,40 @@
 //!   ([`TransferSet::pca_levels`]).
 //!
 //! Cost (`cargo bench -p antumbra-core --features bvh --bench transfer`, one thread
-//! of a shared 2-core Xeon VM; ns per vertex, data in cache (32 vertices) / streamed
-//! (2,048 vertices), RGB, 25 coefficients unless noted):
+//! of a shared 2-core Xeon VM, divan medians, ns per vertex, RGB; the batch is
+//! [`TransferSet::shade`] over a 2,112-vertex mesh with its per-call work, the
+//! kernels are the per-vertex functions with frames and views precomputed, data in
+//! cache (32 vertices) / streamed (2,048)):
 //!
-//! | kernel                                   | 9 coeffs | 16 coeffs | 25 coeffs      |
-//! |------------------------------------------|----------|-----------|----------------|
-//! | diffuse PRT                              | 5.3      | 8.3       | 12.7 / 12.2    |
-//! | glossy SH, textbook `T·l` per channel    | 66       | 173       | 399 / 430      |
-//! | glossy SH, view-first `(Tᵀw)·l`          | 46       | 54        | 84 / 113       |
-//! | MRT 12×12                                | 34       | 43        | 41 / 75        |
-//! | MRT from PCA, K = 4 / 8 / 16 (streamed)  |          |           | 34 / 43 / 56   |
+//! | 4 / 5 / 6 bands                     | batch `shade`      | kernel, in cache   | kernel, streamed    |
+//! |-------------------------------------|--------------------|--------------------|---------------------|
+//! | diffuse PRT                         | 7.8 / 12.5 / 16.4  | 7.7 / 12.0 / 17.1  | 7.5 / 11.6 / 16.9   |
+//! | glossy SH, view-first `(Tᵀw)·l`     | 20.7 / 40.9 / 88.2 | 30.8 / 64.2 / 99.6 | 32.6 / 106 / 214    |
+//! | glossy SH, textbook `T·l`           |                    | 170 / 383 / 771    | 170 / 422 / 870     |
+//! | MRT 12×12                           | 10.3 / 13.1 / 13.9 | 32.3 / 37.2 / 38.9 | 36.8 / 59.2 / 77.5  |
+//! | MRT from PCA, K = 4                 | 13.9 / 14.4 / 14.8 | 31.6 (5 bands)     |                     |
 //!
-//! So MRT is 9.7× cheaper per vertex than the textbook glossy SH transfer (the
-//! 2002 baseline as published, three matrix-vector products) at 25 coefficients,
-//! but only 2.0× (in cache) to 1.5× (streamed) cheaper than the view-first glossy
-//! form, which folds the BRDF into one vector before the matrix: the design's 5×
-//! target holds against the former, not the latter. MRT's time is dominated by a
-//! fixed ~30 ns (frame, hemi-octahedral cell, four row addresses), not by its 7n
-//! multiply-adds. Per frame, PCA adds `K + 1` products of a `G² × n` matrix with the
-//! lighting: 8.5 / 15 / 30 µs at K = 4 / 8 / 16 (12×12, 25 coefficients). Bake
-//! throughput through the obvhs BVH on a 4,096-triangle bumpy sphere, one thread:
-//! 1.9 M occlusion rays/s (0 bounces), 1.65 M rays/s with one closest-hit bounce
-//! (including the SH work per ray); on this shared machine a later run measured
-//! 0.7 M rays/s, so compare only within one run.
+//! Through the batch entry, MRT is 2.0× / 3.1× / 6.3× cheaper per vertex than the
+//! view-first glossy SH transfer at 4 / 5 / 6 bands (PCA K = 4: 1.5× / 2.8× /
+//! 6.0×), and 29× cheaper than the textbook form at 5 bands; the design's 5×
+//! holds from 6 bands on, not at 5. Per vertex, MRT's cost is not its `7n`
+//! multiply-adds but a fixed part: the view's tap (frame, hemi-octahedral cell:
+//! ~13 ns alone in a loop) and four rows read at view-dependent places (14 KB
+//! per vertex at 12×12 and 25 coefficients, so streamed from memory). The batch
+//! computes the taps of 32 vertices before reading rows, which overlaps those
+//! chains; the single-vertex kernel cannot (37 ns in cache). Per frame, PCA adds
+//! `K + 1` products of a `G² × n` matrix with the lighting: 4.4 µs at K = 4
+//! (12×12, 25 coefficients). Bake (`bake/*`, 4,096-triangle bumpy sphere, 3 bands,
+//! one thread): 1.43 M occlusion rays/s (0 bounces), 1.48 M rays/s with one
+//! closest-hit bounce (SH work included); before the fixed-band gather 1.13 M and
+//! 1.09 M in the same session. `antumbra bench transfer` casts exactly the
+//! bake's rays ([`bake_rays`]) through obvhs and Embree: on the built-in bunny,
+//! 64 rays per vertex, one thread, three runs gave bake / obvhs alone 0.89, 0.91,
+//! 0.89 (the bake loop's own cost is ~10 % of its time) and bake / Embree 0.54,
+//! 0.57 and 0.29 (e.g. 1.76 M vs 1.93 M vs 3.11 M rays/s; Embree is timed in its
+//! own process, so the shared machine's load hits the two differently): within
+//! the 2× goal in two runs of three, and what remains is the BVH's `occluded`.
+//! Compare figures only within one run.
 
 mod engine;
 pub mod format;
@@ -142,7 +153,7 @@ mod tests;
 use alloc::vec::Vec;
 use core::fmt;
 
-pub use engine::{MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_serial};
+pub use engine::{BakeRay, MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_rays, bake_serial};
 pub use format::FormatError;
 pub use mrt::{
     Brdf, BrdfInfo, MrtTap, PhongBrdf, WardBrdf, hemi_oct_decode, hemi_oct_encode, mrt_tap,
@@ -150,8 +161,8 @@ pub use mrt::{
 };
 pub use pca::{Pca, PcaError, PcaLevel};
 pub use shade::{
-    GlossyLobe, Material, ShadeError, View, lighting_from_sh_rgb, shade_diffuse, shade_glossy_sh,
-    shade_glossy_sh_reference, shade_mrt, shade_mrt_pca, shade_mrt_reference,
+    GlossyLobe, Material, ShLighting, ShadeError, View, lighting_from_sh_rgb, shade_diffuse,
+    shade_glossy_sh, shade_glossy_sh_reference, shade_mrt, shade_mrt_pca, shade_mrt_reference,
 };
 
 /// Which measurement a transfer set holds (also its code in bake files).
@@ -368,7 +379,18 @@ pub struct TransferSet {
     pub(crate) info: BakeInfo,
     pub(crate) positions: Vec<[f32; 3]>,
     pub(crate) normals: Vec<[f32; 3]>,
+    /// [`Frame::from_normal`](crate::Frame::from_normal) of every normal, built
+    /// once with the set so that shading does not rebuild a frame per vertex.
+    pub(crate) frames: Vec<crate::Frame>,
     pub(crate) payload: Payload,
+}
+
+/// The vertex frames of unit normals (the bake's and the run time's).
+pub(crate) fn frames_of(normals: &[[f32; 3]]) -> Vec<crate::Frame> {
+    normals
+        .iter()
+        .map(|n| crate::Frame::from_normal(glam::Vec3::from_array(*n)))
+        .collect()
 }
 
 impl TransferSet {

@@ -165,15 +165,20 @@ pub struct MrtTap {
 }
 
 /// The square coordinates `(a, b) ∈ [-1, 1]²` of a local direction with `z ≥ 0`
-/// (below the horizon, `z` is taken as 0). `None` for a zero or non-finite vector.
+/// (below the horizon, `z` is taken as 0); any length (the map is
+/// scale-invariant). `None` for a zero or non-finite vector, or one whose
+/// `|x| + |y| + z` overflows.
 #[inline]
 pub fn hemi_oct_encode(local: Vec3) -> Option<(f32, f32)> {
+    // Only instructions on the hot path: `abs`, `max` and `clamp` are core's
+    // intrinsics (no libm call), and one division instead of two.
     let z = local.z.max(0.0);
     let sum = local.x.abs() + local.y.abs() + z;
     if !(sum > 0.0 && sum.is_finite()) {
         return None;
     }
-    let (px, py) = (local.x / sum, local.y / sum);
+    let inv = 1.0 / sum;
+    let (px, py) = (local.x * inv, local.y * inv);
     Some(((px + py).clamp(-1.0, 1.0), (px - py).clamp(-1.0, 1.0)))
 }
 
@@ -194,17 +199,19 @@ pub fn node_direction(grid: u32, i: u32, j: u32) -> Vec3 {
 }
 
 /// The hat functions of a `grid × grid` basis (`grid ≥ 2`) at the local direction
-/// `local`; `None` when `local.z ≤ 0` (a viewer behind the surface), the vector is
-/// not finite, or `grid` is outside `2..=65,535` (node indices must fit `u32`).
+/// `local` (any length); `None` when `local.z ≤ 0` (a viewer behind the surface),
+/// the vector is not finite, or `grid` is outside `2..=65,535` (node indices must
+/// fit `u32`).
 #[inline]
 pub fn mrt_tap(grid: u32, local: Vec3) -> Option<MrtTap> {
     if !(2..=0xFFFF).contains(&grid) || local.z.is_nan() || local.z <= 0.0 {
         return None;
     }
     let (a, b) = hemi_oct_encode(local)?;
-    let cells = (grid - 1) as f32;
-    let s = (a + 1.0) * 0.5 * cells;
-    let t = (b + 1.0) * 0.5 * cells;
+    let half = 0.5 * (grid - 1) as f32;
+    let s = (a + 1.0) * half;
+    let t = (b + 1.0) * half;
+    // s, t ∈ [0, G-1]: truncation is the floor, no libm `floorf` needed.
     let i = (s as u32).min(grid - 2);
     let j = (t as u32).min(grid - 2);
     let fx = s - i as f32;

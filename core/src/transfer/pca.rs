@@ -22,6 +22,7 @@ use alloc::vec::Vec;
 use core::fmt;
 
 use super::rng::SplitMix64;
+use super::shade::{ShLighting, row_dot};
 use super::{Payload, TransferKind, TransferSet};
 
 /// Subspace iterations of [`TransferSet::compress`].
@@ -135,6 +136,10 @@ impl Pca {
         if lighting.len() != n || out.len() < self.frame_terms_len(k) {
             return;
         }
+        // Split per channel once, so each row's product vectorises.
+        let Some(planar) = ShLighting::new(lighting) else {
+            return;
+        };
         let stride = k + 1;
         for c in 0..stride {
             let block = if c == 0 {
@@ -144,13 +149,7 @@ impl Pca {
             };
             for g in 0..self.rows {
                 let row = &block[g * n..(g + 1) * n];
-                let mut acc = [0.0f32; 3];
-                for (m, l) in row.iter().zip(lighting) {
-                    acc[0] += m * l[0];
-                    acc[1] += m * l[1];
-                    acc[2] += m * l[2];
-                }
-                out[g * stride + c] = acc;
+                out[g * stride + c] = row_dot(row, &planar).to_array();
             }
         }
     }
@@ -421,6 +420,7 @@ impl TransferSet {
             info: self.info,
             positions: self.positions.clone(),
             normals: self.normals.clone(),
+            frames: self.frames.clone(),
             payload: Payload::Dense(Vec::new()),
         }
     }

@@ -1,14 +1,16 @@
 //! Run-time shading of transfer sets: per-vertex kernels for the three kinds and
 //! the compressed MRT form, and the batch [`TransferSet::shade`].
 //!
-//! Every kernel takes lighting as `bands²` RGB triples and returns one RGB value;
-//! none allocates. Each fast kernel has a slow, obviously right twin it is tested
-//! against (`*_reference`).
+//! Every kernel takes lighting as `bands²` RGB coefficients and returns one RGB
+//! value; none allocates. The glossy SH and MRT kernels take it split per channel
+//! ([`ShLighting`], built once per frame) so that their dot products vectorise;
+//! each fast kernel has a slow, obviously right twin it is tested against
+//! (`*_reference`, coefficient-major `[[f32; 3]]` lighting, serial sums).
 
 use alloc::vec;
 use core::fmt;
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 use super::mrt::{MrtTap, mrt_tap};
 use super::{Payload, TransferKind, TransferSet};
@@ -18,6 +20,90 @@ use crate::sh::{MAX_COEFFS, ShRgb, ZonalKernel, eval_basis, eval_basis_into};
 /// RGB lighting coefficients of an [`ShRgb`], coefficient-major.
 pub fn lighting_from_sh_rgb<const N: usize>(sh: &ShRgb<N>) -> [[f32; 3]; N] {
     core::array::from_fn(|i| [sh.r.coeffs[i], sh.g.coeffs[i], sh.b.coeffs[i]])
+}
+
+/// RGB lighting coefficients split into one plane per channel and zero-padded to
+/// [`MAX_COEFFS`], built once per frame: the layout in which the glossy SH and MRT
+/// kernels' final dot products vectorise (each channel is a contiguous row, where
+/// the coefficient-major `[[f32; 3]]` form interleaves them).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShLighting {
+    coeffs: usize,
+    planes: [[f32; MAX_COEFFS]; 3],
+}
+
+impl ShLighting {
+    /// Splits coefficient-major RGB lighting (`bands²` triples); `None` for more
+    /// than [`MAX_COEFFS`] coefficients.
+    pub fn new(lighting: &[[f32; 3]]) -> Option<Self> {
+        if lighting.len() > MAX_COEFFS {
+            return None;
+        }
+        let mut planes = [[0.0; MAX_COEFFS]; 3];
+        for (j, l) in lighting.iter().enumerate() {
+            for (plane, c) in planes.iter_mut().zip(l) {
+                plane[j] = *c;
+            }
+        }
+        Some(ShLighting {
+            coeffs: lighting.len(),
+            planes,
+        })
+    }
+
+    /// Number of coefficients (the `lighting.len()` it was built from).
+    pub fn coeff_count(&self) -> usize {
+        self.coeffs
+    }
+
+    /// Coefficient `j` as RGB (zero past [`coeff_count`](Self::coeff_count)).
+    pub fn get(&self, j: usize) -> [f32; 3] {
+        if j >= self.coeffs {
+            return [0.0; 3];
+        }
+        [self.planes[0][j], self.planes[1][j], self.planes[2][j]]
+    }
+}
+
+/// Four consecutive values of `s` from `i` as a [`Vec4`] (SSE2 / NEON / simd128
+/// under glam, four scalars elsewhere).
+#[inline(always)]
+fn vec4_at(s: &[f32], i: usize) -> Vec4 {
+    Vec4::new(s[i], s[i + 1], s[i + 2], s[i + 3])
+}
+
+/// `Σ_j (Σ_k w_k rows_k[j]) · planes[c][j]` for the three channels, rows of length
+/// `N`: blend the rows four coefficients at a time (`4N`), then three dot products
+/// (`3N`) with four-lane partial sums (a reassociation of the serial sum). With
+/// one row of weight 1 it is a plain dot product with the planes.
+#[inline(always)]
+fn blend_dot<const N: usize, const R: usize>(
+    rows: [&[f32; N]; R],
+    weights: [f32; R],
+    planes: &[[f32; MAX_COEFFS]; 3],
+) -> Vec3 {
+    let (mut r, mut g, mut b) = (Vec4::ZERO, Vec4::ZERO, Vec4::ZERO);
+    let full = N / 4 * 4;
+    let mut j = 0;
+    while j < full {
+        let mut m = Vec4::ZERO;
+        for (row, w) in rows.iter().zip(weights) {
+            m += w * vec4_at(&row[..], j);
+        }
+        r += m * vec4_at(&planes[0], j);
+        g += m * vec4_at(&planes[1], j);
+        b += m * vec4_at(&planes[2], j);
+        j += 4;
+    }
+    let mut tail = Vec3::ZERO;
+    for j in full..N {
+        let mut m = 0.0;
+        for (row, w) in rows.iter().zip(weights) {
+            m += w * row[j];
+        }
+        tail += m * Vec3::new(planes[0][j], planes[1][j], planes[2][j]);
+    }
+    Vec3::new(r.element_sum(), g.element_sum(), b.element_sum()) + tail
 }
 
 /// `grid² · per_node`, saturating (a huge `grid` then fails every length check).
@@ -97,12 +183,12 @@ fn mirror(normal: Vec3, to_eye: Vec3) -> Option<Vec3> {
 pub fn shade_glossy_sh(
     matrix: &[f32],
     lobe: &GlossyLobe,
-    lighting: &[[f32; 3]],
+    lighting: &ShLighting,
     normal: Vec3,
     to_eye: Vec3,
 ) -> Vec3 {
     let n = lobe.coeffs;
-    if matrix.len() < n * n || lighting.len() < n {
+    if matrix.len() < n * n || lighting.coeffs < n {
         return Vec3::ZERO;
     }
     let Some(r) = mirror(normal, to_eye) else {
@@ -134,10 +220,10 @@ use with_coeff_count;
 fn glossy_n<const N: usize>(
     matrix: &[f32],
     lobe: &GlossyLobe,
-    lighting: &[[f32; 3]],
+    lighting: &ShLighting,
     r: Vec3,
 ) -> Vec3 {
-    let (Some(matrix), Some(lighting)) = (matrix.get(..N * N), lighting.get(..N)) else {
+    let Some(matrix) = matrix.get(..N * N) else {
         return Vec3::ZERO;
     };
     let y = eval_basis::<N>(r);
@@ -148,11 +234,7 @@ fn glossy_n<const N: usize>(
             *uj += w * t;
         }
     }
-    let mut acc = Vec3::ZERO;
-    for (uj, l) in u.iter().zip(lighting) {
-        acc += *uj * rgb(l);
-    }
-    acc
+    blend_dot([&u], [1.0], &lighting.planes)
 }
 
 /// The obvious form of [`shade_glossy_sh`]: per channel the incident radiance
@@ -186,19 +268,21 @@ pub fn shade_glossy_sh_reference(
 
 /// MRT (P2 §3): the view in the vertex frame selects four nodes of the `grid × grid`
 /// hemi-octahedral basis; their rows of `matrix` (`grid² × n`, row-major) are
-/// blended bilinearly and dotted with the lighting, `7n` multiply-adds. `n` is
-/// `lighting.len()`, a square from 1 to 64. Zero for a viewer behind the surface,
-/// another coefficient count, or a matrix shorter than `grid² · n`.
+/// blended bilinearly (`4n`) and the blended row dotted with each channel of the
+/// lighting (`3n`), `7n` multiply-adds. `n` is the lighting's coefficient count, a
+/// square from 1 to 64. `to_eye` need not be unit (the hemi-octahedral map is
+/// scale-invariant). Zero for a viewer behind the surface, another coefficient
+/// count, or a matrix shorter than `grid² · n`.
 #[inline]
 pub fn shade_mrt(
     matrix: &[f32],
     grid: u32,
-    lighting: &[[f32; 3]],
+    lighting: &ShLighting,
     frame: &Frame,
     to_eye: Vec3,
 ) -> Vec3 {
-    let n = lighting.len();
-    if grid < 2 || n > MAX_COEFFS || matrix.len() < node_values(grid, n) {
+    let n = lighting.coeffs;
+    if grid < 2 || matrix.len() < node_values(grid, n) {
         return Vec3::ZERO;
     }
     let Some(tap) = mrt_tap(grid, frame.to_local(to_eye)) else {
@@ -207,26 +291,52 @@ pub fn shade_mrt(
     with_coeff_count!(n, mrt_n, (matrix, lighting, tap))
 }
 
+/// `row · lighting` per channel for a row of a supported square length (the
+/// vectorised form of [`shade_diffuse`]); zero for another length.
+#[inline]
+pub(crate) fn row_dot(row: &[f32], lighting: &ShLighting) -> Vec3 {
+    with_coeff_count!(row.len(), row_dot_n, (row, lighting))
+}
+
 #[inline(always)]
-fn mrt_n<const N: usize>(matrix: &[f32], lighting: &[[f32; 3]], tap: MrtTap) -> Vec3 {
-    let rows = tap
-        .nodes
-        .map(|g| matrix.get(g as usize * N..g as usize * N + N));
-    let ([Some(ra), Some(rb), Some(rc), Some(rd)], Some(lighting)) = (rows, lighting.get(..N))
-    else {
+fn row_dot_n<const N: usize>(row: &[f32], lighting: &ShLighting) -> Vec3 {
+    match row.first_chunk::<N>() {
+        Some(r) => blend_dot([r], [1.0], &lighting.planes),
+        None => Vec3::ZERO,
+    }
+}
+
+/// The PCA weights of one vertex blended at a tap: `Σ_nodes w (r_0 + Σ_k c_k r_k)`
+/// (the second half of [`shade_mrt_pca`]); zero for a node past `frame_terms`.
+#[inline(always)]
+fn pca_at_tap(weights: &[f32], frame_terms: &[[f32; 3]], stride: usize, tap: MrtTap) -> Vec3 {
+    let mut out = Vec3::ZERO;
+    for (node, w) in tap.nodes.iter().zip(tap.weights) {
+        let start = *node as usize * stride;
+        let Some(terms) = frame_terms.get(start..start + stride) else {
+            return Vec3::ZERO;
+        };
+        let mut v = rgb(&terms[0]);
+        for (c, t) in weights.iter().zip(&terms[1..]) {
+            v += *c * rgb(t);
+        }
+        out += w * v;
+    }
+    out
+}
+
+#[inline(always)]
+fn mrt_n<const N: usize>(matrix: &[f32], lighting: &ShLighting, tap: MrtTap) -> Vec3 {
+    // Fixed-size rows: one bounds check each, then unchecked, unrolled loops.
+    let rows = tap.nodes.map(|g| {
+        matrix
+            .get(g as usize * N..)
+            .and_then(|r| r.first_chunk::<N>())
+    });
+    let [Some(ra), Some(rb), Some(rc), Some(rd)] = rows else {
         return Vec3::ZERO;
     };
-    let [wa, wb, wc, wd] = tap.weights;
-    // Blend the rows first (4N, vectorises), then one row dotted with RGB (3N).
-    let mut row = [0.0f32; N];
-    for (j, m) in row.iter_mut().enumerate() {
-        *m = wa * ra[j] + wb * rb[j] + wc * rc[j] + wd * rd[j];
-    }
-    let mut acc = Vec3::ZERO;
-    for (m, l) in row.iter().zip(lighting) {
-        acc += *m * rgb(l);
-    }
-    acc
+    blend_dot([ra, rb, rc, rd], tap.weights, &lighting.planes)
 }
 
 /// The paper's order of [`shade_mrt`]: each of the four rows dotted with the
@@ -256,9 +366,9 @@ pub fn shade_mrt_reference(
 /// MRT from its PCA (P2 §4): `frame_terms` are the per-frame products
 /// ([`Pca::frame_terms`](super::Pca::frame_terms)) for `components` components,
 /// laid out node-major (`grid² × (components + 1)` RGB triples, the mean's first);
-/// `weights` the vertex's first `components` PCA weights. Per vertex
-/// `4 (components + 1)` RGB multiply-adds. Zero for a viewer behind the surface or
-/// slices too short.
+/// `weights` the vertex's first `components` PCA weights; `to_eye` of any length.
+/// Per vertex `4 (components + 1)` RGB multiply-adds. Zero for a viewer behind the
+/// surface or slices too short.
 #[inline]
 pub fn shade_mrt_pca(
     weights: &[f32],
@@ -275,16 +385,7 @@ pub fn shade_mrt_pca(
     let Some(tap) = mrt_tap(grid, frame.to_local(to_eye)) else {
         return Vec3::ZERO;
     };
-    let mut out = Vec3::ZERO;
-    for (node, w) in tap.nodes.iter().zip(tap.weights) {
-        let terms = &frame_terms[*node as usize * stride..(*node as usize + 1) * stride];
-        let mut v = rgb(&terms[0]);
-        for (c, t) in weights[..components].iter().zip(&terms[1..]) {
-            v += *c * rgb(t);
-        }
-        out += w * v;
-    }
-    out
+    pca_at_tap(&weights[..components], frame_terms, stride, tap)
 }
 
 /// Surface parameters applied at run time.
@@ -372,8 +473,9 @@ impl fmt::Display for ShadeError {
 impl core::error::Error for ShadeError {}
 
 /// `out[v] = f(v)` for every vertex, spread over rayon's pool with the `parallel`
-/// feature (each vertex is independent, so the result is the same).
-fn for_each_vertex(out: &mut [[f32; 3]], f: &(dyn Fn(usize) -> Vec3 + Sync)) {
+/// feature (each vertex is independent, so the result is the same). Generic, not
+/// `dyn`, so that the kernel inlines into the loop.
+fn for_each_vertex<F: Fn(usize) -> Vec3 + Sync>(out: &mut [[f32; 3]], f: F) {
     #[cfg(feature = "parallel")]
     {
         use rayon::prelude::*;
@@ -388,12 +490,77 @@ fn for_each_vertex(out: &mut [[f32; 3]], f: &(dyn Fn(usize) -> Vec3 + Sync)) {
     }
 }
 
+/// Vertices per block of the two-phase MRT loops in [`TransferSet::shade`].
+const BLOCK: usize = 32;
+
+/// `f(first_vertex, out_block)` over blocks of [`BLOCK`] vertices, on rayon's pool
+/// with the `parallel` feature.
+fn for_each_block<F: Fn(usize, &mut [[f32; 3]]) + Sync>(out: &mut [[f32; 3]], f: F) {
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        out.par_chunks_mut(BLOCK)
+            .with_min_len(256 / BLOCK)
+            .enumerate()
+            .for_each(|(b, o)| f(b * BLOCK, o));
+    }
+    #[cfg(not(feature = "parallel"))]
+    for (b, o) in out.chunks_mut(BLOCK).enumerate() {
+        f(b * BLOCK, o);
+    }
+}
+
+/// The taps of a block of vertices, computed before any row is read: each tap is
+/// a long dependent chain (frame, division, conversions, row address) but taps of
+/// different vertices are independent, so computed together they overlap instead
+/// of each vertex's row loads waiting on its own chain.
+#[inline(always)]
+fn block_taps(
+    grid: u32,
+    first: usize,
+    count: usize,
+    local: impl Fn(usize) -> Vec3,
+) -> [Option<MrtTap>; BLOCK] {
+    let mut taps = [None; BLOCK];
+    for (i, t) in taps.iter_mut().take(count).enumerate() {
+        *t = mrt_tap(grid, local(first + i));
+    }
+    taps
+}
+
+/// Dense MRT over blocks, compiled for `N` coefficients.
+fn mrt_blocks<const N: usize>(
+    data: &[f32],
+    grid: u32,
+    lighting: &ShLighting,
+    specular: Vec3,
+    local: impl Fn(usize) -> Vec3 + Sync,
+    out: &mut [[f32; 3]],
+) {
+    let len = node_values(grid, N);
+    for_each_block(out, |first, block| {
+        let taps = block_taps(grid, first, block.len(), &local);
+        for (i, (o, tap)) in block.iter_mut().zip(taps).enumerate() {
+            let v = first + i;
+            let c = match (tap, data.get(v * len..(v + 1) * len)) {
+                (Some(tap), Some(m)) => specular * mrt_n::<N>(m, lighting, tap),
+                _ => Vec3::ZERO,
+            };
+            *o = c.to_array();
+        }
+    });
+}
+
 impl TransferSet {
     /// Relights every vertex into `out` (RGB radiance toward the viewer). For an
     /// MRT set compressed with PCA, `components` (clamped to the baked count; `None`
     /// = all) selects how many are used. Allocates one per-frame buffer for the
     /// compressed form, nothing per vertex; vertices run on rayon's pool with the
-    /// `parallel` feature. On error `out` is untouched.
+    /// `parallel` feature. Per call the lighting is split per channel; per vertex
+    /// the set's cached frame is used, and MRT takes the raw view vector (its map
+    /// is scale-invariant) and computes the taps of a block of vertices before
+    /// reading their rows. Each vertex's value is that of the kernels given
+    /// [`Frame::from_normal`] of its normal. On error `out` is untouched.
     pub fn shade(
         &self,
         lighting: &[[f32; 3]],
@@ -428,18 +595,24 @@ impl TransferSet {
             }
             _ => {}
         }
-        let to_eye = |v: usize| -> Vec3 {
-            let d = match view {
+        // Per call: the lighting split per channel. Per vertex: the cached frame
+        // (`TransferSet::frames`) and the raw view vector; MRT needs no unit view
+        // (the hemi-octahedral map is scale-invariant), glossy SH normalises it.
+        let planar = ShLighting::new(lighting).ok_or(ShadeError::LightingLength {
+            expected: n,
+            found: lighting.len(),
+        })?;
+        let view_vector = |v: usize| -> Vec3 {
+            match view {
                 View::Eye(e) => Vec3::from_array(e) - Vec3::from_array(self.positions[v]),
                 View::Directions(d) => Vec3::from_array(d[v]),
-            };
-            d.normalize_or_zero()
+            }
         };
         let specular = Vec3::from_array(material.specular);
         match (&self.payload, self.kind) {
             (Payload::Dense(data), TransferKind::Diffuse) => {
                 let albedo = Vec3::from_array(material.diffuse) / core::f32::consts::PI;
-                for_each_vertex(out, &|v| {
+                for_each_vertex(out, |v| {
                     albedo * shade_diffuse(&data[v * n..(v + 1) * n], lighting)
                 });
             }
@@ -450,29 +623,46 @@ impl TransferSet {
                     },
                 )?;
                 let len = n * n;
-                for_each_vertex(out, &|v| {
-                    let normal = Vec3::from_array(self.normals[v]);
+                for_each_vertex(out, |v| {
+                    let normal = self.frames[v].normal;
                     let block = &data[v * len..(v + 1) * len];
-                    specular * shade_glossy_sh(block, &lobe, lighting, normal, to_eye(v))
+                    let to_eye = view_vector(v).normalize_or_zero();
+                    specular * shade_glossy_sh(block, &lobe, &planar, normal, to_eye)
                 });
             }
             (Payload::Dense(data), TransferKind::Mrt) => {
-                let len = self.block_len();
-                for_each_vertex(out, &|v| {
-                    let frame = Frame::from_normal(Vec3::from_array(self.normals[v]));
-                    let block = &data[v * len..(v + 1) * len];
-                    specular * shade_mrt(block, self.grid, lighting, &frame, to_eye(v))
-                });
+                let local = |v: usize| self.frames[v].to_local(view_vector(v));
+                let args = (data, self.grid, &planar, specular, local, out);
+                match n {
+                    1 => mrt_blocks::<1>(args.0, args.1, args.2, args.3, args.4, args.5),
+                    4 => mrt_blocks::<4>(args.0, args.1, args.2, args.3, args.4, args.5),
+                    9 => mrt_blocks::<9>(args.0, args.1, args.2, args.3, args.4, args.5),
+                    16 => mrt_blocks::<16>(args.0, args.1, args.2, args.3, args.4, args.5),
+                    25 => mrt_blocks::<25>(args.0, args.1, args.2, args.3, args.4, args.5),
+                    36 => mrt_blocks::<36>(args.0, args.1, args.2, args.3, args.4, args.5),
+                    49 => mrt_blocks::<49>(args.0, args.1, args.2, args.3, args.4, args.5),
+                    _ => mrt_blocks::<64>(args.0, args.1, args.2, args.3, args.4, args.5),
+                }
             }
             (Payload::Pca(pca), _) => {
                 let k = components.unwrap_or(usize::MAX).min(pca.components());
                 let mut terms = vec![[0.0f32; 3]; pca.frame_terms_len(k)];
                 pca.frame_terms(lighting, k, &mut terms);
                 let baked = pca.components();
-                for_each_vertex(out, &|v| {
-                    let frame = Frame::from_normal(Vec3::from_array(self.normals[v]));
-                    let w = &pca.weights()[v * baked..v * baked + k];
-                    specular * shade_mrt_pca(w, &terms, k, self.grid, &frame, to_eye(v))
+                let grid = self.grid;
+                for_each_block(out, |first, block| {
+                    let taps = block_taps(grid, first, block.len(), |v| {
+                        self.frames[v].to_local(view_vector(v))
+                    });
+                    for (i, (o, tap)) in block.iter_mut().zip(taps).enumerate() {
+                        let v = first + i;
+                        let w = &pca.weights()[v * baked..v * baked + k];
+                        let c = match tap {
+                            Some(tap) => specular * pca_at_tap(w, &terms, k + 1, tap),
+                            None => Vec3::ZERO,
+                        };
+                        *o = c.to_array();
+                    }
                 });
             }
         }

@@ -16,6 +16,11 @@ use crate::geom::{Frame, MeshView};
 use crate::raycast::{BruteForceCaster, Ray, RayCaster};
 use crate::sh::{ZonalKernel, eval_basis_into};
 
+/// The channel-split lighting of the fast kernels.
+fn sl(lighting: &[[f32; 3]]) -> ShLighting {
+    ShLighting::new(lighting).unwrap()
+}
+
 /// A 5×5-vertex ground square (z = 0, normals +z) of side 4 centred on the origin,
 /// and a box floating above its middle (normals pointing out of the box centre).
 pub(super) struct Scene {
@@ -378,8 +383,8 @@ fn mrt_matches_glossy_sh_within_interpolation_error() {
             let t = glossy.vertex_block(v).unwrap();
             let m = mrt.vertex_block(v).unwrap();
             for view in views(normal, 300) {
-                let g = shade_glossy_sh(t, &lobe, &lighting, normal, view);
-                let r = shade_mrt(m, grid, &lighting, &frame, view);
+                let g = shade_glossy_sh(t, &lobe, &sl(&lighting), normal, view);
+                let r = shade_mrt(m, grid, &sl(&lighting), &frame, view);
                 num += f64::from((g - r).length_squared());
                 den += f64::from(g.length_squared());
             }
@@ -387,8 +392,8 @@ fn mrt_matches_glossy_sh_within_interpolation_error() {
             for j in 1..grid - 1 {
                 for i in 1..grid - 1 {
                     let view = frame.to_world(node_direction(grid, i, j));
-                    let g = shade_glossy_sh(t, &lobe, &lighting, normal, view);
-                    let r = shade_mrt(m, grid, &lighting, &frame, view);
+                    let g = shade_glossy_sh(t, &lobe, &sl(&lighting), normal, view);
+                    let r = shade_mrt(m, grid, &sl(&lighting), &frame, view);
                     node_err = node_err.max((g - r).length() / g.length().max(1e-3));
                 }
             }
@@ -445,7 +450,7 @@ fn anisotropic_ward_mrt_shades_differently_along_its_axes() {
     // Mirror view of the light, and the same view turned 90° about the normal with
     // the light turned likewise: isotropic BRDFs would give the same value.
     let view_x = Vec3::new(-0.7, 0.0, 0.714).normalize();
-    let a = shade_mrt(m, 12, &lighting, &frame, view_x);
+    let a = shade_mrt(m, 12, &sl(&lighting), &frame, view_x);
     let sh_y = ZonalKernel::phong(20.0)
         .unwrap()
         .along::<16>(Vec3::new(0.0, 0.7, 0.714).normalize());
@@ -453,7 +458,7 @@ fn anisotropic_ward_mrt_shades_differently_along_its_axes() {
     let b = shade_mrt(
         m,
         12,
-        &lighting_y,
+        &sl(&lighting_y),
         &frame,
         Vec3::new(0.0, -0.7, 0.714).normalize(),
     );
@@ -482,11 +487,11 @@ fn anisotropic_ward_mrt_shades_differently_along_its_axes() {
     )
     .unwrap();
     let m = iso.vertex_block(0).unwrap();
-    let a = shade_mrt(m, 12, &lighting, &frame, view_x);
+    let a = shade_mrt(m, 12, &sl(&lighting), &frame, view_x);
     let b = shade_mrt(
         m,
         12,
-        &lighting_y,
+        &sl(&lighting_y),
         &frame,
         Vec3::new(0.0, -0.7, 0.714).normalize(),
     );
@@ -513,19 +518,19 @@ fn kernels_match_their_reference_twins() {
         .normalize();
         let frame = Frame::from_normal(normal);
         let to_eye = views(normal, 200)[k];
-        let a = shade_glossy_sh(&matrix, &lobe, &lighting, normal, to_eye);
+        let a = shade_glossy_sh(&matrix, &lobe, &sl(&lighting), normal, to_eye);
         let b = shade_glossy_sh_reference(&matrix, &lobe, &lighting, normal, to_eye);
         assert!((a - b).length() <= 1e-4 * b.length().max(1.0), "{a} {b}");
-        let a = shade_mrt(&mrt, grid, &lighting, &frame, to_eye);
+        let a = shade_mrt(&mrt, grid, &sl(&lighting), &frame, to_eye);
         let b = shade_mrt_reference(&mrt, grid, &lighting, &frame, to_eye);
         assert!((a - b).length() <= 1e-4 * b.length().max(1.0), "{a} {b}");
         // Viewer behind the surface: black on both paths.
         assert_eq!(
-            shade_mrt(&mrt, grid, &lighting, &frame, -normal),
+            shade_mrt(&mrt, grid, &sl(&lighting), &frame, -normal),
             Vec3::ZERO
         );
         assert_eq!(
-            shade_glossy_sh(&matrix, &lobe, &lighting, normal, -normal),
+            shade_glossy_sh(&matrix, &lobe, &sl(&lighting), normal, -normal),
             Vec3::ZERO
         );
     }
@@ -541,6 +546,153 @@ fn small_mrt_set(grid: u32, bands: u32) -> TransferSet {
         ..options(Measurement::Mrt { grid, brdf: &brdf }, bands, 64)
     };
     bake(&mesh, &scene.normals, &caster, &opts).unwrap()
+}
+
+/// A caster that records every ray it is asked about, in order.
+struct Recording<'a> {
+    inner: BruteForceCaster<'a>,
+    rays: std::sync::Mutex<Vec<(Ray, bool)>>,
+}
+
+impl RayCaster for Recording<'_> {
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.rays.lock().unwrap().push((*ray, false));
+        self.inner.occluded(ray)
+    }
+
+    fn closest_hit(&self, ray: &Ray) -> Option<crate::raycast::Hit> {
+        self.rays.lock().unwrap().push((*ray, true));
+        self.inner.closest_hit(ray)
+    }
+}
+
+#[test]
+fn bake_rays_are_exactly_the_rays_the_bake_casts() {
+    let scene = ground_and_box();
+    let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
+    let brdf = PhongBrdf::new(4.0).unwrap();
+    for measurement in [
+        Measurement::Diffuse,
+        Measurement::GlossySh,
+        Measurement::Mrt {
+            grid: 4,
+            brdf: &brdf,
+        },
+    ] {
+        let opts = BakeOptions {
+            bounces: 1,
+            ray_offset: 1e-3,
+            ..options(measurement, 2, 37)
+        };
+        let caster = Recording {
+            inner: BruteForceCaster::new(mesh),
+            rays: std::sync::Mutex::new(Vec::new()),
+        };
+        bake_serial(&mesh, &scene.normals, &caster, &opts).unwrap();
+        let mut enumerated = Vec::new();
+        for pass in 0..=opts.bounces {
+            for v in 0..mesh.vertex_count() {
+                bake_rays(mesh.position(v), scene.normals[v], v, pass, &opts, |r| {
+                    assert!(
+                        (r.ray.direction - Frame::from_normal(scene.normals[v]).to_world(r.local))
+                            .length()
+                            < 1e-6
+                    );
+                    enumerated.push((r.ray, pass > 0));
+                })
+                .unwrap();
+            }
+        }
+        let cast = caster.rays.into_inner().unwrap();
+        assert_eq!(cast.len(), mesh.vertex_count() * 37 * 2);
+        assert!(
+            cast == enumerated,
+            "{measurement:?}: the bake cast other rays"
+        );
+    }
+    // Its own checks: options and the vertex's normal.
+    let opts = options(Measurement::Diffuse, 2, 8);
+    assert_eq!(
+        bake_rays(Vec3::ZERO, Vec3::new(0.0, 0.0, 2.0), 3, 0, &opts, |_| {}),
+        Err(BakeError::Normal { index: 3 })
+    );
+    let bad = BakeOptions { rays: 0, ..opts };
+    assert_eq!(
+        bake_rays(Vec3::ZERO, Vec3::Z, 0, 0, &bad, |_| {}),
+        Err(BakeError::Rays(0))
+    );
+}
+
+#[test]
+fn batch_shade_matches_the_reference_kernels() {
+    // `TransferSet::shade` caches the vertex frames, splits the lighting per
+    // channel and gives MRT the raw view vector; per vertex it must agree with the
+    // slow twins given `Frame::from_normal` and the unit view (to float
+    // reassociation).
+    let scene = ground_and_box();
+    let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
+    let caster = BruteForceCaster::new(mesh);
+    let glossy = bake(
+        &mesh,
+        &scene.normals,
+        &caster,
+        &options(Measurement::GlossySh, 4, 64),
+    )
+    .unwrap();
+    let mrt = small_mrt_set(6, 4);
+    let compressed = mrt.compress(4).unwrap();
+    let lighting = test_lighting(16);
+    let material = Material {
+        specular: [1.0, 0.5, 0.25],
+        phong_exponent: 10.0,
+        ..Material::default()
+    };
+    let specular = Vec3::from_array(material.specular);
+    let lobe = GlossyLobe::phong(4, material.phong_exponent).unwrap();
+    let eye = Vec3::new(0.3, -2.0, 3.0);
+    let v_count = mrt.vertex_count();
+    let shade = |set: &TransferSet, k: Option<usize>| {
+        let mut out = vec![[0.0f32; 3]; v_count];
+        set.shade(&lighting, View::Eye(eye.to_array()), &material, k, &mut out)
+            .unwrap();
+        out
+    };
+    let (g_out, m_out, p_out) = (
+        shade(&glossy, None),
+        shade(&mrt, None),
+        shade(&compressed, Some(4)),
+    );
+    let pca = compressed.pca().unwrap();
+    let mut block = vec![0.0f32; mrt.block_len()];
+    let mut lit = 0;
+    for v in 0..v_count {
+        let normal = Vec3::from_array(mrt.normals()[v]);
+        let frame = Frame::from_normal(normal);
+        let to_eye = (eye - Vec3::from_array(mrt.positions()[v])).normalize();
+        let close = |got: [f32; 3], want: Vec3| {
+            let got = Vec3::from_array(got);
+            assert!(
+                (got - want).length() <= 1e-5 * want.length().max(1.0),
+                "vertex {v}: {got} vs {want}"
+            );
+        };
+        let g = shade_glossy_sh_reference(
+            glossy.vertex_block(v).unwrap(),
+            &lobe,
+            &lighting,
+            normal,
+            to_eye,
+        );
+        close(g_out[v], specular * g);
+        let m = shade_mrt_reference(mrt.vertex_block(v).unwrap(), 6, &lighting, &frame, to_eye);
+        close(m_out[v], specular * m);
+        pca.reconstruct(v, 4, &mut block);
+        let p = shade_mrt_reference(&block, 6, &lighting, &frame, to_eye);
+        close(p_out[v], specular * p);
+        lit += usize::from(m != Vec3::ZERO && g != Vec3::ZERO);
+    }
+    // Most vertices face the eye: the comparison is not between zeros.
+    assert!(lit * 2 > v_count, "{lit} of {v_count} lit");
 }
 
 #[test]
@@ -985,11 +1137,15 @@ mod kernel_inputs {
             let lighting = vec![[1.0f32; 3]; coeffs];
             let frame = Frame::from_normal(normal);
             let _ = shade_diffuse(&matrix, &lighting);
-            let _ = shade_mrt(&matrix, grid, &lighting, &frame, to_eye);
+            if let Some(planar) = ShLighting::new(&lighting) {
+                let _ = shade_mrt(&matrix, grid, &planar, &frame, to_eye);
+                if let Some(lobe) = GlossyLobe::phong(bands, 8.0) {
+                    let _ = shade_glossy_sh(&matrix, &lobe, &planar, normal, to_eye);
+                }
+            }
             let _ = shade_mrt_reference(&matrix, grid, &lighting, &frame, to_eye);
             let _ = shade_mrt_pca(&matrix, &lighting, components, grid, &frame, to_eye);
             if let Some(lobe) = GlossyLobe::phong(bands, 8.0) {
-                let _ = shade_glossy_sh(&matrix, &lobe, &lighting, normal, to_eye);
                 let _ = shade_glossy_sh_reference(&matrix, &lobe, &lighting, normal, to_eye);
             }
             let _ = mrt_tap(grid, to_eye);
