@@ -44,7 +44,15 @@ pub struct BvhScene {
     corners: Vec<[Vec3; 3]>,
     /// Original triangle index of each entry of `corners`.
     original: Vec<u32>,
+    /// Whether the hierarchy is at most [`STACK_GROUPS`] nodes deep, so the
+    /// any-hit traversal's fixed stack cannot overflow.
+    shallow: bool,
 }
+
+/// Entries of the any-hit traversal's fixed stack: one group of pending siblings
+/// per level, so trees up to this depth (PLOC trees over millions of triangles are
+/// a few dozen levels of eight-wide nodes at most) take the fast path.
+const STACK_GROUPS: usize = 64;
 
 /// Largest coordinate magnitude a [`BvhScene`] accepts. obvhs's builder breaks
 /// (index out of bounds) on scenes near 1e17 and beyond; 1e12 leaves a wide margin
@@ -106,6 +114,7 @@ impl BvhScene {
                 bvh: CwBvh::default(),
                 corners,
                 original: Vec::new(),
+                shallow: true,
             });
         }
         triangles.extend(mesh.triangles().map(|[a, b, c]| Triangle {
@@ -119,10 +128,12 @@ impl BvhScene {
         drop(triangles);
         let original = bvh.primitive_indices.clone();
         corners.extend(original.iter().map(|&t| mesh.triangle(t as usize)));
+        let shallow = depth(&bvh.nodes) <= STACK_GROUPS;
         Ok(BvhScene {
             bvh,
             corners,
             original,
+            shallow,
         })
     }
 
@@ -130,6 +141,36 @@ impl BvhScene {
     pub fn triangle_count(&self) -> usize {
         self.corners.len()
     }
+
+    /// [`RayCaster::occluded`] through the general traversal (obvhs's `traverse!`),
+    /// for checking the any-hit loop against it.
+    #[cfg(test)]
+    pub(super) fn occluded_through_traverse_macro(&self, ray: &Ray) -> bool {
+        if self.corners.is_empty() {
+            return false;
+        }
+        PreparedRay::new(ray)
+            .is_some_and(|prepared| self.occluded_general(&prepared, &TraversalRay::new(ray)))
+    }
+
+    /// Whether [`RayCaster::occluded`] takes the any-hit loop on this scene.
+    #[cfg(test)]
+    pub(super) fn is_shallow(&self) -> bool {
+        self.shallow
+    }
+}
+
+/// Number of nodes on the longest root-to-node path of a non-empty hierarchy.
+fn depth(nodes: &[CwBvhNode]) -> usize {
+    let mut deepest = 0;
+    let mut pending = alloc::vec![(0usize, 1usize)];
+    while let Some((index, level)) = pending.pop() {
+        deepest = deepest.max(level);
+        let node = &nodes[index];
+        let inner = (0..8).filter(|&slot| node.imask & (1 << slot) != 0);
+        pending.extend(inner.map(|slot| (node.child_node_index(slot) as usize, level + 1)));
+    }
+    deepest
 }
 
 /// Relative rounding bound of one slab distance `(plane - origin) * (1 / d)`:
@@ -249,16 +290,23 @@ impl TraversalRay {
         self.t_max = distance + distance.abs() * (4.0 * f32::EPSILON);
     }
 
+    /// Bit `i` set when the ray may enter child slot `i` of `node` at a distance in
+    /// `[t_min, t_max]`. Conservative: no child holding a hit is ever culled.
+    #[inline(always)]
+    fn entered(&self, node: &CwBvhNode) -> u32 {
+        if self.fast {
+            self.entered_fast(node)
+        } else {
+            self.entered_general(node)
+        }
+    }
+
     /// The children of `node` the ray may enter at a distance in `[t_min, t_max]`, as
     /// the hit mask obvhs's `traverse!` expects. Conservative: no child holding a hit
     /// is ever culled.
     #[inline(always)]
     fn child_hits(&self, node: &CwBvhNode, oct_inv4: u32) -> u32 {
-        let mut entered = if self.fast {
-            self.entered_fast(node)
-        } else {
-            self.entered_general(node)
-        };
+        let mut entered = self.entered(node);
         // Empty children have no child bits, so they add nothing below.
         let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
         let mut hits = 0;
@@ -380,15 +428,64 @@ impl TraversalRay {
     }
 }
 
-impl RayCaster for BvhScene {
-    fn occluded(&self, ray: &Ray) -> bool {
-        if self.corners.is_empty() {
-            return false;
+impl BvhScene {
+    /// Any-hit search with a traversal loop of our own: no child ordering beyond
+    /// the ray's octant, leaves tested as soon as their node is, an early exit on
+    /// the first hit, and a fixed stack of sibling groups (one per level, hence
+    /// [`Self::shallow`]).
+    ///
+    /// A group is `(first child node, the parent's inner-child mask, pending
+    /// children)`; pending children are kept in octant order, bit `slot ^ octant`,
+    /// so the lowest bit is the child nearest the ray's origin side, as in the
+    /// CWBVH paper's ordering.
+    #[inline]
+    fn occluded_any_hit(&self, prepared: &PreparedRay, traversal: &TraversalRay) -> bool {
+        let octant = (u32::from(traversal.negative[0]) << 2)
+            | (u32::from(traversal.negative[1]) << 1)
+            | u32::from(traversal.negative[2]);
+        let mut stack = [(0u32, 0u32, 0u32); STACK_GROUPS];
+        let mut depth = 0;
+        let mut node = &self.bvh.nodes[0];
+        loop {
+            let entered = traversal.entered(node);
+            let imask = u32::from(node.imask);
+            let mut leaves = entered & !imask;
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let meta = node.child_meta[slot];
+                // An empty slot's meta is 0: no primitives.
+                let first = (node.primitive_base_idx + u32::from(meta & 0b1_1111)) as usize;
+                let count = (meta >> 5).count_ones() as usize;
+                for [a, b, c] in &self.corners[first..first + count] {
+                    if prepared.intersect(*a, *b, *c).is_some() {
+                        return true;
+                    }
+                }
+            }
+            let inner = entered & imask;
+            if inner != 0 {
+                stack[depth] = (node.child_base_idx, imask, octant_order(inner, octant));
+                depth += 1;
+            }
+            // The next node: the first pending child of the innermost group.
+            let Some(top) = depth.checked_sub(1) else {
+                return false;
+            };
+            let (base, parent_imask, pending) = &mut stack[top];
+            let slot = pending.trailing_zeros() ^ octant;
+            *pending &= *pending - 1;
+            let index = *base + (*parent_imask & ((1 << slot) - 1)).count_ones();
+            if *pending == 0 {
+                depth = top;
+            }
+            node = &self.bvh.nodes[index as usize];
         }
-        let Some(prepared) = PreparedRay::new(ray) else {
-            return false;
-        };
-        let traversal = TraversalRay::new(ray);
+    }
+
+    /// [`RayCaster::occluded`] through obvhs's `traverse!`: the path for hierarchies
+    /// too deep for [`Self::occluded_any_hit`]'s fixed stack, and its reference.
+    fn occluded_general(&self, prepared: &PreparedRay, traversal: &TraversalRay) -> bool {
         let mut state = self.bvh.new_traversal(traversal.inverse);
         let mut node;
         let mut occluded = false;
@@ -409,6 +506,39 @@ impl RayCaster for BvhScene {
             );
         }
         occluded
+    }
+}
+
+/// `mask` with bit `i` moved to bit `i ^ octant` (`octant` < 8): three swaps of
+/// bit groups, one per set bit of `octant`.
+#[inline(always)]
+fn octant_order(mut mask: u32, octant: u32) -> u32 {
+    if octant & 1 != 0 {
+        mask = ((mask & 0x55) << 1) | ((mask >> 1) & 0x55);
+    }
+    if octant & 2 != 0 {
+        mask = ((mask & 0x33) << 2) | ((mask >> 2) & 0x33);
+    }
+    if octant & 4 != 0 {
+        mask = ((mask & 0x0f) << 4) | ((mask >> 4) & 0x0f);
+    }
+    mask
+}
+
+impl RayCaster for BvhScene {
+    fn occluded(&self, ray: &Ray) -> bool {
+        if self.corners.is_empty() {
+            return false;
+        }
+        let Some(prepared) = PreparedRay::new(ray) else {
+            return false;
+        };
+        let traversal = TraversalRay::new(ray);
+        if self.shallow {
+            self.occluded_any_hit(&prepared, &traversal)
+        } else {
+            self.occluded_general(&prepared, &traversal)
+        }
     }
 
     fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
