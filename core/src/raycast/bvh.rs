@@ -165,6 +165,17 @@ impl BvhScene {
             .is_some_and(|prepared| self.occluded_general(&prepared, &TraversalRay::new(ray)))
     }
 
+    /// [`RayCaster::closest_hit`] through the general traversal (obvhs's
+    /// `traverse!`), for checking the closest-hit loop against it.
+    #[cfg(test)]
+    pub(super) fn closest_hit_through_traverse_macro(&self, ray: &Ray) -> Option<Hit> {
+        if self.corners.is_empty() {
+            return None;
+        }
+        let mut prepared = PreparedRay::new(ray)?;
+        self.closest_hit_general(&mut prepared, &mut TraversalRay::new(ray))
+    }
+
     /// Whether [`RayCaster::occluded`] takes the any-hit loop on this scene.
     #[cfg(test)]
     pub(super) fn is_shallow(&self) -> bool {
@@ -524,8 +535,18 @@ impl BvhScene {
     /// pending children`; pending children are kept in octant order, bit `slot ^ octant`,
     /// so the lowest bit is the child nearest the ray's origin side, as in the
     /// CWBVH paper's ordering.
-    #[inline]
-    fn occluded_any_hit(&self, prepared: &PreparedRay, traversal: &TraversalRay) -> bool {
+    ///
+    /// `test` is called with the index (in leaf order) of every triangle in an
+    /// entered leaf and returns the hit's `t`, if any. With `ANY_HIT` the search
+    /// stops at the first hit and returns true; otherwise each hit shortens the
+    /// box test and the search runs to the end (the closest-hit search), returning
+    /// false.
+    #[inline(always)]
+    fn search<const ANY_HIT: bool>(
+        &self,
+        traversal: &mut TraversalRay,
+        mut test: impl FnMut(usize) -> Option<f32>,
+    ) -> bool {
         let octant = (u32::from(traversal.negative[0]) << 2)
             | (u32::from(traversal.negative[1]) << 1)
             | u32::from(traversal.negative[2]);
@@ -548,9 +569,12 @@ impl BvhScene {
                 // An empty slot's meta is 0: no primitives.
                 let first = (node.primitive_base_idx + u32::from(meta & 0b1_1111)) as usize;
                 let count = (meta >> 5).count_ones() as usize;
-                for [a, b, c] in &self.corners[first..first + count] {
-                    if prepared.intersect(*a, *b, *c).is_some() {
-                        return true;
+                for primitive in first..first + count {
+                    if let Some(t) = test(primitive) {
+                        if ANY_HIT {
+                            return true;
+                        }
+                        traversal.shorten(t);
                     }
                 }
             }
@@ -578,7 +602,7 @@ impl BvhScene {
     }
 
     /// [`RayCaster::occluded`] through obvhs's `traverse!`: the path for hierarchies
-    /// too deep for [`Self::occluded_any_hit`]'s fixed stack, and its reference.
+    /// too deep for [`Self::search`]'s fixed stack, and its reference.
     fn occluded_general(&self, prepared: &PreparedRay, traversal: &TraversalRay) -> bool {
         let mut state = self.bvh.new_traversal(traversal.inverse);
         let mut node;
@@ -600,6 +624,41 @@ impl BvhScene {
             );
         }
         occluded
+    }
+}
+
+impl BvhScene {
+    /// [`RayCaster::closest_hit`] through obvhs's `traverse!`: the path for
+    /// hierarchies too deep for [`Self::search`]'s fixed stack, and its reference.
+    fn closest_hit_general(
+        &self,
+        prepared: &mut PreparedRay,
+        traversal: &mut TraversalRay,
+    ) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        let mut state = self.bvh.new_traversal(traversal.inverse);
+        let mut node;
+        obvhs::traverse!(
+            self.bvh,
+            node,
+            state,
+            traversal.child_hits(node, state.oct_inv4),
+            {
+                let primitive = state.primitive_id as usize;
+                let [a, b, c] = self.corners[primitive];
+                if let Some(hit) = prepared.intersect(a, b, c) {
+                    prepared.set_t_max(hit.t);
+                    traversal.shorten(hit.t);
+                    best = Some(Hit {
+                        t: hit.t,
+                        triangle: self.original[primitive],
+                        u: hit.u,
+                        v: hit.v,
+                    });
+                }
+            }
+        );
+        best
     }
 }
 
@@ -627,9 +686,12 @@ impl RayCaster for BvhScene {
         let Some(prepared) = PreparedRay::new(ray) else {
             return false;
         };
-        let traversal = TraversalRay::new(ray);
+        let mut traversal = TraversalRay::new(ray);
         if self.shallow {
-            self.occluded_any_hit(&prepared, &traversal)
+            self.search::<true>(&mut traversal, |primitive| {
+                let [a, b, c] = self.corners[primitive];
+                prepared.intersect(a, b, c).map(|hit| hit.t)
+            })
         } else {
             self.occluded_general(&prepared, &traversal)
         }
@@ -642,28 +704,22 @@ impl RayCaster for BvhScene {
         let mut prepared = PreparedRay::new(ray)?;
         let mut traversal = TraversalRay::new(ray);
         let mut best: Option<Hit> = None;
-        let mut state = self.bvh.new_traversal(traversal.inverse);
-        let mut node;
-        obvhs::traverse!(
-            self.bvh,
-            node,
-            state,
-            traversal.child_hits(node, state.oct_inv4),
-            {
-                let primitive = state.primitive_id as usize;
+        if self.shallow {
+            self.search::<false>(&mut traversal, |primitive| {
                 let [a, b, c] = self.corners[primitive];
-                if let Some(hit) = prepared.intersect(a, b, c) {
-                    prepared.set_t_max(hit.t);
-                    traversal.shorten(hit.t);
-                    best = Some(Hit {
-                        t: hit.t,
-                        triangle: self.original[primitive],
-                        u: hit.u,
-                        v: hit.v,
-                    });
-                }
-            }
-        );
-        best
+                let hit = prepared.intersect(a, b, c)?;
+                prepared.set_t_max(hit.t);
+                best = Some(Hit {
+                    t: hit.t,
+                    triangle: self.original[primitive],
+                    u: hit.u,
+                    v: hit.v,
+                });
+                Some(hit.t)
+            });
+            best
+        } else {
+            self.closest_hit_general(&mut prepared, &mut traversal)
+        }
     }
 }

@@ -289,7 +289,7 @@ mod bvh_against_brute_force {
         let brute = BruteForceCaster::new(mesh);
         let bvh = BvhScene::new(&mesh).unwrap();
         assert_eq!(bvh.triangle_count(), mesh.triangle_count());
-        // Occlusion takes the any-hit loop; check the general traversal too.
+        // Queries take our own traversal loop; check obvhs's `traverse!` path too.
         assert!(bvh.is_shallow());
         let mut hits = 0;
         for _ in 0..rays {
@@ -300,6 +300,11 @@ mod bvh_against_brute_force {
             assert_eq!(
                 bvh.occluded_through_traverse_macro(&ray),
                 expected.is_some(),
+                "{ray:?}"
+            );
+            assert_eq!(
+                bvh.closest_hit_through_traverse_macro(&ray).map(|h| h.t),
+                expected.map(|h| h.t),
                 "{ray:?}"
             );
             match (expected, got) {
