@@ -8,15 +8,18 @@
 //! obvhs's own box test is tuned for rendering, not exact answers: it ignores boxes
 //! that end before t = 1e-4, clamps 1/d to ±8.4e6 (with the wrong sign for -0.0),
 //! and compares box entry with the current hit without allowing for rounding, so
-//! near hits and exact closest hits can be lost. Traversal here uses obvhs's
-//! `traverse!` with a conservative box test of our own ([`TraversalRay`]): child
-//! boxes padded against decoding rounding, no epsilon. Ordinary rays (direction
-//! components within 2^-40..2^40, origin within 2^64) take a fast form, slab
-//! distances affine in the quantised planes with every interval widened by a
-//! per-node bound on its rounding; other rays (axis-parallel ones among them) take
-//! the general form, exit distances rounded up as in Ize 2013 and parallel axes
-//! decided by the origin. Exactness then rests on the watertight triangle test
-//! alone, shared with [`super::BruteForceCaster`], so the two agree bit for bit.
+//! near hits and exact closest hits can be lost. Traversal here is a loop of our
+//! own over obvhs's nodes ([`BvhScene::search`]: octant order, leaves first, a
+//! fixed stack of sibling groups, an early exit for occlusion) with a conservative
+//! box test of our own ([`TraversalRay`]): child boxes padded against decoding
+//! rounding, no epsilon. Ordinary rays (direction components within 2^-40..2^40,
+//! origin within 2^64) test child boxes decoded to `f32` once per scene, slab
+//! distances as in Ize 2013 with the exit padded for rounding; other rays
+//! (axis-parallel ones among them) take the general form, exit distances rounded
+//! up likewise and parallel axes decided by the origin. Trees deeper than the
+//! stack go through obvhs's `traverse!` with the same box test (in the affine
+//! form on the compressed node for ordinary rays). Exactness then rests on the
+//! watertight triangle test alone, shared with [`super::BruteForceCaster`], so the two agree bit for bit.
 
 use alloc::collections::TryReserveError;
 
