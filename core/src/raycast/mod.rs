@@ -129,21 +129,22 @@ impl PreparedRay {
         if !ray.is_valid() {
             return None;
         }
-        let d = ray.direction;
-        let abs = d.abs();
-        let kz = if abs.x > abs.y {
-            if abs.x > abs.z { 0 } else { 2 }
-        } else if abs.y > abs.z {
+        // Arrays indexed by a run-time axis are loads; `Vec3` indexed so is a chain
+        // of branches, unpredictable here as directions vary from ray to ray.
+        let d = ray.direction.to_array();
+        let abs = d.map(f32::abs);
+        let kz = if abs[0] > abs[1] {
+            if abs[0] > abs[2] { 0 } else { 2 }
+        } else if abs[1] > abs[2] {
             1
         } else {
             2
         };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
+        const NEXT: [usize; 3] = [1, 2, 0];
+        let kx = NEXT[kz];
+        let ky = NEXT[kx];
         // Keep the winding of the permuted axes when looking down -z.
-        if d[kz] < 0.0 {
-            core::mem::swap(&mut kx, &mut ky);
-        }
+        let (kx, ky) = if d[kz] < 0.0 { (ky, kx) } else { (kx, ky) };
         let shear = Vec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
         Some(PreparedRay {
             origin: ray.origin,
