@@ -171,23 +171,14 @@ impl PreparedRay {
     /// The watertight test against triangle `(a, b, c)`, two-sided.
     #[inline]
     pub fn intersect(&self, a: Vec3, b: Vec3, c: Vec3) -> Option<TriangleHit> {
-        // One copy of the test per axis permutation, with constant axes: indexing
-        // a vector by a run-time axis compiles to a chain of branches per
-        // coordinate, while this is one well-predicted branch per call. The
-        // arithmetic is the same in every arm.
-        match self.axes {
-            [1, 2, 0] => self.intersect_in(a, b, c, [1, 2, 0]),
-            [2, 1, 0] => self.intersect_in(a, b, c, [2, 1, 0]),
-            [2, 0, 1] => self.intersect_in(a, b, c, [2, 0, 1]),
-            [0, 2, 1] => self.intersect_in(a, b, c, [0, 2, 1]),
-            [0, 1, 2] => self.intersect_in(a, b, c, [0, 1, 2]),
-            [1, 0, 2] => self.intersect_in(a, b, c, [1, 0, 2]),
-            axes => self.intersect_in(a, b, c, axes),
-        }
+        self.intersect_in(a, b, c, self.axes)
     }
 
-    /// [`Self::intersect`] with the permuted axes `[kx, ky, kz]` (`self.axes`)
-    /// passed in, so that constant arguments fold away.
+    /// [`Self::intersect`] with the permuted axes `[kx, ky, kz]` (`self.axes`).
+    /// The corners are indexed as arrays: an array indexed by a run-time axis is a
+    /// load, a `Vec3` so indexed a chain of branches per coordinate (and one copy
+    /// of the test per permutation, the previous cure, still paid an
+    /// unpredictable branch per ray).
     #[inline(always)]
     fn intersect_in(
         &self,
@@ -198,9 +189,9 @@ impl PreparedRay {
     ) -> Option<TriangleHit> {
         let s = self.shear;
         let corners = (a, b, c);
-        let a = a - self.origin;
-        let b = b - self.origin;
-        let c = c - self.origin;
+        let a = (a - self.origin).to_array();
+        let b = (b - self.origin).to_array();
+        let c = (c - self.origin).to_array();
         let ax = a[kx] - s.x * a[kz];
         let ay = a[ky] - s.y * a[kz];
         let bx = b[kx] - s.x * b[kz];
