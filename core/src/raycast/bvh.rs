@@ -564,6 +564,26 @@ impl BvhScene {
                 traversal.entered_general(node)
             };
             let imask = u32::from(node.imask);
+            let inner = entered & imask;
+            if inner != 0 {
+                stack[depth] = (u64::from(node.child_base_idx) << 16)
+                    | u64::from(imask << 8 | octant_order(inner, octant));
+                depth += 1;
+            }
+            // The next node, chosen before the leaves are tested so that its
+            // load can start while they are: the first pending child of the
+            // innermost group.
+            let next = depth.checked_sub(1).map(|top| {
+                let group = &mut stack[top];
+                let slot = group.trailing_zeros() ^ octant;
+                let parent_imask = (*group >> 8) as u32 & 0xff;
+                // Pending is not empty, so its lowest bit is the group's lowest.
+                *group &= *group - 1;
+                if *group & 0xff == 0 {
+                    depth = top;
+                }
+                ((*group >> 16) as u32 + (parent_imask & ((1 << slot) - 1)).count_ones()) as usize
+            });
             let mut leaves = entered & !imask;
             while leaves != 0 {
                 let slot = leaves.trailing_zeros() as usize;
@@ -581,26 +601,10 @@ impl BvhScene {
                     }
                 }
             }
-            let inner = entered & imask;
-            if inner != 0 {
-                stack[depth] = (u64::from(node.child_base_idx) << 16)
-                    | u64::from(imask << 8 | octant_order(inner, octant));
-                depth += 1;
-            }
-            // The next node: the first pending child of the innermost group.
-            let Some(top) = depth.checked_sub(1) else {
+            let Some(next) = next else {
                 return false;
             };
-            let group = &mut stack[top];
-            let slot = group.trailing_zeros() ^ octant;
-            let parent_imask = (*group >> 8) as u32 & 0xff;
-            index =
-                ((*group >> 16) as u32 + (parent_imask & ((1 << slot) - 1)).count_ones()) as usize;
-            // Pending is not empty, so its lowest bit is the group's lowest.
-            *group &= *group - 1;
-            if *group & 0xff == 0 {
-                depth = top;
-            }
+            index = next;
         }
     }
 
