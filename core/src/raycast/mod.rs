@@ -129,21 +129,22 @@ impl PreparedRay {
         if !ray.is_valid() {
             return None;
         }
-        let d = ray.direction;
-        let abs = d.abs();
-        let kz = if abs.x > abs.y {
-            if abs.x > abs.z { 0 } else { 2 }
-        } else if abs.y > abs.z {
+        // Arrays indexed by a run-time axis are loads; `Vec3` indexed so is a chain
+        // of branches, unpredictable here as directions vary from ray to ray.
+        let d = ray.direction.to_array();
+        let abs = d.map(f32::abs);
+        let kz = if abs[0] > abs[1] {
+            if abs[0] > abs[2] { 0 } else { 2 }
+        } else if abs[1] > abs[2] {
             1
         } else {
             2
         };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
+        const NEXT: [usize; 3] = [1, 2, 0];
+        let kx = NEXT[kz];
+        let ky = NEXT[kx];
         // Keep the winding of the permuted axes when looking down -z.
-        if d[kz] < 0.0 {
-            core::mem::swap(&mut kx, &mut ky);
-        }
+        let (kx, ky) = if d[kz] < 0.0 { (ky, kx) } else { (kx, ky) };
         let shear = Vec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
         Some(PreparedRay {
             origin: ray.origin,
@@ -170,23 +171,14 @@ impl PreparedRay {
     /// The watertight test against triangle `(a, b, c)`, two-sided.
     #[inline]
     pub fn intersect(&self, a: Vec3, b: Vec3, c: Vec3) -> Option<TriangleHit> {
-        // One copy of the test per axis permutation, with constant axes: indexing
-        // a vector by a run-time axis compiles to a chain of branches per
-        // coordinate, while this is one well-predicted branch per call. The
-        // arithmetic is the same in every arm.
-        match self.axes {
-            [1, 2, 0] => self.intersect_in(a, b, c, [1, 2, 0]),
-            [2, 1, 0] => self.intersect_in(a, b, c, [2, 1, 0]),
-            [2, 0, 1] => self.intersect_in(a, b, c, [2, 0, 1]),
-            [0, 2, 1] => self.intersect_in(a, b, c, [0, 2, 1]),
-            [0, 1, 2] => self.intersect_in(a, b, c, [0, 1, 2]),
-            [1, 0, 2] => self.intersect_in(a, b, c, [1, 0, 2]),
-            axes => self.intersect_in(a, b, c, axes),
-        }
+        self.intersect_in(a, b, c, self.axes)
     }
 
-    /// [`Self::intersect`] with the permuted axes `[kx, ky, kz]` (`self.axes`)
-    /// passed in, so that constant arguments fold away.
+    /// [`Self::intersect`] with the permuted axes `[kx, ky, kz]` (`self.axes`).
+    /// The corners are indexed as arrays: an array indexed by a run-time axis is a
+    /// load, a `Vec3` so indexed a chain of branches per coordinate (and one copy
+    /// of the test per permutation, the previous cure, still paid an
+    /// unpredictable branch per ray).
     #[inline(always)]
     fn intersect_in(
         &self,
@@ -197,9 +189,9 @@ impl PreparedRay {
     ) -> Option<TriangleHit> {
         let s = self.shear;
         let corners = (a, b, c);
-        let a = a - self.origin;
-        let b = b - self.origin;
-        let c = c - self.origin;
+        let a = (a - self.origin).to_array();
+        let b = (b - self.origin).to_array();
+        let c = (c - self.origin).to_array();
         let ax = a[kx] - s.x * a[kz];
         let ay = a[ky] - s.y * a[kz];
         let bx = b[kx] - s.x * b[kz];

@@ -289,12 +289,24 @@ mod bvh_against_brute_force {
         let brute = BruteForceCaster::new(mesh);
         let bvh = BvhScene::new(&mesh).unwrap();
         assert_eq!(bvh.triangle_count(), mesh.triangle_count());
+        // Queries take our own traversal loop; check obvhs's `traverse!` path too.
+        assert!(bvh.is_shallow());
         let mut hits = 0;
         for _ in 0..rays {
             let ray = random_ray(rng, 2.0);
             let expected = brute.closest_hit(&ray);
             let got = bvh.closest_hit(&ray);
             assert_eq!(bvh.occluded(&ray), expected.is_some(), "{ray:?}");
+            assert_eq!(
+                bvh.occluded_through_traverse_macro(&ray),
+                expected.is_some(),
+                "{ray:?}"
+            );
+            assert_eq!(
+                bvh.closest_hit_through_traverse_macro(&ray).map(|h| h.t),
+                expected.map(|h| h.t),
+                "{ray:?}"
+            );
             match (expected, got) {
                 (None, None) => {}
                 (Some(e), Some(g)) => {
