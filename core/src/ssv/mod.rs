@@ -369,9 +369,14 @@ pub struct SoftShadows {
     /// (`orient3d > 0`), then as many of "strictly below" (receiver-independent,
     /// exact; bit `i` is sample `i`).
     near_sides: Vec<u64>,
+    /// For each near-light triangle, its plane when axis-aligned (see
+    /// [`AxisPlane`]).
+    near_planes: Vec<Option<AxisPlane>>,
     band: Vec<[Vec3; 3]>,
     /// The same sides for the band triangles.
     band_sides: Vec<u64>,
+    /// The same planes for the band triangles.
+    band_planes: Vec<Option<AxisPlane>>,
     caster: Caster,
     shape: LightShape,
     centroid: Vec3,
@@ -547,10 +552,14 @@ impl SoftShadows {
         let words = samples.len().div_ceil(64);
         let near_sides = plane_sides(&near_light, samples, words);
         let band_sides = plane_sides(&band, samples, words);
+        let near_planes = near_light.iter().map(AxisPlane::of).collect();
+        let band_planes = band.iter().map(AxisPlane::of).collect();
         let mut this = SoftShadows {
             soa,
             near_sides,
             band_sides,
+            near_planes,
+            band_planes,
             sample_lo,
             sample_hi,
             order,
@@ -733,7 +742,7 @@ impl SoftShadows {
                 let left = n - 64 * k;
                 *w = if left >= 64 { !0 } else { (1 << left) - 1 };
             }
-            self.clear_blocked(&self.band, &self.band_sides, p, bits);
+            self.clear_blocked(&self.band, &self.band_sides, &self.band_planes, p, bits);
             info.visible = bits.iter().map(|w| w.count_ones()).sum();
             return Ok(info);
         }
@@ -766,7 +775,13 @@ impl SoftShadows {
                 bits[i / 64] |= 1 << (i % 64);
             }
         }
-        self.clear_blocked(&self.near_light, &self.near_sides, p, bits);
+        self.clear_blocked(
+            &self.near_light,
+            &self.near_sides,
+            &self.near_planes,
+            p,
+            bits,
+        );
         info.visible = bits.iter().map(|w| w.count_ones()).sum();
         Ok(info)
     }
@@ -958,10 +973,25 @@ impl SoftShadows {
     /// This matters most for receivers on a near-light triangle's plane (a
     /// floor crossing the light's plane): there the sign of `p` needs the exact
     /// expansion, once per triangle instead of once per sample.
-    fn clear_blocked(&self, triangles: &[[Vec3; 3]], sides: &[u64], p: Vec3, bits: &mut [u64]) {
+    fn clear_blocked(
+        &self,
+        triangles: &[[Vec3; 3]],
+        sides: &[u64],
+        planes: &[Option<AxisPlane>],
+        p: Vec3,
+        bits: &mut [u64],
+    ) {
         let words = bits.len();
-        for (&[a, b, c], side) in triangles.iter().zip(sides.chunks_exact(2 * words)) {
-            let opposite = match orient3d(a, b, c, p) {
+        for ((&[a, b, c], side), plane) in triangles
+            .iter()
+            .zip(sides.chunks_exact(2 * words))
+            .zip(planes)
+        {
+            let p_side = match plane {
+                Some(plane) => plane.side(p),
+                None => orient3d(a, b, c, p),
+            };
+            let opposite = match p_side {
                 1 => &side[words..],
                 -1 => &side[..words],
                 _ => continue,
@@ -983,6 +1013,50 @@ impl SoftShadows {
         self.near_light
             .iter()
             .any(|&[a, b, c]| segment_meets_triangle(p, s, a, b, c))
+    }
+}
+
+/// The plane of a triangle whose corners share one coordinate exactly
+/// (`corner[axis] == value`, a floor or a wall), where `orient3d(a, b, c, p)`
+/// needs no determinant: with column `axis` constant (`value - p[axis]`) in
+/// `det[a - p, b - p, c - p]`, the determinant is that difference times the
+/// triangle's projected 2D orientation, which does not depend on `p`. So the
+/// sign is `sign(p[axis] - value)` times `up`, the sign at one point above the
+/// plane (exact, taken once). This spares the exact expansion that a receiver
+/// lying on such a plane (a floor receiver) would otherwise need.
+#[derive(Clone, Copy, Debug)]
+struct AxisPlane {
+    axis: usize,
+    value: f32,
+    up: i32,
+}
+
+impl AxisPlane {
+    fn of(&[a, b, c]: &[Vec3; 3]) -> Option<AxisPlane> {
+        let axis = (0..3).find(|&k| a[k] == b[k] && b[k] == c[k])?;
+        let value = a[axis];
+        // A representable point strictly above the plane (finite, so that
+        // orient3d is exact on it).
+        let above = [value + 1.0, value * 2.0, value * 0.5]
+            .into_iter()
+            .find(|&v| v > value && v.is_finite())?;
+        let mut q = a;
+        q[axis] = above;
+        let up = orient3d(a, b, c, q);
+        (up != 0).then_some(AxisPlane { axis, value, up })
+    }
+
+    /// `orient3d(a, b, c, p)` for the triangle this was made from.
+    #[inline]
+    fn side(&self, p: Vec3) -> i32 {
+        let x = p[self.axis];
+        if x > self.value {
+            self.up
+        } else if x < self.value {
+            -self.up
+        } else {
+            0
+        }
     }
 }
 

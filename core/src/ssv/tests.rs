@@ -965,3 +965,48 @@ fn near_light_triangles_with_receivers_on_every_side() {
     };
     assert!(partial(true) && partial(false));
 }
+
+/// The axis-aligned plane shortcut gives `orient3d`'s sign: points on the
+/// plane, one ulp off it either way, and far off, for planes at zero, small,
+/// negative and huge coordinates, both windings.
+#[test]
+fn axis_plane_side_equals_orient3d() {
+    let mut rng = SplitMix64::new(21);
+    let mut checked = 0;
+    for value in [0.0f32, 0.25, -3.5, 1.0e-30, 3.0e7, -3.0e30] {
+        for axis in 0..3 {
+            for flip in [false, true] {
+                let corner = |x: f32, y: f32| {
+                    let mut v = Vec3::ZERO;
+                    v[axis] = value;
+                    v[(axis + 1) % 3] = x;
+                    v[(axis + 2) % 3] = y;
+                    v
+                };
+                let (a, mut b, mut c) = (corner(-1.0, -1.0), corner(2.0, -0.5), corner(0.5, 1.5));
+                if flip {
+                    core::mem::swap(&mut b, &mut c);
+                }
+                let plane = AxisPlane::of(&[a, b, c]).expect("axis-aligned");
+                for k in 0..40 {
+                    let mut p = Vec3::new(
+                        (rng.unit() as f32) * 8.0 - 4.0,
+                        (rng.unit() as f32) * 8.0 - 4.0,
+                        (rng.unit() as f32) * 8.0 - 4.0,
+                    );
+                    p[axis] = match k % 4 {
+                        0 => value,
+                        1 => f32::from_bits(value.to_bits() + 1),
+                        2 => value - value.abs().max(1.0) * (rng.unit() as f32),
+                        _ => p[axis] + value,
+                    };
+                    assert_eq!(plane.side(p), orient3d(a, b, c, p), "{value} {axis} {p:?}");
+                    checked += usize::from(plane.side(p) == 0);
+                }
+            }
+        }
+    }
+    assert!(checked > 0);
+    // Not axis-aligned: no shortcut.
+    assert!(AxisPlane::of(&[Vec3::ZERO, Vec3::X, Vec3::new(0.0, 1.0, 1.0)]).is_none());
+}
