@@ -54,7 +54,15 @@
 //! the edges and of the reference caster and tested directly against every
 //! sample with the exact segment test. Receivers inside the band are answered by
 //! the exact test against every triangle that touches the band (the only ones a
-//! segment inside the band can meet).
+//! segment inside the band can meet). For both, the side of every sample of each
+//! such triangle's plane (an exact sign) is receiver-independent and kept as
+//! bitsets: a query takes the side of `p` once per triangle and sends only the
+//! samples strictly on the other side to the rest of the segment test (an open
+//! segment with both ends on one side, or an end on the plane, cannot meet the
+//! triangle under the rules of [`segment_meets_triangle`]); the bits are those of
+//! the per-sample test. A floor crossing the light's plane beside the light, with
+//! receivers on the floor, is the case this keeps cheap: the side of such a `p`
+//! needs the exact expansion.
 //!
 //! ## Structures ([`Structure`])
 //!
@@ -125,7 +133,7 @@ use hierarchy::Hierarchy;
 pub use light::{
     LIGHT_TOLERANCE, LightError, LightPolygon, MAX_LIGHT_VERTICES, SamplePattern, SplitMix64,
 };
-use predicates::{ORIENT_BOUND, det3_with_permanent, orient3d_exact};
+use predicates::{ORIENT_BOUND, crossing_in_triangle, det3_with_permanent, orient3d_exact};
 pub use predicates::{orient3d, segment_meets_triangle};
 use wedge::{Aabb, LightShape};
 
@@ -356,7 +364,19 @@ pub struct SoftShadows {
     /// Potential silhouette edges (indices into `graph.edges`).
     potential: Vec<u32>,
     near_light: Vec<[Vec3; 3]>,
+    /// For each near-light triangle, the side of every sample of its plane:
+    /// [`SoftShadows::words_per_receiver`] words of "strictly above"
+    /// (`orient3d > 0`), then as many of "strictly below" (receiver-independent,
+    /// exact; bit `i` is sample `i`).
+    near_sides: Vec<u64>,
+    /// For each near-light triangle, its plane when axis-aligned (see
+    /// [`AxisPlane`]).
+    near_planes: Vec<Option<AxisPlane>>,
     band: Vec<[Vec3; 3]>,
+    /// The same sides for the band triangles.
+    band_sides: Vec<u64>,
+    /// The same planes for the band triangles.
+    band_planes: Vec<Option<AxisPlane>>,
     caster: Caster,
     shape: LightShape,
     centroid: Vec3,
@@ -529,8 +549,17 @@ impl SoftShadows {
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), s| (lo.min(s.as_dvec3()), hi.max(s.as_dvec3())),
         );
+        let words = samples.len().div_ceil(64);
+        let near_sides = plane_sides(&near_light, samples, words);
+        let band_sides = plane_sides(&band, samples, words);
+        let near_planes = near_light.iter().map(AxisPlane::of).collect();
+        let band_planes = band.iter().map(AxisPlane::of).collect();
         let mut this = SoftShadows {
             soa,
+            near_sides,
+            band_sides,
+            near_planes,
+            band_planes,
             sample_lo,
             sample_hi,
             order,
@@ -709,16 +738,12 @@ impl SoftShadows {
         if height.abs() <= self.band_half_width {
             // Inside the band around the light's plane only band triangles can
             // meet a segment (module docs).
-            for (i, &s) in self.samples.iter().enumerate() {
-                if !self
-                    .band
-                    .iter()
-                    .any(|&[a, b, c]| segment_meets_triangle(p, s, a, b, c))
-                {
-                    bits[i / 64] |= 1 << (i % 64);
-                    info.visible += 1;
-                }
+            for (k, w) in bits.iter_mut().enumerate() {
+                let left = n - 64 * k;
+                *w = if left >= 64 { !0 } else { (1 << left) - 1 };
             }
+            self.clear_blocked(&self.band, &self.band_sides, &self.band_planes, p, bits);
+            info.visible = bits.iter().map(|w| w.count_ones()).sum();
             return Ok(info);
         }
         if self.structure == Structure::RayTrace {
@@ -742,15 +767,21 @@ impl SoftShadows {
         if self.reference_blocked(p, self.samples[self.order[min_index] as usize]) {
             return Ok(info);
         }
-        // Counters are in angular order; bits in the caller's order. Samples
-        // are only looked at when near-light triangles need the exact test.
-        let check_near = !self.near_light.is_empty();
+        // Counters are in angular order; bits in the caller's order. Then the
+        // near-light triangles take away the samples they block.
         for (&r, &o) in counters.iter().zip(&self.order) {
             let i = o as usize;
-            if r == min && !(check_near && self.near_blocked(p, self.samples[i])) {
+            if r == min {
                 bits[i / 64] |= 1 << (i % 64);
             }
         }
+        self.clear_blocked(
+            &self.near_light,
+            &self.near_sides,
+            &self.near_planes,
+            p,
+            bits,
+        );
         info.visible = bits.iter().map(|w| w.count_ones()).sum();
         Ok(info)
     }
@@ -927,11 +958,124 @@ impl SoftShadows {
         true
     }
 
+    /// Clears in `bits` every sample `s` for which one of `triangles` meets the
+    /// open segment `p → s`, exactly as [`segment_meets_triangle`] decides, with
+    /// the samples' sides of each plane taken from `sides` (see
+    /// [`plane_sides`]).
+    ///
+    /// [`segment_meets_triangle`] needs `p` and `s` strictly on opposite sides
+    /// of the triangle's plane (an open segment with an endpoint on the plane,
+    /// or both on one side, touches the plane at most at that endpoint, which it
+    /// excludes; a segment in the plane is declared not to meet the triangle).
+    /// Both signs are the same exact `orient3d(a, b, c, ·)`, so with the side of
+    /// `p` computed once per triangle only the samples strictly on the other
+    /// side go on to the edge tests, and the result is the same bit for bit.
+    /// This matters most for receivers on a near-light triangle's plane (a
+    /// floor crossing the light's plane): there the sign of `p` needs the exact
+    /// expansion, once per triangle instead of once per sample.
+    fn clear_blocked(
+        &self,
+        triangles: &[[Vec3; 3]],
+        sides: &[u64],
+        planes: &[Option<AxisPlane>],
+        p: Vec3,
+        bits: &mut [u64],
+    ) {
+        let words = bits.len();
+        for ((&[a, b, c], side), plane) in triangles
+            .iter()
+            .zip(sides.chunks_exact(2 * words))
+            .zip(planes)
+        {
+            let p_side = match plane {
+                Some(plane) => plane.side(p),
+                None => orient3d(a, b, c, p),
+            };
+            let opposite = match p_side {
+                1 => &side[words..],
+                -1 => &side[..words],
+                _ => continue,
+            };
+            for (k, (w, &o)) in bits.iter_mut().zip(opposite).enumerate() {
+                let mut todo = *w & o;
+                while todo != 0 {
+                    let j = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    if crossing_in_triangle(p, self.samples[64 * k + j], a, b, c) {
+                        *w &= !(1 << j);
+                    }
+                }
+            }
+        }
+    }
+
     fn near_blocked(&self, p: Vec3, s: Vec3) -> bool {
         self.near_light
             .iter()
             .any(|&[a, b, c]| segment_meets_triangle(p, s, a, b, c))
     }
+}
+
+/// The plane of a triangle whose corners share one coordinate exactly
+/// (`corner[axis] == value`, a floor or a wall), where `orient3d(a, b, c, p)`
+/// needs no determinant: with column `axis` constant (`value - p[axis]`) in
+/// `det[a - p, b - p, c - p]`, the determinant is that difference times the
+/// triangle's projected 2D orientation, which does not depend on `p`. So the
+/// sign is `sign(p[axis] - value)` times `up`, the sign at one point above the
+/// plane (exact, taken once). This spares the exact expansion that a receiver
+/// lying on such a plane (a floor receiver) would otherwise need.
+#[derive(Clone, Copy, Debug)]
+struct AxisPlane {
+    axis: usize,
+    value: f32,
+    up: i32,
+}
+
+impl AxisPlane {
+    fn of(&[a, b, c]: &[Vec3; 3]) -> Option<AxisPlane> {
+        let axis = (0..3).find(|&k| a[k] == b[k] && b[k] == c[k])?;
+        let value = a[axis];
+        // A representable point strictly above the plane (finite, so that
+        // orient3d is exact on it).
+        let above = [value + 1.0, value * 2.0, value * 0.5]
+            .into_iter()
+            .find(|&v| v > value && v.is_finite())?;
+        let mut q = a;
+        q[axis] = above;
+        let up = orient3d(a, b, c, q);
+        (up != 0).then_some(AxisPlane { axis, value, up })
+    }
+
+    /// `orient3d(a, b, c, p)` for the triangle this was made from.
+    #[inline]
+    fn side(&self, p: Vec3) -> i32 {
+        let x = p[self.axis];
+        if x > self.value {
+            self.up
+        } else if x < self.value {
+            -self.up
+        } else {
+            0
+        }
+    }
+}
+
+/// The side of every sample of each triangle's plane, as
+/// [`segment_meets_triangle`] computes it (`orient3d(a, b, c, s)`, exact): per
+/// triangle `words` words with bit `i` set where sample `i` is strictly above
+/// (`> 0`), then `words` words where it is strictly below (`< 0`).
+fn plane_sides(triangles: &[[Vec3; 3]], samples: &[Vec3], words: usize) -> Vec<u64> {
+    let mut sides = alloc::vec![0u64; 2 * words * triangles.len()];
+    for (&[a, b, c], side) in triangles.iter().zip(sides.chunks_exact_mut(2 * words)) {
+        for (i, &s) in samples.iter().enumerate() {
+            match orient3d(a, b, c, s) {
+                1 => side[i / 64] |= 1 << (i % 64),
+                -1 => side[words + i / 64] |= 1 << (i % 64),
+                _ => {}
+            }
+        }
+    }
+    sides
 }
 
 /// Per-receiver state of the depth-complexity integration. A sample relative

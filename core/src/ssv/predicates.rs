@@ -223,6 +223,14 @@ pub fn segment_meets_triangle(p: Vec3, s: Vec3, a: Vec3, b: Vec3, c: Vec3) -> bo
     if op * os >= 0 {
         return false;
     }
+    crossing_in_triangle(p, s, a, b, c)
+}
+
+/// The second half of [`segment_meets_triangle`], for a segment already known to
+/// have `p` and `s` strictly on opposite sides of the triangle's plane: whether
+/// the point where it pierces the plane lies in the closed triangle.
+#[inline]
+pub(crate) fn crossing_in_triangle(p: Vec3, s: Vec3, a: Vec3, b: Vec3, c: Vec3) -> bool {
     // The line p→s pierces the plane; the point is in the closed triangle when
     // the three edge orientations have no strictly opposite signs.
     let e0 = orient3d(p, s, a, b);

@@ -881,3 +881,132 @@ fn branch_free_sample_pass_equals_the_per_sample_test() {
     // edges; those the edge's own culling does not reach are unsure).
     assert!(unsure >= 20, "{unsure} unsure samples");
 }
+
+/// Near-light triangles (planes piercing the light) go through the
+/// precomputed-side path: receivers on each side of their planes, exactly in
+/// them, and in the light's band, with samples on both sides of each plane and
+/// exactly in one, across several bit words.
+#[test]
+fn near_light_triangles_with_receivers_on_every_side() {
+    let light = quad_light(Vec3::new(0.0, 0.0, 3.0), 0.8);
+    // A grid through x = 0 and y = 0.25 exactly (samples in the planes below),
+    // then stratified samples: 81 + 60 = 141 samples, three words.
+    let mut samples: Vec<Vec3> = (0..81)
+        .map(|k| {
+            Vec3::new(
+                (k % 9) as f32 * 0.125 - 0.5,
+                (k / 9) as f32 * 0.125 - 0.5,
+                3.0,
+            )
+        })
+        .collect();
+    samples.extend(light.samples(60, SamplePattern::Stratified, 3));
+    let mut soup = Soup::default();
+    // The plane x = 0, through the light.
+    soup.push([
+        Vec3::new(0.0, -2.0, 2.0),
+        Vec3::new(0.0, 2.0, 2.5),
+        Vec3::new(0.0, 0.0, 4.0),
+    ]);
+    // The plane y = 0.25, through the light the other way, a floor-like
+    // triangle reaching far below.
+    soup.push([
+        Vec3::new(-3.0, 0.25, 0.5),
+        Vec3::new(3.0, 0.25, 0.5),
+        Vec3::new(0.5, 0.25, 3.5),
+    ]);
+    // A slanted triangle through the light's corner region.
+    soup.push([
+        Vec3::new(0.3, -0.9, 2.6),
+        Vec3::new(0.9, -0.2, 3.4),
+        Vec3::new(0.7, -0.7, 3.3),
+    ]);
+    // Some regular geometry too.
+    soup.append(&cube(Vec3::new(-0.6, -0.6, 1.5), 0.2));
+    let ss = build(&soup, &light, &samples, Structure::Hierarchy);
+    assert_eq!(ss.statistics().near_light_triangles, 3);
+    let mut receivers = receivers_box(Vec3::new(-1.5, -1.5, 0.0), Vec3::new(1.5, 1.5, 2.5), 40, 11);
+    // Exactly in the plane x = 0 and in y = 0.25 (on the triangles and beside).
+    for k in 0..8 {
+        let t = k as f32 * 0.25 - 1.0;
+        receivers.push(Vec3::new(0.0, t, 1.0 + 0.1 * k as f32));
+        receivers.push(Vec3::new(t, 0.25, 0.8 + 0.15 * k as f32));
+    }
+    // Above the light, and in its plane (the band).
+    receivers.extend(receivers_box(
+        Vec3::new(-1.5, -1.5, 3.5),
+        Vec3::new(1.5, 1.5, 4.5),
+        10,
+        12,
+    ));
+    receivers.extend(receivers_box(
+        Vec3::new(-1.5, -1.5, 3.0),
+        Vec3::new(1.5, 1.5, 3.0),
+        10,
+        13,
+    ));
+    let bits = check(&soup, &light, &samples, &receivers);
+    // Not a test that cannot fail: the near-light triangles block some samples
+    // and leave others, on both sides of x = 0.
+    let words = samples.len().div_ceil(64);
+    let visible = |r: usize| -> u32 {
+        bits[r * words..][..words]
+            .iter()
+            .map(|w| w.count_ones())
+            .sum()
+    };
+    let partial = |want_x_negative: bool| {
+        receivers.iter().enumerate().any(|(r, p)| {
+            (p.x < 0.0) == want_x_negative && p.z < 2.5 && {
+                let v = visible(r) as usize;
+                v > 0 && v < samples.len()
+            }
+        })
+    };
+    assert!(partial(true) && partial(false));
+}
+
+/// The axis-aligned plane shortcut gives `orient3d`'s sign: points on the
+/// plane, one ulp off it either way, and far off, for planes at zero, small,
+/// negative and huge coordinates, both windings.
+#[test]
+fn axis_plane_side_equals_orient3d() {
+    let mut rng = SplitMix64::new(21);
+    let mut checked = 0;
+    for value in [0.0f32, 0.25, -3.5, 1.0e-30, 3.0e7, -3.0e30] {
+        for axis in 0..3 {
+            for flip in [false, true] {
+                let corner = |x: f32, y: f32| {
+                    let mut v = Vec3::ZERO;
+                    v[axis] = value;
+                    v[(axis + 1) % 3] = x;
+                    v[(axis + 2) % 3] = y;
+                    v
+                };
+                let (a, mut b, mut c) = (corner(-1.0, -1.0), corner(2.0, -0.5), corner(0.5, 1.5));
+                if flip {
+                    core::mem::swap(&mut b, &mut c);
+                }
+                let plane = AxisPlane::of(&[a, b, c]).expect("axis-aligned");
+                for k in 0..40 {
+                    let mut p = Vec3::new(
+                        (rng.unit() as f32) * 8.0 - 4.0,
+                        (rng.unit() as f32) * 8.0 - 4.0,
+                        (rng.unit() as f32) * 8.0 - 4.0,
+                    );
+                    p[axis] = match k % 4 {
+                        0 => value,
+                        1 => f32::from_bits(value.to_bits() + 1),
+                        2 => value - value.abs().max(1.0) * (rng.unit() as f32),
+                        _ => p[axis] + value,
+                    };
+                    assert_eq!(plane.side(p), orient3d(a, b, c, p), "{value} {axis} {p:?}");
+                    checked += usize::from(plane.side(p) == 0);
+                }
+            }
+        }
+    }
+    assert!(checked > 0);
+    // Not axis-aligned: no shortcut.
+    assert!(AxisPlane::of(&[Vec3::ZERO, Vec3::X, Vec3::new(0.0, 1.0, 1.0)]).is_none());
+}
