@@ -4,8 +4,10 @@
 //! panic message, and the caller is told (by the export) to poison its handle.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::error::{Error, clear_last_error, record};
+use crate::raw;
 use crate::result::*;
 
 /// Runs a fallible export body: clears the thread's last error, converts `Err` and
@@ -35,4 +37,48 @@ pub(crate) fn panic_error(payload: &(dyn std::any::Any + Send)) -> Error {
         ANTUMBRA_RESULT_PANIC,
         format!("internal error (please report): {what}"),
     )
+}
+
+/// A handle that a panicking call poisons: later calls on it return
+/// `ANTUMBRA_RESULT_POISONED`.
+pub(crate) trait Poisonable {
+    /// The handle's parameter name, for messages ("scene", "ssv", ...).
+    const ARGUMENT: &'static str;
+
+    /// The handle's poison flag.
+    fn poison_flag(&self) -> &AtomicBool;
+}
+
+/// `ANTUMBRA_RESULT_POISONED`, naming `argument`, when `flag` is set.
+pub(crate) fn check_not_poisoned(flag: &AtomicBool, argument: &str) -> Result<(), Error> {
+    if flag.load(Ordering::Acquire) {
+        return Err(Error::new(
+            ANTUMBRA_RESULT_POISONED,
+            format!("{argument} was poisoned by an earlier internal error; destroy it"),
+        ));
+    }
+    Ok(())
+}
+
+/// Runs a call on a handle inside [`guard`]: rejects NULL and poisoned handles,
+/// and poisons the handle when the call panics.
+pub(crate) fn with_handle<H: Poisonable>(
+    function: &'static str,
+    handle: *const H,
+    call: impl FnOnce(&H) -> Result<(), Error>,
+) -> antumbra_result {
+    let mut poison: Option<&AtomicBool> = None;
+    let result = guard(function, || {
+        // SAFETY: by the export's contract `handle` is NULL or a live handle.
+        let handle = unsafe { raw::reference(handle, H::ARGUMENT) }?;
+        check_not_poisoned(handle.poison_flag(), H::ARGUMENT)?;
+        poison = Some(handle.poison_flag());
+        call(handle)
+    });
+    if result == ANTUMBRA_RESULT_PANIC {
+        if let Some(flag) = poison {
+            flag.store(true, Ordering::Release);
+        }
+    }
+    result
 }

@@ -21,7 +21,7 @@ use antumbra_core::hemi::{
 use antumbra_core::raycast::MAX_COORDINATE;
 use glam::Vec3;
 
-use crate::boundary::guard;
+use crate::boundary::{check_not_poisoned, guard};
 use crate::error::Error;
 use crate::frame::UNIT_TOLERANCE;
 use crate::mesh::{antumbra_mesh_view, mesh_from_c};
@@ -336,12 +336,7 @@ pub(crate) unsafe fn check_options<'a>(
         let argument = format!("{prefix}table");
         // SAFETY: non-NULL, so by contract a live table.
         let table = unsafe { raw::reference(options.table, &argument) }?;
-        if table.poisoned.load(Ordering::Acquire) {
-            return Err(Error::new(
-                ANTUMBRA_RESULT_POISONED,
-                format!("{argument} was poisoned by an earlier internal error; destroy it"),
-            ));
-        }
+        check_not_poisoned(&table.poisoned, &argument)?;
         Ok(Some(table))
     } else {
         Ok(None)

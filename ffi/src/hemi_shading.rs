@@ -51,7 +51,7 @@ use antumbra_core::sh::{Sh, ShRgb};
 use antumbra_core::{Frame, MeshView};
 use glam::Vec3;
 
-use crate::boundary::guard;
+use crate::boundary::{check_not_poisoned, guard};
 use crate::error::Error;
 use crate::frame::UNIT_TOLERANCE;
 use crate::hemi::{
@@ -1273,12 +1273,7 @@ fn with_shader(
         // SAFETY: by contract `shader` is NULL or a live shader; only shared
         // references are made (the workspace is behind the lock).
         let shader = unsafe { raw::reference(shader.cast_const(), "shader") }?;
-        if shader.poisoned.load(Ordering::Acquire) {
-            return Err(Error::new(
-                ANTUMBRA_RESULT_POISONED,
-                "shader was poisoned by an earlier internal error; destroy it",
-            ));
-        }
+        check_not_poisoned(&shader.poisoned, "shader")?;
         poison_shader = Some(&shader.poisoned);
         poison_table = shader.config.user_table();
         // The lock is only poisoned by a panic, which also set `shader.poisoned`.

@@ -1,13 +1,13 @@
 //! `antumbra_scene`: a BVH over a mesh, the ray caster C users and later Antumbra
 //! entry points share.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 use antumbra_core::raycast::{BvhError, BvhScene};
 use antumbra_core::{Ray, RayCaster};
 use glam::Vec3;
 
-use crate::boundary::guard;
+use crate::boundary::{Poisonable, guard, with_handle};
 use crate::error::Error;
 use crate::mesh::{antumbra_mesh_view, mesh_from_c};
 use crate::raw;
@@ -210,32 +210,22 @@ fn non_finite(argument: &str, ray: usize, xyz: &[f32]) -> Error {
     )
 }
 
-/// Runs a query on a scene: rejects NULL and poisoned scenes, and poisons the
-/// scene when the query panics.
+impl Poisonable for antumbra_scene {
+    const ARGUMENT: &'static str = "scene";
+
+    fn poison_flag(&self) -> &AtomicBool {
+        &self.poisoned
+    }
+}
+
+/// Runs a call on a scene ([`with_handle`]): NULL and poisoned handles rejected, the
+/// handle poisoned when the call panics.
 fn with_scene(
     function: &'static str,
     scene: *const antumbra_scene,
     query: impl FnOnce(&antumbra_scene) -> Result<(), Error>,
 ) -> antumbra_result {
-    let mut poison: Option<&AtomicBool> = None;
-    let result = guard(function, || {
-        // SAFETY: by contract `scene` is NULL or a live scene.
-        let scene = unsafe { raw::reference(scene, "scene") }?;
-        if scene.poisoned.load(Ordering::Acquire) {
-            return Err(Error::new(
-                ANTUMBRA_RESULT_POISONED,
-                "scene was poisoned by an earlier internal error; destroy it",
-            ));
-        }
-        poison = Some(&scene.poisoned);
-        query(scene)
-    });
-    if result == ANTUMBRA_RESULT_PANIC {
-        if let Some(flag) = poison {
-            flag.store(true, Ordering::Release);
-        }
-    }
-    result
+    with_handle(function, scene, query)
 }
 
 /// Any-hit occlusion for a batch of rays: `occluded[i] = 1` when ray i hits a

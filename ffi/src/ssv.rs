@@ -19,7 +19,7 @@ use antumbra_core::ssv::{
 };
 use glam::Vec3;
 
-use crate::boundary::guard;
+use crate::boundary::{Poisonable, guard, with_handle};
 use crate::error::Error;
 use crate::hemi::{check_coordinate_range, flag, non_finite};
 use crate::mesh::{antumbra_mesh_view, mesh_from_c};
@@ -487,32 +487,22 @@ pub unsafe extern "C" fn antumbra_ssv_destroy(ssv: *mut antumbra_ssv) {
     });
 }
 
-/// Runs a call on a handle: rejects NULL and poisoned handles, and poisons the
-/// handle when the call panics.
+impl Poisonable for antumbra_ssv {
+    const ARGUMENT: &'static str = "ssv";
+
+    fn poison_flag(&self) -> &AtomicBool {
+        &self.poisoned
+    }
+}
+
+/// Runs a call on a ssv ([`with_handle`]): NULL and poisoned handles rejected, the
+/// handle poisoned when the call panics.
 fn with_ssv(
     function: &'static str,
     ssv: *const antumbra_ssv,
     call: impl FnOnce(&antumbra_ssv) -> Result<(), Error>,
 ) -> antumbra_result {
-    let mut poison: Option<&AtomicBool> = None;
-    let result = guard(function, || {
-        // SAFETY: by contract `ssv` is NULL or a live handle.
-        let ssv = unsafe { raw::reference(ssv, "ssv") }?;
-        if ssv.poisoned.load(Ordering::Acquire) {
-            return Err(Error::new(
-                ANTUMBRA_RESULT_POISONED,
-                "ssv was poisoned by an earlier internal error; destroy it",
-            ));
-        }
-        poison = Some(&ssv.poisoned);
-        call(ssv)
-    });
-    if result == ANTUMBRA_RESULT_PANIC {
-        if let Some(flag) = poison {
-            flag.store(true, Ordering::Release);
-        }
-    }
-    result
+    with_handle(function, ssv, call)
 }
 
 /// Points per rayon task: one query costs tens of microseconds (hundreds of

@@ -16,7 +16,7 @@
 //! of the input's length.
 
 use core::ffi::c_void;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 use antumbra_core::MeshView;
 use antumbra_core::hemi::vertex_normals;
@@ -28,7 +28,7 @@ use antumbra_core::transfer::{
 };
 use glam::Vec3;
 
-use crate::boundary::guard;
+use crate::boundary::{Poisonable, guard, with_handle};
 use crate::error::Error;
 use crate::frame::UNIT_TOLERANCE;
 use crate::mesh::{antumbra_mesh_view, mesh_from_c};
@@ -631,32 +631,22 @@ pub unsafe extern "C" fn antumbra_transfer_destroy(transfer: *mut antumbra_trans
     });
 }
 
-/// Runs a read-only call on a set: rejects NULL and poisoned sets, and poisons the
-/// set when the call panics.
+impl Poisonable for antumbra_transfer {
+    const ARGUMENT: &'static str = "transfer";
+
+    fn poison_flag(&self) -> &AtomicBool {
+        &self.poisoned
+    }
+}
+
+/// Runs a call on a transfer ([`with_handle`]): NULL and poisoned handles rejected, the
+/// handle poisoned when the call panics.
 fn with_transfer(
     function: &'static str,
     transfer: *const antumbra_transfer,
     query: impl FnOnce(&antumbra_transfer) -> Result<(), Error>,
 ) -> antumbra_result {
-    let mut poison: Option<&AtomicBool> = None;
-    let result = guard(function, || {
-        // SAFETY: by contract `transfer` is NULL or a live set.
-        let transfer = unsafe { raw::reference(transfer, "transfer") }?;
-        if transfer.poisoned.load(Ordering::Acquire) {
-            return Err(Error::new(
-                ANTUMBRA_RESULT_POISONED,
-                "transfer was poisoned by an earlier internal error; destroy it",
-            ));
-        }
-        poison = Some(&transfer.poisoned);
-        query(transfer)
-    });
-    if result == ANTUMBRA_RESULT_PANIC {
-        if let Some(flag) = poison {
-            flag.store(true, Ordering::Release);
-        }
-    }
-    result
+    with_handle(function, transfer, query)
 }
 
 /// Describes a transfer set: kind, sizes, how it was baked, memory and file size.
