@@ -69,6 +69,7 @@ extern crate std;
 pub mod geom;
 pub mod hemi;
 pub mod raycast;
+pub mod rng;
 pub mod sh;
 pub mod ssv;
 pub mod transfer;

@@ -24,6 +24,7 @@ use core::f64::consts::PI;
 use glam::{Mat3, Vec2, Vec3};
 
 use super::{MAX_BANDS, Sh, ShError, ShRgb, ShRotation, eval_basis};
+use crate::rng::{splitmix64, unit_f64};
 
 /// How the pixels of an equirectangular image map to directions.
 ///
@@ -321,8 +322,8 @@ fn project_samples<const N: usize, const C: usize>(
     for row in 0..rows {
         for column in 0..columns {
             let cell = (row * columns + column) as u64;
-            let jitter_z = unit_interval(splitmix64(2 * cell));
-            let jitter_phi = unit_interval(splitmix64(2 * cell + 1));
+            let jitter_z = unit_f64(splitmix64(2 * cell));
+            let jitter_phi = unit_f64(splitmix64(2 * cell + 1));
             let z = 1.0 - 2.0 * (row as f64 + jitter_z) / rows as f64;
             let phi = 2.0 * PI * (column as f64 + jitter_phi) / columns as f64;
             let r = libm::sqrt((1.0 - z * z).max(0.0));
@@ -352,19 +353,6 @@ fn strata(sample_count: usize) -> (usize, usize) {
     let rows = (libm::round(libm::sqrt(count as f64 / PI)) as usize).max(1);
     let columns = (count / rows).max(1);
     (rows, columns)
-}
-
-/// Steele, Lea and Flood's SplitMix64 finaliser: a well-mixed 64-bit hash.
-fn splitmix64(x: u64) -> u64 {
-    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// The top 53 bits of `bits` as a number in [0, 1).
-fn unit_interval(bits: u64) -> f64 {
-    (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
 #[cfg(test)]

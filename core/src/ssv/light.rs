@@ -255,13 +255,13 @@ impl LightPolygon {
             }
             let mut strata: Vec<usize> = (0..k * k).collect();
             for i in (1..strata.len()).rev() {
-                let j = (rng.next() % (i as u64 + 1)) as usize;
+                let j = (rng.next_u64() % (i as u64 + 1)) as usize;
                 strata.swap(i, j);
             }
             for &cell in &strata[..m] {
                 let (jx, jy) = match pattern {
                     SamplePattern::Stratified => (0.5, 0.5),
-                    SamplePattern::Jittered => (rng.unit(), rng.unit()),
+                    SamplePattern::Jittered => (rng.next_f64(), rng.next_f64()),
                 };
                 let u = ((cell % k) as f64 + jx) / k as f64;
                 let w = ((cell / k) as f64 + jy) / k as f64;
@@ -286,34 +286,7 @@ pub enum SamplePattern {
     Stratified,
 }
 
-/// SplitMix64 (Steele, Lea and Flood, 2014): a tiny, well-mixed 64-bit generator,
-/// enough for sample placement.
-#[derive(Clone, Debug)]
-pub struct SplitMix64 {
-    state: u64,
-}
-
-impl SplitMix64 {
-    /// A generator from `seed`.
-    pub fn new(seed: u64) -> Self {
-        SplitMix64 { state: seed }
-    }
-
-    /// The next 64 random bits.
-    #[allow(clippy::should_implement_trait)]
-    pub fn next(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// A uniform `f64` in `[0, 1)` (53 random bits).
-    pub fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-}
+pub use crate::rng::SplitMix64;
 
 #[cfg(test)]
 mod tests {

@@ -210,7 +210,11 @@ fn receivers_box(lo: Vec3, hi: Vec3, n: usize, seed: u64) -> Vec<Vec3> {
     let mut rng = SplitMix64::new(seed);
     (0..n)
         .map(|_| {
-            let t = Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32);
+            let t = Vec3::new(
+                rng.next_f64() as f32,
+                rng.next_f64() as f32,
+                rng.next_f64() as f32,
+            );
             lo + (hi - lo) * t
         })
         .collect()
@@ -532,7 +536,7 @@ proptest! {
     #[test]
     fn random_soups(seed in any::<u64>(), count in 5usize..60, half in 0.05f32..2.0, n in prop::sample::select(vec![16usize, 64, 200])) {
         let mut rng = SplitMix64::new(seed);
-        let mut u = || rng.unit() as f32;
+        let mut u = || rng.next_f64() as f32;
         let mut soup = Soup::default();
         for _ in 0..count {
             let c = Vec3::new(4.0 * u() - 2.0, 4.0 * u() - 2.0, 3.0 * u());
@@ -703,7 +707,7 @@ fn hemicube_lists_every_relevant_edge() {
     let mut soup = Soup::default();
     let mut rng = SplitMix64::new(77);
     for _ in 0..40 {
-        let mut u = || rng.unit() as f32;
+        let mut u = || rng.next_f64() as f32;
         let c = Vec3::new(6.0 * u() - 3.0, 6.0 * u() - 3.0, 4.0 * u());
         let (d1, d2) = (
             Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5),
@@ -737,14 +741,14 @@ fn hemicube_lists_every_relevant_edge() {
                 let at = |i: u32| ss.graph.positions[i as usize].as_dvec3();
                 let (a, b) = (at(edge.a), at(edge.b));
                 for _ in 0..8 {
-                    let x = a + (b - a) * rng.unit();
-                    let w: Vec<f64> = light_v.iter().map(|_| rng.unit() + 1e-3).collect();
+                    let x = a + (b - a) * rng.next_f64();
+                    let w: Vec<f64> = light_v.iter().map(|_| rng.next_f64() + 1e-3).collect();
                     let sum: f64 = w.iter().sum();
                     let l = light_v
                         .iter()
                         .zip(&w)
                         .fold(DVec3::ZERO, |s, (v, w)| s + *v * (w / sum));
-                    let p = x + (x - l) * (4.0 * rng.unit());
+                    let p = x + (x - l) * (4.0 * rng.next_f64());
                     // The weight at p in f64; terms within rounding of zero make
                     // the point unsure (counted, not asserted).
                     let mut weight = 0;
@@ -990,14 +994,14 @@ fn axis_plane_side_equals_orient3d() {
                 let plane = AxisPlane::of(&[a, b, c]).expect("axis-aligned");
                 for k in 0..40 {
                     let mut p = Vec3::new(
-                        (rng.unit() as f32) * 8.0 - 4.0,
-                        (rng.unit() as f32) * 8.0 - 4.0,
-                        (rng.unit() as f32) * 8.0 - 4.0,
+                        (rng.next_f64() as f32) * 8.0 - 4.0,
+                        (rng.next_f64() as f32) * 8.0 - 4.0,
+                        (rng.next_f64() as f32) * 8.0 - 4.0,
                     );
                     p[axis] = match k % 4 {
                         0 => value,
                         1 => f32::from_bits(value.to_bits() + 1),
-                        2 => value - value.abs().max(1.0) * (rng.unit() as f32),
+                        2 => value - value.abs().max(1.0) * (rng.next_f64() as f32),
                         _ => p[axis] + value,
                     };
                     assert_eq!(plane.side(p), orient3d(a, b, c, p), "{value} {axis} {p:?}");

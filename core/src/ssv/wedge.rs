@@ -321,7 +321,7 @@ mod tests {
     #[test]
     fn octant_masks_agree_with_single_boxes() {
         let mut rng = SplitMix64::new(11);
-        let mut r = |lo: f32, hi: f32| lo + (hi - lo) * rng.unit() as f32;
+        let mut r = |lo: f32, hi: f32| lo + (hi - lo) * rng.next_f64() as f32;
         let (mut kept, mut extra) = (0usize, 0usize);
         for _ in 0..400 {
             let mut v = || Vec3::new(r(-1.0, 1.0), r(-1.0, 1.0), r(0.5, 2.0));

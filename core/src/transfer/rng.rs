@@ -10,46 +10,7 @@ use core::f32::consts::PI;
 
 use glam::Vec3;
 
-/// The SplitMix64 generator.
-#[derive(Clone, Debug)]
-pub struct SplitMix64 {
-    state: u64,
-}
-
-impl SplitMix64 {
-    /// A generator whose first output depends on every bit of `seed`.
-    pub fn new(seed: u64) -> Self {
-        SplitMix64 { state: seed }
-    }
-
-    /// The stream of vertex `vertex` in pass `pass` of a bake seeded with `seed`.
-    pub fn for_vertex(seed: u64, vertex: u64, pass: u64) -> Self {
-        // Mixing each part through the finaliser keeps nearby (vertex, pass) pairs
-        // on unrelated streams.
-        let mut s = SplitMix64::new(seed);
-        let a = s.next_u64();
-        let mut s = SplitMix64::new(a ^ vertex.wrapping_mul(0x9E37_79B9_7F4A_7C15));
-        let b = s.next_u64();
-        let mut s = SplitMix64::new(b ^ pass.wrapping_mul(0xD1B5_4A32_D192_ED03));
-        SplitMix64::new(s.next_u64())
-    }
-
-    /// The next 64 random bits.
-    #[inline]
-    pub fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// A uniform float in `[0, 1)` (24 random bits).
-    #[inline]
-    pub fn next_f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
-    }
-}
+pub use crate::rng::SplitMix64;
 
 /// How directions over the hemisphere are drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
