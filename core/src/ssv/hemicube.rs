@@ -58,7 +58,7 @@ use alloc::vec;
 use alloc::vec::Vec;
 use glam::{DVec2, DVec3};
 
-use super::edges::EdgeGraph;
+use super::edges::{Edge, EdgeGraph};
 use super::wedge::LightShape;
 
 pub(crate) struct Hemicube {
@@ -90,7 +90,7 @@ fn cell_of(x: f64, r: usize) -> usize {
 /// The in-plane outline of the region `K` that `LightPolygon::contains`
 /// accepts: every edge line moved outward by `tol` (the vertices of the grown
 /// polygon), as points of the plane through `origin` normal to the light.
-fn grown_light(shape: &LightShape, origin: DVec3, tol: f64) -> Vec<DVec3> {
+pub(crate) fn grown_light(shape: &LightShape, origin: DVec3, tol: f64) -> Vec<DVec3> {
     let n = shape.normal;
     let (u, v) = n.any_orthonormal_pair();
     let k = shape.vertices.len();
@@ -120,9 +120,44 @@ fn grown_light(shape: &LightShape, origin: DVec3, tol: f64) -> Vec<DVec3> {
         .collect()
 }
 
+/// The parts of the grown light `region` (in-plane outline, thickness `tol`)
+/// from which `edge` may be a silhouette (module docs): for an edge with two
+/// triangles, `region` clipped by both triangle planes one way or the other
+/// (with slack `tol` plus rounding at `scale`), non-empty pieces only; `None`
+/// for other adjacencies or degenerate triangles (the whole region).
+pub(crate) fn silhouette_pieces(
+    graph: &EdgeGraph,
+    edge: &Edge,
+    region: &[DVec3],
+    tol: f64,
+    scale: f64,
+) -> Option<Vec<Vec<DVec3>>> {
+    let third = graph.third_of(edge);
+    if third.len() != 2 {
+        return None;
+    }
+    let at = |i: u32| graph.positions[i as usize].as_dvec3();
+    let (a, b) = (at(edge.a), at(edge.b));
+    let plane_slack = SLACK * scale.max(a.abs().max(b.abs()).max_element()) + tol;
+    let normals = [third[0], third[1]].map(|v| (b - a).cross(at(v) - a).normalize());
+    if !normals.iter().all(|m| m.is_finite()) {
+        return None;
+    }
+    Some(
+        [1.0, -1.0]
+            .iter()
+            .map(|&side| {
+                let once = clip_points(region, |l| side * normals[0].dot(l - a) + plane_slack);
+                clip_points(&once, |l| side * normals[1].dot(l - a) + plane_slack)
+            })
+            .filter(|piece| !piece.is_empty())
+            .collect(),
+    )
+}
+
 /// Sutherland–Hodgman: the convex polygon `poly` (coplanar points) cut to
 /// `f(x) >= 0` for the affine `f`.
-fn clip_points(poly: &[DVec3], f: impl Fn(DVec3) -> f64) -> Vec<DVec3> {
+pub(crate) fn clip_points(poly: &[DVec3], f: impl Fn(DVec3) -> f64) -> Vec<DVec3> {
     let mut out = Vec::with_capacity(poly.len() + 2);
     for i in 0..poly.len() {
         let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
@@ -316,28 +351,8 @@ impl Hemicube {
             let edge = &graph.edges[e as usize];
             let at = |i: u32| graph.positions[i as usize].as_dvec3();
             let (a, b) = (at(edge.a), at(edge.b));
-            let third = graph.third_of(edge);
-            // The light's parts from which the edge may be a silhouette.
-            let pieces: Vec<Vec<DVec3>> = if third.len() == 2 {
-                let plane_slack = SLACK * scale.max(a.abs().max(b.abs()).max_element()) + tol;
-                let normals = [third[0], third[1]].map(|v| (b - a).cross(at(v) - a).normalize());
-                if normals.iter().all(|m| m.is_finite()) {
-                    [1.0, -1.0]
-                        .iter()
-                        .map(|&side| {
-                            let once = clip_points(&region, |l| {
-                                side * normals[0].dot(l - a) + plane_slack
-                            });
-                            clip_points(&once, |l| side * normals[1].dot(l - a) + plane_slack)
-                        })
-                        .filter(|piece| !piece.is_empty())
-                        .collect()
-                } else {
-                    vec![region.clone()]
-                }
-            } else {
-                vec![region.clone()]
-            };
+            let pieces = silhouette_pieces(graph, edge, &region, tol, scale)
+                .unwrap_or_else(|| vec![region.clone()]);
             for piece in &pieces {
                 generators.clear();
                 generators.push(a - origin);

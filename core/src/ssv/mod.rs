@@ -601,6 +601,7 @@ impl SoftShadows {
                     &this.shape,
                     &this.potential,
                     root,
+                    this.centroid.as_dvec3(),
                     options,
                 ));
             }
