@@ -218,16 +218,6 @@ impl Poisonable for antumbra_scene {
     }
 }
 
-/// Runs a call on a scene ([`with_handle`]): NULL and poisoned handles rejected, the
-/// handle poisoned when the call panics.
-fn with_scene(
-    function: &'static str,
-    scene: *const antumbra_scene,
-    query: impl FnOnce(&antumbra_scene) -> Result<(), Error>,
-) -> antumbra_result {
-    with_handle(function, scene, query)
-}
-
 /// Any-hit occlusion for a batch of rays: `occluded[i] = 1` when ray i hits a
 /// triangle at some `0 < t < t_max[i]` (t in units of `|directions[i]|`), else 0.
 /// Triangles are two-sided; the triangle test is watertight.
@@ -260,7 +250,7 @@ pub unsafe extern "C" fn antumbra_scene_occluded(
     ray_count: usize,
     occluded: *mut u8,
 ) -> antumbra_result {
-    with_scene("antumbra_scene_occluded", scene, |scene| {
+    with_handle("antumbra_scene_occluded", scene, |scene| {
         // SAFETY: caller contract forwarded.
         let rays = unsafe { RayBatch::new(origins, directions, t_max, ray_count) }?;
         // SAFETY: caller contract forwarded.
@@ -305,7 +295,7 @@ pub unsafe extern "C" fn antumbra_scene_intersect(
     ray_count: usize,
     hits: *mut antumbra_hit,
 ) -> antumbra_result {
-    with_scene("antumbra_scene_intersect", scene, |scene| {
+    with_handle("antumbra_scene_intersect", scene, |scene| {
         // SAFETY: caller contract forwarded.
         let rays = unsafe { RayBatch::new(origins, directions, t_max, ray_count) }?;
         // SAFETY: caller contract forwarded.
@@ -344,7 +334,7 @@ mod tests {
         // SAFETY: live arrays, valid out pointer.
         let created = unsafe { antumbra_scene_create(&view, &mut scene) };
         assert_eq!(created, ANTUMBRA_RESULT_OK);
-        let result = with_scene("test_query", scene, |_| panic!("deliberate"));
+        let result = with_handle("test_query", scene, |_| panic!("deliberate"));
         assert_eq!(result, ANTUMBRA_RESULT_PANIC);
         // SAFETY: the library's message pointer is valid until the next call.
         let message = unsafe { std::ffi::CStr::from_ptr(crate::antumbra_last_error_message()) };

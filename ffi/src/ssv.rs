@@ -495,16 +495,6 @@ impl Poisonable for antumbra_ssv {
     }
 }
 
-/// Runs a call on a ssv ([`with_handle`]): NULL and poisoned handles rejected, the
-/// handle poisoned when the call panics.
-fn with_ssv(
-    function: &'static str,
-    ssv: *const antumbra_ssv,
-    call: impl FnOnce(&antumbra_ssv) -> Result<(), Error>,
-) -> antumbra_result {
-    with_handle(function, ssv, call)
-}
-
 /// Points per rayon task: one query costs tens of microseconds (hundreds of
 /// candidate edges times N samples), so small tasks balance well.
 const PARALLEL_GRAIN: usize = 16;
@@ -583,7 +573,7 @@ pub unsafe extern "C" fn antumbra_ssv_query(
     visibility_bits: *mut u64,
     visible_counts: *mut u32,
 ) -> antumbra_result {
-    with_ssv("antumbra_ssv_query", ssv, |ssv| {
+    with_handle("antumbra_ssv_query", ssv, |ssv| {
         let words = ssv.shadows.words_per_receiver();
         // SAFETY: caller contract on `points`.
         let floats = unsafe { self::points(points, point_count, "points") }?;
@@ -672,7 +662,7 @@ pub unsafe extern "C" fn antumbra_ssv_get_statistics(
     ssv: *const antumbra_ssv,
     statistics: *mut antumbra_ssv_statistics,
 ) -> antumbra_result {
-    with_ssv("antumbra_ssv_get_statistics", ssv, |ssv| {
+    with_handle("antumbra_ssv_get_statistics", ssv, |ssv| {
         if statistics.is_null() {
             return Err(Error::null("statistics"));
         }
@@ -932,7 +922,7 @@ mod tests {
     fn a_panicking_query_poisons_the_handle() {
         let samples = generated(16);
         let ssv = create(ANTUMBRA_SSV_STRUCTURE_HIERARCHY, &samples, 0);
-        let result = with_ssv("test_query", ssv, |_| panic!("deliberate"));
+        let result = with_handle("test_query", ssv, |_| panic!("deliberate"));
         assert_eq!(result, ANTUMBRA_RESULT_PANIC);
         // SAFETY: an empty batch; only the poison check runs.
         let later = unsafe {

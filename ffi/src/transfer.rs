@@ -639,16 +639,6 @@ impl Poisonable for antumbra_transfer {
     }
 }
 
-/// Runs a call on a transfer ([`with_handle`]): NULL and poisoned handles rejected, the
-/// handle poisoned when the call panics.
-fn with_transfer(
-    function: &'static str,
-    transfer: *const antumbra_transfer,
-    query: impl FnOnce(&antumbra_transfer) -> Result<(), Error>,
-) -> antumbra_result {
-    with_handle(function, transfer, query)
-}
-
 /// Describes a transfer set: kind, sizes, how it was baked, memory and file size.
 ///
 /// @param transfer the set.
@@ -666,7 +656,7 @@ pub unsafe extern "C" fn antumbra_transfer_describe(
     transfer: *const antumbra_transfer,
     info: *mut antumbra_transfer_info,
 ) -> antumbra_result {
-    with_transfer("antumbra_transfer_describe", transfer, |t| {
+    with_handle("antumbra_transfer_describe", transfer, |t| {
         if info.is_null() {
             return Err(Error::null("info"));
         }
@@ -720,7 +710,7 @@ pub unsafe extern "C" fn antumbra_transfer_geometry(
     normals: *mut f32,
     vertex_count: usize,
 ) -> antumbra_result {
-    with_transfer("antumbra_transfer_geometry", transfer, |t| {
+    with_handle("antumbra_transfer_geometry", transfer, |t| {
         let set = &t.set;
         if vertex_count != set.vertex_count() {
             return Err(Error::invalid(format!(
@@ -778,7 +768,7 @@ pub unsafe extern "C" fn antumbra_transfer_save(
     capacity: usize,
     size: *mut usize,
 ) -> antumbra_result {
-    with_transfer("antumbra_transfer_save", transfer, |t| {
+    with_handle("antumbra_transfer_save", transfer, |t| {
         let buffer = raw::writable(buffer, capacity, "buffer")?;
         let size = if size.is_null() {
             None
@@ -876,7 +866,7 @@ pub unsafe extern "C" fn antumbra_transfer_compress(
     components: u32,
     out: *mut *mut antumbra_transfer,
 ) -> antumbra_result {
-    with_transfer("antumbra_transfer_compress", transfer, |t| {
+    with_handle("antumbra_transfer_compress", transfer, |t| {
         let out = check_out(out)?;
         let set = t.set.compress(components as usize).map_err(|e| match e {
             PcaError::NotDenseMrt => Error::invalid(format!(
@@ -999,7 +989,7 @@ pub unsafe extern "C" fn antumbra_transfer_shade(
     rgb: *mut f32,
     vertex_count: usize,
 ) -> antumbra_result {
-    with_transfer("antumbra_transfer_shade", transfer, |t| {
+    with_handle("antumbra_transfer_shade", transfer, |t| {
         let set = &t.set;
         let n = set.coeff_count();
         if lighting.is_null() {
@@ -1102,7 +1092,7 @@ mod tests {
             )
         };
         assert_eq!(baked, ANTUMBRA_RESULT_OK);
-        let result = with_transfer("test_query", set, |_| panic!("deliberate"));
+        let result = with_handle("test_query", set, |_| panic!("deliberate"));
         assert_eq!(result, ANTUMBRA_RESULT_PANIC);
         let mut info = antumbra_transfer_info::zeroed();
         // SAFETY: live set, valid out pointer.
