@@ -804,7 +804,7 @@ fn hemicube_lists_every_relevant_edge() {
                 let mut counters = vec![0i32; samples.len()];
                 for &e in &ss.potential {
                     if !in_list[e as usize] {
-                        kernel.add_edge(&ss, &ss.graph.edges[e as usize], &mut counters);
+                        kernel.add_edge(&ss, e, &mut counters);
                         assert!(
                             counters.iter().all(|&c| c == 0),
                             "scene {scene}, tilt {tilt}: unlisted edge {e} counts at {p:?}"
@@ -873,7 +873,7 @@ fn branch_free_sample_pass_equals_the_per_sample_test() {
         let mut info = QueryInfo::default();
         let mut k = Kernel::new(&ss, p);
         for &e in &ss.potential {
-            k.add_edge(&ss, &ss.graph.edges[e as usize], &mut fast);
+            k.add_edge(&ss, e, &mut fast);
         }
         unsure += k.unsure;
         let mut k = Kernel::new(&ss, p);
