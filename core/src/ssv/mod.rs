@@ -1122,8 +1122,9 @@ struct Kernel<'a> {
     /// The part of the arc margin due to samples off the light's plane
     /// (receiver-dependent only); `None` when it is too large for arcs.
     shift_margin: Option<f64>,
-    /// Tests only: every sample through the per-sample `test` (the slow twin
-    /// of the branch-free pass).
+    /// Tests only: every sample (no arc, no bucket range) through the
+    /// per-sample [`Kernel::crosses`] (the slow twin of the arc-restricted,
+    /// branch-free pass).
     slow: bool,
     /// Tests only: samples the fast pass left unsure so far.
     unsure: u32,
@@ -1264,7 +1265,14 @@ impl<'a> Kernel<'a> {
         };
         let n = counters.len();
         let mut unsure = 0;
-        match self.arc(ss, aw, bw) {
+        // The slow twin tests every sample: it checks the arc and its bucket
+        // range as well as the fast pass.
+        let arc = if self.slow {
+            None
+        } else {
+            self.arc(ss, aw, bw)
+        };
+        match arc {
             None => unsure += self.run(ss, &planes, 0, n, counters),
             Some((lo, hi)) => {
                 // Samples by pseudo-angle about the centroid: those in the arc
