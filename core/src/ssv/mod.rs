@@ -127,7 +127,7 @@ use glam::{DVec3, Vec3};
 use crate::geom::MeshView;
 use crate::raycast::Ray;
 
-use edges::{Edge, EdgeGraph};
+use edges::EdgeGraph;
 use hemicube::Hemicube;
 use hierarchy::Hierarchy;
 pub use light::{
@@ -136,6 +136,13 @@ pub use light::{
 use predicates::{ORIENT_BOUND, crossing_in_triangle, det3_with_permanent, orient3d_exact};
 pub use predicates::{orient3d, segment_meets_triangle};
 use wedge::{Aabb, LightShape};
+
+/// Pseudo-angle buckets of the sample lookup table (the pseudo-angle runs over
+/// `[0, 4)`; `ANGLE_BUCKETS / 4` is a power of two, so bucket bounds and the
+/// bucket of a pseudo-angle are computed exactly).
+const ANGLE_BUCKETS: usize = 1024;
+/// Buckets per pseudo-angle unit.
+const ANGLE_SCALE: f64 = (ANGLE_BUCKETS / 4) as f64;
 
 /// Most light samples a [`SoftShadows`] may have.
 pub const MAX_SAMPLES: usize = 1024;
@@ -392,6 +399,11 @@ pub struct SoftShadows {
     order: Vec<u32>,
     /// Pseudo-angles of the first `angles.len()` samples of `order`.
     angles: Vec<f64>,
+    /// `angle_starts[k]`: the first index of `angles` at or above the
+    /// pseudo-angle `k / ANGLE_SCALE` (`ANGLE_BUCKETS + 1` entries): a sample
+    /// range for a pseudo-angle range in two lookups instead of two binary
+    /// searches (a superset by at most a bucket at each end).
+    angle_starts: Vec<u32>,
     u_axis: DVec3,
     v_axis: DVec3,
     angle_radius: f64,
@@ -538,6 +550,9 @@ impl SoftShadows {
         }
         keyed.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
         let angles: Vec<f64> = keyed.iter().map(|k| k.0).collect();
+        let angle_starts = (0..=ANGLE_BUCKETS)
+            .map(|k| angles.partition_point(|&t| t < k as f64 / ANGLE_SCALE) as u32)
+            .collect();
         let order: Vec<u32> = keyed.iter().map(|k| k.1).chain(central).collect();
         let soa = [0, 1, 2].map(|axis| {
             order
@@ -564,6 +579,7 @@ impl SoftShadows {
             sample_hi,
             order,
             angles,
+            angle_starts,
             u_axis,
             v_axis,
             angle_radius,
@@ -798,7 +814,7 @@ impl SoftShadows {
         let p = kernel.p;
         let mut visit = |e: u32| {
             info.candidates += 1;
-            if kernel.add_edge(self, &self.graph.edges[e as usize], counters) {
+            if kernel.add_edge(self, e, counters) {
                 info.silhouettes += 1;
             }
         };
@@ -1099,8 +1115,16 @@ struct Kernel<'a> {
     /// The receiver's side of the light plane as a direction: the sweep happens
     /// in front of p along it.
     toward: DVec3,
-    /// Tests only: every sample through the per-sample `test` (the slow twin
-    /// of the branch-free pass).
+    /// Height of the centroid over the receiver along `toward`.
+    hc: f64,
+    /// `|cp|`, for the projection's rounding bound.
+    cp_length: f64,
+    /// The part of the arc margin due to samples off the light's plane
+    /// (receiver-dependent only); `None` when it is too large for arcs.
+    shift_margin: Option<f64>,
+    /// Tests only: every sample (no arc, no bucket range) through the
+    /// per-sample [`Kernel::crosses`] (the slow twin of the arc-restricted,
+    /// branch-free pass).
     slow: bool,
     /// Tests only: samples the fast pass left unsure so far.
     unsure: u32,
@@ -1129,9 +1153,23 @@ impl<'a> Kernel<'a> {
             lights: [DVec3::ZERO; MAX_LIGHT_VERTICES],
             light_count: ss.shape.vertices.len(),
             toward: ss.plane_normal * (ss.plane_point - pw).dot(ss.plane_normal).signum(),
+            hc: 0.0,
+            cp_length: 0.0,
+            shift_margin: None,
             slow: false,
             unsure: 0,
         };
+        k.hc = k.cp.dot(k.toward);
+        k.cp_length = k.cp.length();
+        // Samples are on the plane only up to rounding (or the tolerance of
+        // user samples): seen from p, a sample at height e off the plane shifts
+        // by up to |s - p| e / hc, an angle of that over its distance from the
+        // centroid (at least `angle_radius`).
+        let sample_shift =
+            (k.cp_length + ss.shape_diameter) * ss.sample_offset / k.hc / ss.angle_radius;
+        if sample_shift <= 0.25 {
+            k.shift_margin = Some(2.0 * sample_shift + 1e-9);
+        }
         for (i, v) in ss.shape.vertices.iter().enumerate() {
             k.lights[i] = *v - pw;
         }
@@ -1140,15 +1178,16 @@ impl<'a> Kernel<'a> {
 
     /// Adds the edge's contribution to the relative depth complexity of every
     /// sample; returns whether its weight at the receiver is non-zero.
-    fn add_edge(&mut self, ss: &SoftShadows, edge: &Edge, counters: &mut [i32]) -> bool {
+    fn add_edge(&mut self, ss: &SoftShadows, e: u32, counters: &mut [i32]) -> bool {
         let g = &ss.graph;
+        let edge = &g.edges[e as usize];
         let (a, b) = (g.positions[edge.a as usize], g.positions[edge.b as usize]);
         let (aw, bw) = (a.as_dvec3() - self.pw, b.as_dvec3() - self.pw);
         // Quick rejections first (conservative, with slack): the edge wholly
         // behind the receiver or beyond the light's plane cannot meet (p, c, s).
         let slack = 1e-9 * (aw.abs().max(bw.abs()).max(self.cp.abs()).max_element());
         let (ha, hb) = (aw.dot(self.toward), bw.dot(self.toward));
-        let hc = self.cp.dot(self.toward);
+        let hc = self.hc;
         if (ha < -slack && hb < -slack) || (ha > hc + slack && hb > hc + slack) {
             return false;
         }
@@ -1159,13 +1198,13 @@ impl<'a> Kernel<'a> {
             let vp = g.positions[v as usize];
             let vw = (vp.as_dvec3() - self.pw).to_array();
             let (det, perm) = det3_with_permanent(a3, b3, vw);
-            weight += if det > ORIENT_BOUND * perm {
-                1
-            } else if det < -ORIENT_BOUND * perm {
-                -1
-            } else {
-                orient3d_exact(wide(a), wide(b), wide(vp), wide(self.p))
-            };
+            // Branch-free in the certain case (the sign is data-dependent, a
+            // branch on it mispredicts about half the time).
+            let bound = ORIENT_BOUND * perm;
+            weight += i32::from(det > bound) - i32::from(det < -bound);
+            if det.abs() <= bound {
+                weight += orient3d_exact(wide(a), wide(b), wide(vp), wide(self.p));
+            }
         }
         if weight == 0 {
             return false;
@@ -1209,14 +1248,143 @@ impl<'a> Kernel<'a> {
         let err_a = ORIENT_BOUND * perm_of(aw, self.cp).dot(self.smax);
         let err_b = ORIENT_BOUND * perm_of(bw, self.cp).dot(self.smax);
         let err_c = ORIENT_BOUND * perm;
-        // The edge meets the triangle (p, c, s) when (a, b) crosses the plane
-        // (p, c, s) (det(a', c', s') and det(b', c', s') differ in sign) and the
-        // three orientations orient(a, b, p, c) = -det(a', b', c'),
-        // orient(a, b, s, p) = det(a', b', s') and
-        // orient(a, b, c, s) = det(a',b',c') - det(a',b',s') + det(a',c',s') - det(b',c',s')
-        // share one sign (the line ab passes through the closed triangle).
+        // The crossing test is spelled out at `EdgePlanes`.
         let want = !c_pos;
-        let contribution = if want { weight } else { -weight };
+        let planes = EdgePlanes {
+            a,
+            b,
+            nrm,
+            amat,
+            bmat,
+            det,
+            errs: [err_n, err_a, err_b, err_c + err_n + err_a + err_b],
+            // The wanted side folded into a factor of ±1 (exact).
+            g: if want { 1.0 } else { -1.0 },
+            want,
+            contribution: if want { weight } else { -weight },
+        };
+        let n = counters.len();
+        let mut unsure = 0;
+        // The slow twin tests every sample: it checks the arc and its bucket
+        // range as well as the fast pass.
+        let arc = if self.slow {
+            None
+        } else {
+            self.arc(ss, aw, bw)
+        };
+        match arc {
+            None => unsure += self.run(ss, &planes, 0, n, counters),
+            Some((lo, hi)) => {
+                // Samples by pseudo-angle about the centroid: those in the arc
+                // (a cyclic range), then those too close to the centroid for an
+                // angle (always tested). The buckets holding `lo` and `hi`
+                // (exact: the scale is a power of two) widen the range to
+                // whole buckets: extra samples only get tested, none is left
+                // out.
+                let angled = ss.angles.len();
+                let bucket = |t: f64| ((t * ANGLE_SCALE) as usize).min(ANGLE_BUCKETS - 1);
+                let first = ss.angle_starts[bucket(lo)] as usize;
+                let last = ss.angle_starts[bucket(hi) + 1] as usize;
+                if lo <= hi {
+                    unsure += self.run(ss, &planes, first, last, counters);
+                } else if first < last {
+                    // A wrapped range whose widened ends overlap: every
+                    // sample (once).
+                    unsure += self.run(ss, &planes, 0, angled, counters);
+                } else {
+                    unsure += self.run(ss, &planes, first, angled, counters);
+                    unsure += self.run(ss, &planes, 0, last, counters);
+                }
+                if angled < n {
+                    unsure += self.run(ss, &planes, angled, n, counters);
+                }
+            }
+        }
+        self.unsure += unsure;
+        true
+    }
+
+    /// Adds the edge's contribution to the samples `lo..hi` (angular order)
+    /// that it crosses; returns how many were unsure after the float pass.
+    ///
+    /// The fast pass: every sample classified branch-free from the certified
+    /// float signs ([`Kernel::crosses`]'s float half): certainly crossing
+    /// (counted here), certainly not, or unsure (some sign within its bound and
+    /// no certain rejection). Unsure samples, rare, then go through
+    /// [`Kernel::crosses`] (exact signs where the bounds do not settle them),
+    /// so the counts are exactly its counts for every sample.
+    #[inline(always)]
+    fn run(
+        &self,
+        ss: &SoftShadows,
+        planes: &EdgePlanes,
+        lo: usize,
+        hi: usize,
+        counters: &mut [i32],
+    ) -> u32 {
+        if self.slow {
+            for (i, c) in counters.iter_mut().enumerate().take(hi).skip(lo) {
+                if self.crosses(ss, planes, i) {
+                    *c += planes.contribution;
+                }
+            }
+            return 0;
+        }
+        let (px, py, pz) = (self.pw.x, self.pw.y, self.pw.z);
+        let mut any_unsure = false;
+        let range = lo..hi;
+        let (xs, ys, zs) = (
+            &self.sx[range.clone()],
+            &self.sy[range.clone()],
+            &self.sz[range.clone()],
+        );
+        let cs = &mut counters[range];
+        for (((c, &x), &y), &z) in cs.iter_mut().zip(xs).zip(ys).zip(zs) {
+            let (hit, reject) = planes.classify([x - px, y - py, z - pz]);
+            *c += if hit { planes.contribution } else { 0 };
+            any_unsure |= !(hit | reject);
+        }
+        if any_unsure {
+            self.settle(ss, planes, lo, hi, counters)
+        } else {
+            0
+        }
+    }
+
+    /// The unsure samples of `lo..hi` through the exact test (rare: kept out
+    /// of line so that the fast loop stays small).
+    #[cold]
+    #[inline(never)]
+    fn settle(
+        &self,
+        ss: &SoftShadows,
+        planes: &EdgePlanes,
+        lo: usize,
+        hi: usize,
+        counters: &mut [i32],
+    ) -> u32 {
+        let mut unsure = 0;
+        for (i, c) in counters.iter_mut().enumerate().take(hi).skip(lo) {
+            let v = [
+                self.sx[i] - self.pw.x,
+                self.sy[i] - self.pw.y,
+                self.sz[i] - self.pw.z,
+            ];
+            let (hit, reject) = planes.classify(v);
+            if !(hit | reject) {
+                unsure += 1;
+                if self.crosses(ss, planes, i) {
+                    *c += planes.contribution;
+                }
+            }
+        }
+        unsure
+    }
+
+    /// Whether the edge meets the triangle `(p, c, s)` for sample `i` (angular
+    /// order), exactly: the certified float signs, then exact `orient3d`
+    /// where they do not settle (the per-sample reference of the fast pass).
+    fn crosses(&self, ss: &SoftShadows, planes: &EdgePlanes, i: usize) -> bool {
         let sign = |v: f64, err: f64| -> Option<bool> {
             if v > err {
                 Some(true)
@@ -1226,144 +1394,56 @@ impl<'a> Kernel<'a> {
                 None
             }
         };
-        // Rounding of the four-term sum, on top of each term's own bound.
-        const SUM_BOUND: f64 = 4.0 * f64::EPSILON;
-        let test = |i: usize| -> bool {
-            let (x, y, z) = (
-                self.sx[i] - self.pw.x,
-                self.sy[i] - self.pw.y,
-                self.sz[i] - self.pw.z,
-            );
-            let vs = nrm.x * x + nrm.y * y + nrm.z * z;
-            let fs = sign(vs, err_n);
-            if fs == Some(!want) {
-                return false;
-            }
-            let va = amat.x * x + amat.y * y + amat.z * z;
-            let vb = bmat.x * x + bmat.y * y + bmat.z * z;
-            let fa = sign(va, err_a);
-            let fb = sign(vb, err_b);
-            if fa.is_some() && fa == fb {
-                return false;
-            }
-            let vo = det - vs + va - vb;
-            let err_o = err_c
-                + err_n
-                + err_a
-                + err_b
-                + SUM_BOUND * (det.abs() + vs.abs() + va.abs() + vb.abs());
-            let fo = sign(vo, err_o);
-            if fo == Some(!want) {
-                return false;
-            }
-            if fs.is_none() || fa.is_none() || fb.is_none() || fo.is_none() {
-                let s = wide(ss.samples[ss.order[i] as usize]);
-                let pp = wide(self.p);
-                let cc = wide(ss.centroid);
-                let exact_pos =
-                    |f: Option<bool>, x: [f64; 3], y: [f64; 3], z: [f64; 3], w: [f64; 3]| {
-                        f.unwrap_or_else(|| orient3d_exact(x, y, z, w) > 0)
-                    };
-                let ps = exact_pos(fs, wide(a), wide(b), s, pp);
-                let pa = exact_pos(fa, wide(a), cc, s, pp);
-                let pb = exact_pos(fb, wide(b), cc, s, pp);
-                let po = exact_pos(fo, wide(a), wide(b), cc, s);
-                if ps != want || pa == pb || po != want {
-                    return false;
-                }
-            }
-            true
-        };
-        // The fast pass: every sample of a range classified branch-free from
-        // the certified float signs (`test`'s float half, with the wanted side
-        // folded into a factor of ±1, which is exact): certainly crossing
-        // (counted here), certainly not, or unsure (some sign within its bound
-        // and no certain rejection). Unsure samples, rare, then go through
-        // `test` (exact signs where the bounds do not settle them), so the
-        // counts are exactly `test`'s for every sample.
-        let g = if want { 1.0 } else { -1.0 };
-        let err_base = err_c + err_n + err_a + err_b;
-        let (px, py, pz) = (self.pw.x, self.pw.y, self.pw.z);
-        #[inline(always)]
-        fn classify(
-            v: [f64; 3],
-            planes: &[DVec3; 3],
-            errs: [f64; 4],
-            det: f64,
-            g: f64,
-        ) -> (bool, bool) {
-            let [nrm, amat, bmat] = planes;
-            let [err_n, err_a, err_b, err_base] = errs;
-            let [x, y, z] = v;
-            let vs = nrm.x * x + nrm.y * y + nrm.z * z;
-            let va = amat.x * x + amat.y * y + amat.z * z;
-            let vb = bmat.x * x + bmat.y * y + bmat.z * z;
-            let vo = det - vs + va - vb;
-            let err_o = err_base + SUM_BOUND * (det.abs() + vs.abs() + va.abs() + vb.abs());
-            let (sg, og) = (vs * g, vo * g);
-            let (a_pos, a_neg) = (va > err_a, va < -err_a);
-            let (b_pos, b_neg) = (vb > err_b, vb < -err_b);
-            let hit = (sg > err_n) & (og > err_o) & ((a_pos & b_neg) | (a_neg & b_pos));
-            let reject = (sg < -err_n) | (og < -err_o) | (a_pos & b_pos) | (a_neg & b_neg);
-            (hit, reject)
+        let EdgePlanes {
+            a,
+            b,
+            nrm,
+            amat,
+            bmat,
+            det,
+            want,
+            ..
+        } = *planes;
+        let [err_n, err_a, err_b, err_base] = planes.errs;
+        let (x, y, z) = (
+            self.sx[i] - self.pw.x,
+            self.sy[i] - self.pw.y,
+            self.sz[i] - self.pw.z,
+        );
+        let vs = nrm.x * x + nrm.y * y + nrm.z * z;
+        let fs = sign(vs, err_n);
+        if fs == Some(!want) {
+            return false;
         }
-        let planes = [nrm, amat, bmat];
-        let errs = [err_n, err_a, err_b, err_base];
-        let (sx, sy, sz) = (self.sx, self.sy, self.sz);
-        let slow = self.slow;
-        let mut unsure_count = 0u32;
-        let mut run = |lo: usize, hi: usize, counters: &mut [i32]| {
-            if slow {
-                for (i, c) in counters.iter_mut().enumerate().take(hi).skip(lo) {
-                    if test(i) {
-                        *c += contribution;
-                    }
-                }
-                return;
-            }
-            let mut unsure = false;
-            let range = lo..hi;
-            let (xs, ys, zs) = (&sx[range.clone()], &sy[range.clone()], &sz[range.clone()]);
-            let cs = &mut counters[range];
-            for (k, c) in cs.iter_mut().enumerate() {
-                let v = [xs[k] - px, ys[k] - py, zs[k] - pz];
-                let (hit, reject) = classify(v, &planes, errs, det, g);
-                *c += if hit { contribution } else { 0 };
-                unsure |= !(hit | reject);
-            }
-            if unsure {
-                for i in lo..hi {
-                    let v = [sx[i] - px, sy[i] - py, sz[i] - pz];
-                    let (hit, reject) = classify(v, &planes, errs, det, g);
-                    if !(hit | reject) {
-                        unsure_count += 1;
-                        if test(i) {
-                            counters[i] += contribution;
-                        }
-                    }
-                }
-            }
-        };
-        let n = counters.len();
-        match self.arc(ss, aw, bw) {
-            None => run(0, n, counters),
-            Some((lo, hi)) => {
-                // Samples by pseudo-angle about the centroid: those in the arc
-                // (a cyclic range), then those too close to the centroid for an
-                // angle (always tested).
-                let angled = ss.angles.len();
-                let first = ss.angles.partition_point(|&t| t < lo);
-                let last = ss.angles.partition_point(|&t| t <= hi);
-                if lo <= hi {
-                    run(first, last, counters);
-                } else {
-                    run(first, angled, counters);
-                    run(0, last, counters);
-                }
-                run(angled, n, counters);
+        let va = amat.x * x + amat.y * y + amat.z * z;
+        let vb = bmat.x * x + bmat.y * y + bmat.z * z;
+        let fa = sign(va, err_a);
+        let fb = sign(vb, err_b);
+        if fa.is_some() && fa == fb {
+            return false;
+        }
+        let vo = det - vs + va - vb;
+        let err_o = err_base + SUM_BOUND * (det.abs() + vs.abs() + va.abs() + vb.abs());
+        let fo = sign(vo, err_o);
+        if fo == Some(!want) {
+            return false;
+        }
+        if fs.is_none() || fa.is_none() || fb.is_none() || fo.is_none() {
+            let s = wide(ss.samples[ss.order[i] as usize]);
+            let pp = wide(self.p);
+            let cc = wide(ss.centroid);
+            let exact_pos =
+                |f: Option<bool>, x: [f64; 3], y: [f64; 3], z: [f64; 3], w: [f64; 3]| {
+                    f.unwrap_or_else(|| orient3d_exact(x, y, z, w) > 0)
+                };
+            let ps = exact_pos(fs, wide(a), wide(b), s, pp);
+            let pa = exact_pos(fa, wide(a), cc, s, pp);
+            let pb = exact_pos(fb, wide(b), cc, s, pp);
+            let po = exact_pos(fo, wide(a), wide(b), cc, s);
+            if ps != want || pa == pb || po != want {
+                return false;
             }
         }
-        self.unsure += unsure_count;
         true
     }
 
@@ -1375,36 +1455,35 @@ impl<'a> Kernel<'a> {
     /// endpoint nearly level with or behind the receiver, an endpoint projecting
     /// near the centroid, or the edge's projection nearly through it).
     fn arc(&self, ss: &SoftShadows, aw: DVec3, bw: DVec3) -> Option<(f64, f64)> {
-        let hc = self.cp.dot(self.toward);
+        let shift_margin = self.shift_margin?;
+        let hc = self.hc;
         let (ha, hb) = (aw.dot(self.toward), bw.dot(self.toward));
         if !(ha > 1e-3 * hc && hb > 1e-3 * hc) {
             return None;
         }
+        // The 1-norm bounds the length from above (a larger rounding bound).
+        let norm1 = |w: DVec3| w.x.abs() + w.y.abs() + w.z.abs();
         let project = |w: DVec3, h: f64| {
-            let q = w * (hc / h) - self.cp;
-            let err = 1e-12 * (w.length() * (hc / h) + self.cp.length());
+            let scale = hc / h;
+            let q = w * scale - self.cp;
+            let err = 1e-12 * (norm1(w) * scale + self.cp_length);
             (q.dot(ss.u_axis), q.dot(ss.v_axis), err)
         };
         let (xa, ya, ea) = project(aw, ha);
         let (xb, yb, eb) = project(bw, hb);
-        let (ra, rb) = (libm::hypot(xa, ya), libm::hypot(xb, yb));
+        // Bounds of the projections' distances from the centroid without a
+        // square root: max(|x|, |y|) <= r <= |x| + |y|. The lower bound goes
+        // where r divides an error (a wider margin), the upper one where it
+        // scales a threshold below which the arc is not used.
+        let (ra, rb) = (xa.abs().max(ya.abs()), xb.abs().max(yb.abs()));
         if ra < 1e4 * ea || rb < 1e4 * eb {
             return None;
         }
         let cross = xa * yb - ya * xb;
-        if cross.abs() < 1e-6 * ra * rb {
+        if cross.abs() < 1e-6 * (xa.abs() + ya.abs()) * (xb.abs() + yb.abs()) {
             return None;
         }
-        // Samples are on the plane only up to rounding (or the tolerance of
-        // user samples): seen from p, a sample at height e off the plane shifts
-        // by up to |s - p| e / hc, an angle of that over its distance from the
-        // centroid (at least `angle_radius`).
-        let sample_shift =
-            (self.cp.length() + ss.shape_diameter) * ss.sample_offset / hc / ss.angle_radius;
-        if sample_shift > 0.25 {
-            return None;
-        }
-        let margin = 4.0 * (ea / ra + eb / rb) + 2.0 * sample_shift + 1e-9;
+        let margin = 4.0 * (ea * rb + eb * ra) / (ra * rb) + shift_margin;
         let (pa, pb) = (pseudo_angle(xa, ya), pseudo_angle(xb, yb));
         // Counter-clockwise from the first to the second is the short way.
         let (from, to) = if cross > 0.0 { (pa, pb) } else { (pb, pa) };
@@ -1418,6 +1497,61 @@ impl<'a> Kernel<'a> {
             }
         };
         Some((wrap(from - margin), wrap(to + margin)))
+    }
+}
+
+/// Rounding of the four-term sum `det(a',b',c') - det(a',b',s') + det(a',c',s')
+/// - det(b',c',s')`, on top of each term's own bound.
+const SUM_BOUND: f64 = 4.0 * f64::EPSILON;
+
+/// One edge's planes at one receiver, for the per-sample crossing test: the
+/// edge meets the triangle `(p, c, s)` when `(a, b)` crosses the plane
+/// `(p, c, s)` (`det(a', c', s')` and `det(b', c', s')` differ in sign) and the
+/// three orientations `orient(a, b, p, c) = -det(a', b', c')`,
+/// `orient(a, b, s, p) = det(a', b', s')` and `orient(a, b, c, s) =
+/// det(a',b',c') - det(a',b',s') + det(a',c',s') - det(b',c',s')` share one
+/// sign (the line `ab` passes through the closed triangle).
+struct EdgePlanes {
+    a: Vec3,
+    b: Vec3,
+    /// `a' × b'`: `det(a', b', s') = nrm · s'`.
+    nrm: DVec3,
+    /// `a' × c'`.
+    amat: DVec3,
+    /// `b' × c'`.
+    bmat: DVec3,
+    /// `det(a', b', c')`.
+    det: f64,
+    /// Error bounds of `nrm · s'`, `amat · s'`, `bmat · s'`, and the sum of
+    /// those three and `det`'s.
+    errs: [f64; 4],
+    /// `1` when the wanted side (`want`) is positive, else `-1`.
+    g: f64,
+    /// The side of `p`'s plane through the edge opposite the centroid's.
+    want: bool,
+    /// `±weight`: what a crossed sample's counter gets.
+    contribution: i32,
+}
+
+impl EdgePlanes {
+    /// Certainly crossing, certainly not (both false: unsure), from the
+    /// certified float signs, branch-free.
+    #[inline(always)]
+    fn classify(&self, v: [f64; 3]) -> (bool, bool) {
+        let (nrm, amat, bmat) = (self.nrm, self.amat, self.bmat);
+        let [err_n, err_a, err_b, err_base] = self.errs;
+        let [x, y, z] = v;
+        let vs = nrm.x * x + nrm.y * y + nrm.z * z;
+        let va = amat.x * x + amat.y * y + amat.z * z;
+        let vb = bmat.x * x + bmat.y * y + bmat.z * z;
+        let vo = self.det - vs + va - vb;
+        let err_o = err_base + SUM_BOUND * (self.det.abs() + vs.abs() + va.abs() + vb.abs());
+        let (sg, og) = (vs * self.g, vo * self.g);
+        let (a_pos, a_neg) = (va > err_a, va < -err_a);
+        let (b_pos, b_neg) = (vb > err_b, vb < -err_b);
+        let hit = (sg > err_n) & (og > err_o) & ((a_pos & b_neg) | (a_neg & b_pos));
+        let reject = (sg < -err_n) | (og < -err_o) | (a_pos & b_pos) | (a_neg & b_neg);
+        (hit, reject)
     }
 }
 

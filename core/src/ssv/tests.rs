@@ -804,7 +804,7 @@ fn hemicube_lists_every_relevant_edge() {
                 let mut counters = vec![0i32; samples.len()];
                 for &e in &ss.potential {
                     if !in_list[e as usize] {
-                        kernel.add_edge(&ss, &ss.graph.edges[e as usize], &mut counters);
+                        kernel.add_edge(&ss, e, &mut counters);
                         assert!(
                             counters.iter().all(|&c| c == 0),
                             "scene {scene}, tilt {tilt}: unlisted edge {e} counts at {p:?}"
@@ -873,7 +873,7 @@ fn branch_free_sample_pass_equals_the_per_sample_test() {
         let mut info = QueryInfo::default();
         let mut k = Kernel::new(&ss, p);
         for &e in &ss.potential {
-            k.add_edge(&ss, &ss.graph.edges[e as usize], &mut fast);
+            k.add_edge(&ss, e, &mut fast);
         }
         unsure += k.unsure;
         let mut k = Kernel::new(&ss, p);
@@ -1013,4 +1013,50 @@ fn axis_plane_side_equals_orient3d() {
     assert!(checked > 0);
     // Not axis-aligned: no shortcut.
     assert!(AxisPlane::of(&[Vec3::ZERO, Vec3::X, Vec3::new(0.0, 1.0, 1.0)]).is_none());
+}
+
+proptest! {
+    // The bucket lookup of a pseudo-angle range holds every sample the two
+    // binary searches it replaced find, and adds only samples of the two end
+    // buckets. Sample counts that are not multiples of 64, and ranges ending
+    // exactly on bucket bounds and on sample angles.
+    #[test]
+    fn angle_buckets_cover_the_searched_range(
+        count in prop::sample::select(vec![16usize, 100, 256, 300, 1024]),
+        seed in 0u64..1000,
+        lo_pick in 0usize..2048, hi_pick in 0usize..2048,
+        snap in 0u32..3,
+    ) {
+        let light = LightPolygon::new(&[
+            Vec3::new(-1.0, -1.0, 3.0),
+            Vec3::new(1.0, -1.0, 3.0),
+            Vec3::new(1.0, 1.0, 3.0),
+            Vec3::new(-1.0, 1.0, 3.0),
+        ])
+        .unwrap();
+        let samples = light.samples(count, SamplePattern::Jittered, seed);
+        let mut soup = Soup::default();
+        soup.push([Vec3::ZERO, Vec3::X, Vec3::Y]);
+        let ss = build(&soup, &light, &samples, Structure::BruteForce);
+        let angles = &ss.angles;
+        let at = |pick: usize| match snap {
+            0 => pick as f64 / 512.0,
+            1 => angles[pick % angles.len()],
+            _ => (pick as f64 + 0.37) / 512.0,
+        };
+        let (lo, hi) = (at(lo_pick), at(hi_pick));
+        prop_assume!(lo <= hi && hi < 4.0);
+        let bucket = |t: f64| ((t * ANGLE_SCALE) as usize).min(ANGLE_BUCKETS - 1);
+        let first = ss.angle_starts[bucket(lo)] as usize;
+        let last = ss.angle_starts[bucket(hi) + 1] as usize;
+        let exact_first = angles.partition_point(|&t| t < lo);
+        let exact_last = angles.partition_point(|&t| t <= hi);
+        prop_assert!(first <= exact_first && exact_last <= last);
+        for &t in &angles[first..exact_first] {
+            prop_assert_eq!(bucket(t), bucket(lo));
+        }
+        for &t in &angles[exact_last..last] {
+            prop_assert_eq!(bucket(t), bucket(hi));
+        }
+    }
 }
