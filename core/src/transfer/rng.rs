@@ -79,7 +79,9 @@ pub(crate) fn hemisphere_direction(sampling: Sampling, u: f32, v: f32) -> Vec3 {
             let z = u;
             let r = libm::sqrtf((1.0 - z * z).max(0.0));
             let phi = 2.0 * PI * v;
-            Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), z)
+            // One shared range reduction for both (the same bits as sinf, cosf).
+            let (sin, cos) = libm::sincosf(phi);
+            Vec3::new(r * cos, r * sin, z)
         }
         Sampling::Cosine => {
             // Shirley–Chiu concentric map to the disk, lifted to the hemisphere
@@ -93,7 +95,8 @@ pub(crate) fn hemisphere_direction(sampling: Sampling, u: f32, v: f32) -> Vec3 {
             } else {
                 (b, PI / 2.0 - (PI / 4.0) * (a / b))
             };
-            let (x, y) = (r * libm::cosf(phi), r * libm::sinf(phi));
+            let (sin, cos) = libm::sincosf(phi);
+            let (x, y) = (r * cos, r * sin);
             let z = libm::sqrtf((1.0 - x * x - y * y).max(0.0));
             Vec3::new(x, y, z)
         }
