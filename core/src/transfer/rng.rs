@@ -29,6 +29,12 @@ pub(crate) struct Stratified {
     side: u32,
     count: u32,
     next: u32,
+    /// `1 / side`, once per vertex rather than once per point.
+    inverse_side: f32,
+    /// Column and row of the next grid point, `next % side` and `next / side`
+    /// kept by counting (an integer division per point was measurable in bakes).
+    column: u32,
+    row: u32,
 }
 
 impl Stratified {
@@ -45,6 +51,9 @@ impl Stratified {
             side,
             count,
             next: 0,
+            inverse_side: 1.0 / side as f32,
+            column: 0,
+            row: 0,
         }
     }
 
@@ -58,8 +67,13 @@ impl Stratified {
         self.next += 1;
         let (ju, jv) = (rng.next_f32(), rng.next_f32());
         if k < self.side * self.side {
-            let inv = 1.0 / self.side as f32;
-            let (i, j) = (k % self.side, k / self.side);
+            let inv = self.inverse_side;
+            let (i, j) = (self.column, self.row);
+            self.column += 1;
+            if self.column == self.side {
+                self.column = 0;
+                self.row += 1;
+            }
             // min keeps rounding of (i + ju) / side strictly inside [0, 1).
             Some((
                 ((i as f32 + ju) * inv).min(1.0 - f32::EPSILON),
