@@ -239,9 +239,21 @@ impl BvhScene {
 /// `[half]`. Decoding once per scene instead of once per visit saves 48 byte to
 /// float conversions and the per-node setup of the affine test per node visited,
 /// for 192 bytes per node (the compressed node is 80).
+///
+/// It also carries the node's links (child and primitive bases, inner mask, leaf
+/// metadata), so that the search of ordinary rays reads one record per node
+/// instead of this and the compressed node.
 #[derive(Clone, Copy, Debug)]
 struct NodePlanes {
     planes: [[[Vec4; 2]; 2]; 3],
+    /// [`CwBvhNode::child_base_idx`].
+    child_base: u32,
+    /// [`CwBvhNode::primitive_base_idx`].
+    primitive_base: u32,
+    /// [`CwBvhNode::imask`].
+    imask: u32,
+    /// [`CwBvhNode::child_meta`].
+    meta: [u8; 8],
 }
 
 impl NodePlanes {
@@ -266,7 +278,13 @@ impl NodePlanes {
                 core::array::from_fn(|half| TraversalRay::lanes(q, half) * extent[axis] + offset)
             })
         });
-        NodePlanes { planes }
+        NodePlanes {
+            planes,
+            child_base: node.child_base_idx,
+            primitive_base: node.primitive_base_idx,
+            imask: u32::from(node.imask),
+            meta: node.child_meta,
+        }
     }
 }
 
@@ -617,16 +635,16 @@ impl BvhScene {
         let mut depth = 0;
         let mut index = 0;
         loop {
-            let node = &self.bvh.nodes[index];
+            let node = &self.planes[index];
             let entered = if traversal.fast {
-                traversal.entered_planes(&self.planes[index])
+                traversal.entered_planes(node)
             } else {
-                traversal.entered_general(node)
+                traversal.entered_general(&self.bvh.nodes[index])
             };
-            let imask = u32::from(node.imask);
+            let imask = node.imask;
             let inner = entered & imask;
             if inner != 0 {
-                stack[depth] = (u64::from(node.child_base_idx) << 16)
+                stack[depth] = (u64::from(node.child_base) << 16)
                     | u64::from(imask << 8 | octant_order(inner, octant));
                 depth += 1;
             }
@@ -648,9 +666,9 @@ impl BvhScene {
             while leaves != 0 {
                 let slot = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
-                let meta = node.child_meta[slot];
+                let meta = node.meta[slot];
                 // An empty slot's meta is 0: no primitives.
-                let first = (node.primitive_base_idx + u32::from(meta & 0b1_1111)) as usize;
+                let first = (node.primitive_base + u32::from(meta & 0b1_1111)) as usize;
                 let count = (meta >> 5).count_ones() as usize;
                 for primitive in first..first + count {
                     if let Some(t) = test(primitive) {
