@@ -3,7 +3,8 @@
 //! rays, and PCA error and memory against the component count — all measured in
 //! one run on one mesh, so the ratios compare like with like.
 //!
-//! Every time is the median of several repeats. Shading is timed on one thread (a
+//! Every time is the fastest of several repeats (the machine may be shared: a
+//! slower repeat measures the other processes). Shading is timed on one thread (a
 //! rayon pool of one), the eye at a fixed point, two ways: through
 //! `TransferSet::shade` over every vertex (the batch call: per-call lighting split,
 //! per-vertex view vectors), and through the per-vertex kernels (`shade_diffuse`,
@@ -49,18 +50,8 @@ const EXPONENT: f32 = 32.0;
 /// Seed of the bakes.
 const SEED: u64 = 7;
 
-/// Repeats of every timing; the median is reported (the machine may be shared).
+/// Repeats of every timing; the fastest is reported (the machine may be shared).
 const REPEATS: u32 = 7;
-
-/// The median over [`REPEATS`] runs of [`time_per_call`], each for
-/// `min_time / REPEATS`.
-fn median_time(min_time: Duration, mut work: impl FnMut()) -> Duration {
-    let mut times: Vec<Duration> = (0..REPEATS)
-        .map(|_| time_per_call(min_time / REPEATS, &mut work))
-        .collect();
-    times.sort();
-    times[times.len() / 2]
-}
 
 /// Runs the benchmark.
 pub fn run(args: &BenchTransferArgs) -> Result<()> {
@@ -265,7 +256,7 @@ fn time_shade(
     let mut out = vec![[0.0f32; 3]; set.vertex_count()];
     set.shade(lighting, View::Eye(eye), &material, components, &mut out)
         .map_err(|e| Error::msg(format!("cannot shade: {e}")))?;
-    let elapsed = median_time(min_time, || {
+    let elapsed = fastest_time(min_time, || {
         let _ = set.shade(
             black_box(lighting),
             View::Eye(eye),
@@ -299,7 +290,7 @@ fn time_glossy_loop(
     let normals: Vec<Vec3> = set.normals().iter().map(|n| Vec3::from(*n)).collect();
     let positions = set.positions();
     let mut out = vec![[0.0f32; 3]; set.vertex_count()];
-    let elapsed = median_time(min_time, || {
+    let elapsed = fastest_time(min_time, || {
         let Some(planar) = ShLighting::new(black_box(lighting)) else {
             return;
         };
@@ -347,12 +338,12 @@ fn kernel_costs(
     let planar = ShLighting::new(lighting).ok_or_else(|| Error::msg("too many coefficients"))?;
     let per_vertex = |elapsed: Duration| elapsed.as_secs_f64() * 1e9 / vertices.max(1) as f64;
     let mut out = Vec::new();
-    out.push(per_vertex(median_time(min_time, || {
+    out.push(per_vertex(fastest_time(min_time, || {
         for block in d.chunks_exact(n) {
             black_box(shade_diffuse(black_box(block), lighting));
         }
     })));
-    out.push(per_vertex(median_time(min_time, || {
+    out.push(per_vertex(fastest_time(min_time, || {
         for (v, block) in g.chunks_exact(n * n).enumerate() {
             black_box(shade_glossy_sh(
                 black_box(block),
@@ -363,7 +354,7 @@ fn kernel_costs(
             ));
         }
     })));
-    out.push(per_vertex(median_time(min_time, || {
+    out.push(per_vertex(fastest_time(min_time, || {
         for (v, block) in g.chunks_exact(n * n).enumerate() {
             black_box(shade_glossy_sh_2002(
                 black_box(block),
@@ -376,7 +367,7 @@ fn kernel_costs(
     })));
     let len = mrt.block_len();
     let grid = mrt.grid();
-    out.push(per_vertex(median_time(min_time, || {
+    out.push(per_vertex(fastest_time(min_time, || {
         for (v, block) in m.chunks_exact(len).enumerate() {
             black_box(shade_mrt(
                 black_box(block),
@@ -393,7 +384,7 @@ fn kernel_costs(
     let baked = pca.components();
     for &k in ks {
         let mut terms = vec![[0.0f32; 3]; pca.frame_terms_len(k)];
-        out.push(per_vertex(median_time(min_time, || {
+        out.push(per_vertex(fastest_time(min_time, || {
             pca.frame_terms(lighting, k, &mut terms);
             for v in 0..vertices {
                 let w = &pca.weights()[v * baked..v * baked + k];
