@@ -205,23 +205,10 @@ impl BvhScene {
         self.depth
     }
 
-    /// [`Self::search`] with a stack that holds [`Self::depth`] groups: on the call
-    /// stack up to [`STACK_GROUPS`] levels, otherwise on the heap (one allocation
-    /// per query, only for degenerate hierarchies).
-    #[inline(always)]
-    fn search_any_depth<const ANY_HIT: bool>(
-        &self,
-        traversal: &mut TraversalRay,
-        test: impl FnMut(usize) -> Option<f32>,
-    ) -> bool {
-        if self.depth <= STACK_GROUPS {
-            self.search::<ANY_HIT>(&mut [0u64; STACK_GROUPS], traversal, test)
-        } else {
-            self.search_deep::<ANY_HIT>(traversal, test)
-        }
-    }
-
-    /// [`Self::search`] with a heap stack of [`Self::depth`] groups.
+    /// [`Self::search`] with a heap stack of [`Self::depth`] groups, for trees
+    /// deeper than [`STACK_GROUPS`] (one allocation per query, only for degenerate
+    /// hierarchies). Queries call it with their own copy of the leaf test, so that
+    /// the test of the common path has one call site and is inlined there.
     #[cold]
     #[inline(never)]
     fn search_deep<const ANY_HIT: bool>(
@@ -767,6 +754,36 @@ fn octant_order(mut mask: u32, octant: u32) -> u32 {
     mask
 }
 
+impl BvhScene {
+    /// The any-hit leaf test: `t` of a hit on triangle `primitive` (leaf order).
+    #[inline(always)]
+    fn any_hit_leaf(&self, prepared: &PreparedRay, primitive: usize) -> Option<f32> {
+        let [a, b, c] = self.corners[primitive];
+        prepared.intersect(a, b, c).map(|hit| hit.t)
+    }
+
+    /// The closest-hit leaf test: a hit on triangle `primitive` (leaf order)
+    /// shortens `prepared` and becomes `best`; returns its `t`.
+    #[inline(always)]
+    fn closest_hit_leaf(
+        &self,
+        prepared: &mut PreparedRay,
+        best: &mut Option<Hit>,
+        primitive: usize,
+    ) -> Option<f32> {
+        let [a, b, c] = self.corners[primitive];
+        let hit = prepared.intersect(a, b, c)?;
+        prepared.set_t_max(hit.t);
+        *best = Some(Hit {
+            t: hit.t,
+            triangle: self.original[primitive],
+            u: hit.u,
+            v: hit.v,
+        });
+        Some(hit.t)
+    }
+}
+
 impl RayCaster for BvhScene {
     fn occluded(&self, ray: &Ray) -> bool {
         if self.corners.is_empty() {
@@ -776,10 +793,17 @@ impl RayCaster for BvhScene {
             return false;
         };
         let mut traversal = TraversalRay::new(ray);
-        self.search_any_depth::<true>(&mut traversal, |primitive| {
-            let [a, b, c] = self.corners[primitive];
-            prepared.intersect(a, b, c).map(|hit| hit.t)
-        })
+        // Two closures over one inlined body: each has a single call site, so
+        // the common path's leaf test is inlined into its traversal loop.
+        if self.depth <= STACK_GROUPS {
+            self.search::<true>(&mut [0u64; STACK_GROUPS], &mut traversal, |primitive| {
+                self.any_hit_leaf(&prepared, primitive)
+            })
+        } else {
+            self.search_deep::<true>(&mut traversal, |primitive| {
+                self.any_hit_leaf(&prepared, primitive)
+            })
+        }
     }
 
     fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
@@ -789,18 +813,15 @@ impl RayCaster for BvhScene {
         let mut prepared = PreparedRay::new(ray)?;
         let mut traversal = TraversalRay::new(ray);
         let mut best: Option<Hit> = None;
-        self.search_any_depth::<false>(&mut traversal, |primitive| {
-            let [a, b, c] = self.corners[primitive];
-            let hit = prepared.intersect(a, b, c)?;
-            prepared.set_t_max(hit.t);
-            best = Some(Hit {
-                t: hit.t,
-                triangle: self.original[primitive],
-                u: hit.u,
-                v: hit.v,
+        if self.depth <= STACK_GROUPS {
+            self.search::<false>(&mut [0u64; STACK_GROUPS], &mut traversal, |primitive| {
+                self.closest_hit_leaf(&mut prepared, &mut best, primitive)
             });
-            Some(hit.t)
-        });
+        } else {
+            self.search_deep::<false>(&mut traversal, |primitive| {
+                self.closest_hit_leaf(&mut prepared, &mut best, primitive)
+            });
+        }
         best
     }
 }
