@@ -610,7 +610,10 @@ const PREFETCH_AHEAD: usize = 8;
 /// nor changes any value, whatever the address (no-op off x86).
 #[inline(always)]
 fn prefetch(data: &[f32], index: usize) {
-    #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+    #[cfg(all(
+        any(target_arch = "x86", target_arch = "x86_64"),
+        target_feature = "sse"
+    ))]
     {
         #[cfg(target_arch = "x86")]
         use core::arch::x86::{_MM_HINT_T0, _mm_prefetch};
@@ -623,14 +626,14 @@ fn prefetch(data: &[f32], index: usize) {
         // line: it never faults and never reads memory visibly, for any address.
         // The only reason it is `unsafe` is its `#[target_feature(enable = "sse")]`,
         // which every x86-64 target has and which this build guards by `cfg`.
-        #[cfg(target_feature = "sse")]
         unsafe {
             _mm_prefetch::<_MM_HINT_T0>(address)
         };
-        #[cfg(not(target_feature = "sse"))]
-        let _ = address;
     }
-    #[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
+    #[cfg(not(all(
+        any(target_arch = "x86", target_arch = "x86_64"),
+        target_feature = "sse"
+    )))]
     let _ = (data, index);
 }
 
@@ -640,14 +643,15 @@ fn prefetch(data: &[f32], index: usize) {
 fn prefetch_tap<const N: usize>(data: &[f32], v: usize, len: usize, tap: &Option<MrtTap>) {
     if let Some(tap) = tap {
         for pair in [tap.nodes[0], tap.nodes[2]] {
-            let start = v * len + pair as usize * N;
+            // Wrapping: an address only, checked nowhere (a hint cannot fault).
+            let start = v.wrapping_mul(len).wrapping_add(pair as usize * N);
             // One request per 16 floats (64-byte lines) and one for the last value.
             let mut k = 0;
             while k < 2 * N {
-                prefetch(data, start + k);
+                prefetch(data, start.wrapping_add(k));
                 k += 16;
             }
-            prefetch(data, start + 2 * N - 1);
+            prefetch(data, start.wrapping_add(2 * N - 1));
         }
     }
 }
