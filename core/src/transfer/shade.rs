@@ -697,8 +697,9 @@ impl TransferSet {
     /// compressed form, nothing per vertex; vertices run on rayon's pool with the
     /// `parallel` feature. Per call the lighting is split per channel; per vertex
     /// the set's cached frame is used, and MRT takes the raw view vector (its map
-    /// is scale-invariant) and computes the taps of a block of vertices before
-    /// reading their rows. Each vertex's value is that of the kernels given
+    /// is scale-invariant), computes the taps of a block of vertices first and
+    /// requests each vertex's rows from memory a few vertices before shading it
+    /// (a cache hint: no effect on the values). Each vertex's value is that of the kernels given
     /// [`Frame::from_normal`] of its normal. On error `out` is untouched.
     pub fn shade(
         &self,
