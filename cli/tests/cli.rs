@@ -322,7 +322,8 @@ fn bench_transfer_prints_every_figure() {
     for needle in [
         "bake, one thread",
         "obvhs occluded alone",
-        "glossy SH transfer",
+        "glossy SH, view-first",
+        "glossy SH, 2002 order",
         "MRT from PCA, K = 4",
         "cheaper than glossy SH",
         "K =   4",

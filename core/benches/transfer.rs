@@ -4,7 +4,8 @@
 //! - per-vertex shading (`shade/*`, 32 (in cache) or 2,048 vertices per iteration, one view and one
 //!   random normal per vertex, RGB lighting) at 4, 5 and 6 bands: diffuse PRT (a
 //!   dot product), glossy SH transfer (the 2002 baseline: view-first `(Tᵀw)·l`, and
-//!   the textbook form `T·l` per channel), MRT 12×12 (four rows blended) and MRT
+//!   the published form `T·l` per channel, both as the serial reference
+//!   (`glossy_sh_textbook`) and in MRT's four-lane style (`glossy_sh_2002`)), MRT 12×12 (four rows blended) and MRT
 //!   from its PCA at K = 4, 8 and 16 (per vertex only; the per-frame products are
 //!   `pca_frame_terms`). MRT's cost does not depend on the grid size (always four
 //!   rows), only its memory does.
@@ -21,7 +22,8 @@ use antumbra_core::MeshView;
 use antumbra_core::raycast::BvhScene;
 use antumbra_core::transfer::{
     BakeOptions, GlossyLobe, Measurement, Pca, PhongBrdf, ShLighting, bake_serial, mrt_tap,
-    shade_diffuse, shade_glossy_sh, shade_glossy_sh_reference, shade_mrt, shade_mrt_pca,
+    shade_diffuse, shade_glossy_sh, shade_glossy_sh_2002, shade_glossy_sh_reference, shade_mrt,
+    shade_mrt_pca,
 };
 use glam::Vec3;
 use rand::{Rng, SeedableRng, rngs::SmallRng};
@@ -140,6 +142,29 @@ mod shade {
                         &inp.data[v * N * N..(v + 1) * N * N],
                         &lobe,
                         &inp.lighting,
+                        inp.normals[v],
+                        inp.views[v],
+                    );
+                }
+                divan::black_box(acc)
+            });
+    }
+
+    /// The published order written like the MRT kernel (four lanes, fixed size).
+    #[divan::bench(consts = [16, 25, 36], args = VERTEX_COUNTS)]
+    fn glossy_sh_2002<const N: usize>(bencher: divan::Bencher<'_, '_>, vertices: usize) {
+        let inp = inputs(N, N * N, vertices);
+        let bands = (N as f32).sqrt() as u32;
+        let lobe = GlossyLobe::phong(bands, 16.0).unwrap();
+        bencher
+            .counter(divan::counter::ItemsCount::new(vertices))
+            .bench_local(|| {
+                let mut acc = Vec3::ZERO;
+                for v in 0..vertices {
+                    acc += shade_glossy_sh_2002(
+                        &inp.data[v * N * N..(v + 1) * N * N],
+                        &lobe,
+                        &inp.planar,
                         inp.normals[v],
                         inp.views[v],
                     );

@@ -286,6 +286,8 @@ def main(argv=None):
                     help="write 'occluded_seconds=S' to FILE: the wall time of one batch "
                          "occlusion query over all rays on one thread (a second call, "
                          "after the scene is committed)")
+    ap.add_argument("--timing-passes", type=int, default=1, metavar="N",
+                    help="with --timing, time N passes and write the fastest (default 1)")
     ap.add_argument("--crossing-eps", type=float, default=DEFAULT_EPS,
                     help=f"relative step past each hit (default {DEFAULT_EPS})")
     args = ap.parse_args(argv)
@@ -312,10 +314,14 @@ def main(argv=None):
     occ = caster.occluded()
     if args.timing:
         # embreex's run() loops rtcOccluded1 over the batch in C on this thread.
+        # The fastest of --timing-passes passes: on a shared machine the slower
+        # ones measure the other processes.
         import time
-        started = time.perf_counter()
-        caster.occluded()
-        elapsed = time.perf_counter() - started
+        elapsed = float("inf")
+        for _ in range(max(1, args.timing_passes)):
+            started = time.perf_counter()
+            caster.occluded()
+            elapsed = min(elapsed, time.perf_counter() - started)
         with open(args.timing, "w") as f:
             f.write(f"occluded_seconds={elapsed!r}\n")
     c_hit, c_t, prim, u, v = caster.closest(raw=False)

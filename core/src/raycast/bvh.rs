@@ -16,20 +16,26 @@
 //! origin within 2^64) test child boxes decoded to `f32` once per scene, slab
 //! distances as in Ize 2013 with the exit padded for rounding; other rays
 //! (axis-parallel ones among them) take the general form, exit distances rounded
-//! up likewise and parallel axes decided by the origin. Trees deeper than the
-//! stack go through obvhs's `traverse!` with the same box test (in the affine
-//! form on the compressed node for ordinary rays). Exactness then rests on the
+//! up likewise and parallel axes decided by the origin. The stack holds one
+//! group of siblings per level, so it is sized by the tree's depth, measured at
+//! build: on the call stack up to 32 levels, on the heap beyond (degenerate
+//! trees; obvhs's own `traverse!`, whose 32-entry stack overwrites on overflow,
+//! serves only as a test reference, with the same box test in the affine form on
+//! the compressed node). Exactness then rests on the
 //! watertight triangle test alone, shared with [`super::BruteForceCaster`], so the two agree bit for bit.
 
 use alloc::collections::TryReserveError;
 
 use alloc::vec::Vec;
-use core::time::Duration;
 
-use glam::{BVec3A, UVec2, Vec3, Vec3A, Vec4};
+#[cfg(test)]
+use glam::{BVec3A, UVec2};
+use glam::{Vec3, Vec3A, Vec4};
 use obvhs::{
     BvhBuildParams,
-    cwbvh::{CwBvh, builder::build_cwbvh_from_tris, node::CwBvhNode},
+    bvh2::reinsertion::ReinsertionOptimizer,
+    cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh, node::CwBvhNode},
+    ploc::PlocBuilder,
     triangle::Triangle,
 };
 
@@ -50,16 +56,17 @@ pub struct BvhScene {
     /// Each node's child boxes decoded once, for the any-hit loop (same index as
     /// the node).
     planes: Vec<NodePlanes>,
-    /// Whether the hierarchy is at most [`STACK_GROUPS`] nodes deep, so the
-    /// any-hit traversal's fixed stack cannot overflow.
-    shallow: bool,
+    /// Nodes on the longest root-to-leaf path: a bound on the entries
+    /// [`BvhScene::search`]'s stack ever holds.
+    depth: usize,
 }
 
-/// Entries of the any-hit traversal's fixed stack: one group of pending siblings
-/// per level, so trees up to this depth (PLOC trees over millions of triangles
-/// are well under twenty levels of eight-wide nodes) take the fast path. Small,
-/// because the stack is initialised for every ray: 64 entries cost 5 % of the
-/// throughput on bunny surface rays.
+/// Entries of the traversal's stack on the call stack: at most one group of
+/// pending siblings per level (see [`BvhScene::search`]), so trees up to this
+/// depth (PLOC trees over millions of triangles are well under twenty levels of
+/// eight-wide nodes) need no allocation. Small, because the stack is initialised
+/// for every ray: 64 entries cost 5 % of the throughput on bunny surface rays.
+/// Deeper (degenerate) trees get a heap stack of their depth per query.
 const STACK_GROUPS: usize = 32;
 
 /// Largest coordinate magnitude a [`BvhScene`] accepts. obvhs's builder breaks
@@ -123,7 +130,7 @@ impl BvhScene {
                 corners,
                 original: Vec::new(),
                 planes: Vec::new(),
-                shallow: true,
+                depth: 0,
             });
         }
         triangles.extend(mesh.triangles().map(|[a, b, c]| Triangle {
@@ -131,13 +138,26 @@ impl BvhScene {
             v1: b.into(),
             v2: c.into(),
         }));
-        let mut build_time = Duration::ZERO;
-        let bvh =
-            build_cwbvh_from_tris(&triangles, BvhBuildParams::medium_build(), &mut build_time);
+        // obvhs's `build_cwbvh_from_tris` in its default configuration (no
+        // pre-splitting), from its public parts: that helper also validates the
+        // result in debug builds, which asserts a depth below 32 (the stack of its
+        // own traversal) and so panics on degenerate meshes that this scene
+        // traverses correctly.
+        let params = BvhBuildParams::medium_build();
+        let mut bvh2 = PlocBuilder::with_capacity(count).build(
+            params.ploc_search_distance,
+            &triangles,
+            (0..count as u32).collect(),
+            params.sort_precision,
+            params.search_depth_threshold,
+        );
+        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+        let bvh = bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false);
+        drop(bvh2);
         drop(triangles);
         let original = bvh.primitive_indices.clone();
         corners.extend(original.iter().map(|&t| mesh.triangle(t as usize)));
-        let shallow = depth(&bvh.nodes) <= STACK_GROUPS;
+        let depth = depth(&bvh.nodes);
         let mut planes = Vec::new();
         planes
             .try_reserve_exact(bvh.nodes.len())
@@ -148,7 +168,7 @@ impl BvhScene {
             corners,
             original,
             planes,
-            shallow,
+            depth,
         })
     }
 
@@ -179,10 +199,24 @@ impl BvhScene {
         self.closest_hit_general(&mut prepared, &mut TraversalRay::new(ray))
     }
 
-    /// Whether [`RayCaster::occluded`] takes the any-hit loop on this scene.
+    /// Nodes on the hierarchy's longest root-to-leaf path (0 when empty).
     #[cfg(test)]
-    pub(super) fn is_shallow(&self) -> bool {
-        self.shallow
+    pub(super) fn depth(&self) -> usize {
+        self.depth
+    }
+
+    /// [`Self::search`] with a heap stack of [`Self::depth`] groups, for trees
+    /// deeper than [`STACK_GROUPS`] (one allocation per query, only for degenerate
+    /// hierarchies). Queries call it with their own copy of the leaf test, so that
+    /// the test of the common path has one call site and is inlined there.
+    #[cold]
+    #[inline(never)]
+    fn search_deep<const ANY_HIT: bool>(
+        &self,
+        traversal: &mut TraversalRay,
+        test: impl FnMut(usize) -> Option<f32>,
+    ) -> bool {
+        self.search::<ANY_HIT>(&mut alloc::vec![0u64; self.depth], traversal, test)
     }
 }
 
@@ -192,9 +226,21 @@ impl BvhScene {
 /// `[half]`. Decoding once per scene instead of once per visit saves 48 byte to
 /// float conversions and the per-node setup of the affine test per node visited,
 /// for 192 bytes per node (the compressed node is 80).
+///
+/// It also carries the node's links (child and primitive bases, inner mask, leaf
+/// metadata), so that the search of ordinary rays reads one record per node
+/// instead of this and the compressed node.
 #[derive(Clone, Copy, Debug)]
 struct NodePlanes {
     planes: [[[Vec4; 2]; 2]; 3],
+    /// [`CwBvhNode::child_base_idx`].
+    child_base: u32,
+    /// [`CwBvhNode::primitive_base_idx`].
+    primitive_base: u32,
+    /// [`CwBvhNode::imask`].
+    imask: u32,
+    /// [`CwBvhNode::child_meta`].
+    meta: [u8; 8],
 }
 
 impl NodePlanes {
@@ -219,7 +265,13 @@ impl NodePlanes {
                 core::array::from_fn(|half| TraversalRay::lanes(q, half) * extent[axis] + offset)
             })
         });
-        NodePlanes { planes }
+        NodePlanes {
+            planes,
+            child_base: node.child_base_idx,
+            primitive_base: node.primitive_base_idx,
+            imask: u32::from(node.imask),
+            meta: node.child_meta,
+        }
     }
 }
 
@@ -256,6 +308,7 @@ const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
 /// itself. The fast test uses the query's own direction, so there is no direction
 /// error to cover. 64 units in the last place (`32 * f32::EPSILON`) leave a
 /// factor of ten.
+#[cfg(test)]
 const FAST_SLACK: f32 = 32.0 * f32::EPSILON;
 /// The fast box test applies when every direction component is at least this in
 /// magnitude (so `1/d <= 2^40`) ...
@@ -281,6 +334,7 @@ struct TraversalRay {
     /// box's maximum.
     negative: [bool; 3],
     /// The same as a lane mask.
+    #[cfg(test)]
     negative_lanes: BVec3A,
     /// Whether [`Self::entered_fast`] applies (see [`FAST_MIN_DIRECTION`]).
     fast: bool,
@@ -320,6 +374,7 @@ impl TraversalRay {
             inverse,
             parallel,
             negative,
+            #[cfg(test)]
             negative_lanes: BVec3A::from(negative),
             fast,
             length,
@@ -361,6 +416,7 @@ impl TraversalRay {
 
     /// Bit `i` set when the ray may enter child slot `i` of `node` at a distance in
     /// `[t_min, t_max]`. Conservative: no child holding a hit is ever culled.
+    #[cfg(test)]
     #[inline(always)]
     fn entered(&self, node: &CwBvhNode) -> u32 {
         if self.fast {
@@ -373,6 +429,7 @@ impl TraversalRay {
     /// The children of `node` the ray may enter at a distance in `[t_min, t_max]`, as
     /// the hit mask obvhs's `traverse!` expects. Conservative: no child holding a hit
     /// is ever culled.
+    #[cfg(test)]
     #[inline(always)]
     fn child_hits(&self, node: &CwBvhNode, oct_inv4: u32) -> u32 {
         let mut entered = self.entered(node);
@@ -408,6 +465,7 @@ impl TraversalRay {
     /// widening each axis's interval by [`FAST_SLACK`] times that covers all its
     /// rounding; the interval is then a superset of the exact one and no child
     /// holding a hit is culled.
+    #[cfg(test)]
     #[inline(always)]
     fn entered_fast(&self, node: &CwBvhNode) -> u32 {
         let extent = node.compute_extent();
@@ -531,8 +589,15 @@ impl TraversalRay {
 impl BvhScene {
     /// Any-hit search with a traversal loop of our own: no child ordering beyond
     /// the ray's octant, leaves tested as soon as their node is, an early exit on
-    /// the first hit, and a fixed stack of sibling groups (one per level, hence
-    /// [`Self::shallow`]).
+    /// the first hit, and a stack of sibling groups.
+    ///
+    /// Stack bound: a group is pushed when a node with entered inner children is
+    /// visited, and popped as soon as its last pending child is taken, before that
+    /// child is visited. So while a node at level `L` (the root is level 1) is
+    /// visited, every group on the stack holds siblings of a distinct strict
+    /// ancestor's children, at most `L - 1` groups, and pushing its own makes at most
+    /// `L`: `stack` needs [`Self::depth`] entries (a shorter one panics, never
+    /// overwrites).
     ///
     /// A group packs `first child node << 16 | the parent's inner-child mask << 8 |
     /// pending children`; pending children are kept in octant order, bit `slot ^ octant`,
@@ -547,26 +612,26 @@ impl BvhScene {
     #[inline(always)]
     fn search<const ANY_HIT: bool>(
         &self,
+        stack: &mut [u64],
         traversal: &mut TraversalRay,
         mut test: impl FnMut(usize) -> Option<f32>,
     ) -> bool {
         let octant = (u32::from(traversal.negative[0]) << 2)
             | (u32::from(traversal.negative[1]) << 1)
             | u32::from(traversal.negative[2]);
-        let mut stack = [0u64; STACK_GROUPS];
         let mut depth = 0;
         let mut index = 0;
         loop {
-            let node = &self.bvh.nodes[index];
+            let node = &self.planes[index];
             let entered = if traversal.fast {
-                traversal.entered_planes(&self.planes[index])
+                traversal.entered_planes(node)
             } else {
-                traversal.entered_general(node)
+                traversal.entered_general(&self.bvh.nodes[index])
             };
-            let imask = u32::from(node.imask);
+            let imask = node.imask;
             let inner = entered & imask;
             if inner != 0 {
-                stack[depth] = (u64::from(node.child_base_idx) << 16)
+                stack[depth] = (u64::from(node.child_base) << 16)
                     | u64::from(imask << 8 | octant_order(inner, octant));
                 depth += 1;
             }
@@ -588,9 +653,9 @@ impl BvhScene {
             while leaves != 0 {
                 let slot = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
-                let meta = node.child_meta[slot];
+                let meta = node.meta[slot];
                 // An empty slot's meta is 0: no primitives.
-                let first = (node.primitive_base_idx + u32::from(meta & 0b1_1111)) as usize;
+                let first = (node.primitive_base + u32::from(meta & 0b1_1111)) as usize;
                 let count = (meta >> 5).count_ones() as usize;
                 for primitive in first..first + count {
                     if let Some(t) = test(primitive) {
@@ -608,8 +673,10 @@ impl BvhScene {
         }
     }
 
-    /// [`RayCaster::occluded`] through obvhs's `traverse!`: the path for hierarchies
-    /// too deep for [`Self::search`]'s fixed stack, and its reference.
+    /// [`RayCaster::occluded`] through obvhs's `traverse!`, the reference
+    /// [`Self::search`] is tested against. Only for hierarchies at most 32 nodes
+    /// deep: `traverse!`'s fixed stack of 32 entries overwrites on overflow.
+    #[cfg(test)]
     fn occluded_general(&self, prepared: &PreparedRay, traversal: &TraversalRay) -> bool {
         let mut state = self.bvh.new_traversal(traversal.inverse);
         let mut node;
@@ -635,8 +702,10 @@ impl BvhScene {
 }
 
 impl BvhScene {
-    /// [`RayCaster::closest_hit`] through obvhs's `traverse!`: the path for
-    /// hierarchies too deep for [`Self::search`]'s fixed stack, and its reference.
+    /// [`RayCaster::closest_hit`] through obvhs's `traverse!`, the reference
+    /// [`Self::search`] is tested against (hierarchies at most 32 nodes deep, as
+    /// for [`Self::occluded_general`]).
+    #[cfg(test)]
     fn closest_hit_general(
         &self,
         prepared: &mut PreparedRay,
@@ -685,6 +754,36 @@ fn octant_order(mut mask: u32, octant: u32) -> u32 {
     mask
 }
 
+impl BvhScene {
+    /// The any-hit leaf test: `t` of a hit on triangle `primitive` (leaf order).
+    #[inline(always)]
+    fn any_hit_leaf(&self, prepared: &PreparedRay, primitive: usize) -> Option<f32> {
+        let [a, b, c] = self.corners[primitive];
+        prepared.intersect(a, b, c).map(|hit| hit.t)
+    }
+
+    /// The closest-hit leaf test: a hit on triangle `primitive` (leaf order)
+    /// shortens `prepared` and becomes `best`; returns its `t`.
+    #[inline(always)]
+    fn closest_hit_leaf(
+        &self,
+        prepared: &mut PreparedRay,
+        best: &mut Option<Hit>,
+        primitive: usize,
+    ) -> Option<f32> {
+        let [a, b, c] = self.corners[primitive];
+        let hit = prepared.intersect(a, b, c)?;
+        prepared.set_t_max(hit.t);
+        *best = Some(Hit {
+            t: hit.t,
+            triangle: self.original[primitive],
+            u: hit.u,
+            v: hit.v,
+        });
+        Some(hit.t)
+    }
+}
+
 impl RayCaster for BvhScene {
     fn occluded(&self, ray: &Ray) -> bool {
         if self.corners.is_empty() {
@@ -694,13 +793,16 @@ impl RayCaster for BvhScene {
             return false;
         };
         let mut traversal = TraversalRay::new(ray);
-        if self.shallow {
-            self.search::<true>(&mut traversal, |primitive| {
-                let [a, b, c] = self.corners[primitive];
-                prepared.intersect(a, b, c).map(|hit| hit.t)
+        // Two closures over one inlined body: each has a single call site, so
+        // the common path's leaf test is inlined into its traversal loop.
+        if self.depth <= STACK_GROUPS {
+            self.search::<true>(&mut [0u64; STACK_GROUPS], &mut traversal, |primitive| {
+                self.any_hit_leaf(&prepared, primitive)
             })
         } else {
-            self.occluded_general(&prepared, &traversal)
+            self.search_deep::<true>(&mut traversal, |primitive| {
+                self.any_hit_leaf(&prepared, primitive)
+            })
         }
     }
 
@@ -711,22 +813,15 @@ impl RayCaster for BvhScene {
         let mut prepared = PreparedRay::new(ray)?;
         let mut traversal = TraversalRay::new(ray);
         let mut best: Option<Hit> = None;
-        if self.shallow {
-            self.search::<false>(&mut traversal, |primitive| {
-                let [a, b, c] = self.corners[primitive];
-                let hit = prepared.intersect(a, b, c)?;
-                prepared.set_t_max(hit.t);
-                best = Some(Hit {
-                    t: hit.t,
-                    triangle: self.original[primitive],
-                    u: hit.u,
-                    v: hit.v,
-                });
-                Some(hit.t)
+        if self.depth <= STACK_GROUPS {
+            self.search::<false>(&mut [0u64; STACK_GROUPS], &mut traversal, |primitive| {
+                self.closest_hit_leaf(&mut prepared, &mut best, primitive)
             });
-            best
         } else {
-            self.closest_hit_general(&mut prepared, &mut traversal)
+            self.search_deep::<false>(&mut traversal, |primitive| {
+                self.closest_hit_leaf(&mut prepared, &mut best, primitive)
+            });
         }
+        best
     }
 }

@@ -199,17 +199,28 @@ impl PreparedRay {
         let cx = c[kx] - s.x * c[kz];
         let cy = c[ky] - s.y * c[kz];
 
-        // Below this lateral extent the f32 edge products would underflow.
-        let extent = ax
-            .abs()
-            .max(ay.abs())
-            .max(bx.abs())
-            .max(by.abs())
-            .max(cx.abs())
-            .max(cy.abs());
-        if extent < WIDE_EXTENT {
-            // Zero extent: every corner on the ray's line, a degenerate miss.
-            return (extent > 0.0).then(|| self.intersect_wide(corners.0, corners.1, corners.2))?;
+        // Below this lateral extent the f32 edge products would underflow. The
+        // common case, some coordinate at least `WIDE_EXTENT` (a comparison that
+        // is false for NaN), is decided by six plain comparisons; only otherwise
+        // is the extent itself (NaN-ignoring `max`, several instructions each)
+        // computed. Same outcome as testing the extent directly: it is below
+        // `WIDE_EXTENT` exactly when no coordinate reaches it and one is a number.
+        let reaches = |v: f32| v.abs() >= WIDE_EXTENT;
+        let wide_enough =
+            reaches(ax) | reaches(ay) | reaches(bx) | reaches(by) | reaches(cx) | reaches(cy);
+        if !wide_enough {
+            let extent = ax
+                .abs()
+                .max(ay.abs())
+                .max(bx.abs())
+                .max(by.abs())
+                .max(cx.abs())
+                .max(cy.abs());
+            if extent < WIDE_EXTENT {
+                // Zero extent: every corner on the ray's line, a degenerate miss.
+                return (extent > 0.0)
+                    .then(|| self.intersect_wide(corners.0, corners.1, corners.2))?;
+            }
         }
         let mut eu = cx * by - cy * bx;
         let mut ev = ax * cy - ay * cx;

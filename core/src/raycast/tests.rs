@@ -289,8 +289,9 @@ mod bvh_against_brute_force {
         let brute = BruteForceCaster::new(mesh);
         let bvh = BvhScene::new(&mesh).unwrap();
         assert_eq!(bvh.triangle_count(), mesh.triangle_count());
-        // Queries take our own traversal loop; check obvhs's `traverse!` path too.
-        assert!(bvh.is_shallow());
+        // Queries take our own traversal loop; check obvhs's `traverse!` path too
+        // (whose 32-entry stack holds these trees).
+        assert!(bvh.depth() <= 32);
         let mut hits = 0;
         for _ in 0..rays {
             let ray = random_ray(rng, 2.0);
@@ -326,6 +327,84 @@ mod bvh_against_brute_force {
             }
         }
         hits
+    }
+
+    /// `steps` books of `pages` triangles shrinking geometrically towards the
+    /// origin by `ratio` per step: book `k` covers `x ∈ [ratio^(k+1), ratio^k]`,
+    /// `y ∈ [0, w]` (`w` its width) with right triangles parallel to the xy plane
+    /// at heights `z ∈ [0, 0.3 w)`, alternately facing the two halves of the
+    /// square. A book's triangles merge first (their boxes nearly coincide), then
+    /// the smallest remaining cluster with the next smaller book, so PLOC builds a
+    /// chain as deep as there are books, and every book is an inner node (more
+    /// triangles than eight leaves of three hold) beside the rest of the chain.
+    fn shrinking_books(steps: usize, ratio: f32, pages: usize) -> (Vec<[f32; 3]>, Vec<u32>) {
+        let mut positions = Vec::new();
+        let mut x = 1.0f32;
+        for _ in 0..steps {
+            let next = x * ratio;
+            let w = x - next;
+            for j in 0..pages {
+                let z = 0.3 * w * j as f32 / pages as f32;
+                if j % 2 == 0 {
+                    positions.extend([[next, 0.0, z], [x, 0.0, z], [x, w, z]]);
+                } else {
+                    positions.extend([[next, 0.0, z], [x, w, z], [next, w, z]]);
+                }
+            }
+            x = next;
+        }
+        let indices = (0..positions.len() as u32).collect();
+        (positions, indices)
+    }
+
+    /// A hierarchy far deeper than obvhs's 32-entry traversal stack (which
+    /// overwrites on overflow): our traversal sizes its stack by the depth and
+    /// must agree with brute force everywhere, down to the smallest steps.
+    #[test]
+    fn deep_hierarchies_match_brute_force() {
+        let (positions, indices) = shrinking_books(70, 0.3, 30);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let brute = BruteForceCaster::new(mesh);
+        let bvh = BvhScene::new(&mesh).unwrap();
+        assert!(bvh.depth() > 64, "not deep enough: {}", bvh.depth());
+        let mut rng = SmallRng::seed_from_u64(21);
+        let mut hits = 0;
+        for k in 0..4000 {
+            let ray = if k % 2 == 0 {
+                // A point near a random triangle, at its scale, aimed at it.
+                let [a, b, c] = mesh.triangle(rng.random_range(0..mesh.triangle_count()));
+                let (u, v) = (rng.random_range(0.0..1.0f32), rng.random_range(0.0..1.0f32));
+                let (u, v) = if u + v > 1.0 {
+                    (1.0 - u, 1.0 - v)
+                } else {
+                    (u, v)
+                };
+                let target = a + u * (b - a) + v * (c - a);
+                let offset = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                ) * (b - a).length()
+                    * rng.random_range(0.5..4.0);
+                Ray::new(target + offset, -offset, f32::INFINITY)
+            } else {
+                // From the small end along the chain, inside every book's box:
+                // at every level the rest of the chain is nearer and the book
+                // waits on the stack.
+                let direction = Vec3::new(
+                    1.0,
+                    rng.random_range(0.02..0.3),
+                    rng.random_range(0.02..0.2),
+                );
+                Ray::new(direction * -1e-30, direction, f32::INFINITY)
+            };
+            let expected = brute.closest_hit(&ray);
+            assert_eq!(bvh.occluded(&ray), expected.is_some(), "{ray:?}");
+            let got = bvh.closest_hit(&ray);
+            assert_eq!(got.map(|h| h.t), expected.map(|h| h.t), "{ray:?}");
+            hits += usize::from(expected.is_some());
+        }
+        assert!(hits > 1000, "too few hits to mean anything: {hits}");
     }
 
     #[test]

@@ -25,7 +25,9 @@
 //!   normal, `L_o = ρ_s Σ_i A_l(i) Y_i(r) (T l)_i`, `A_l` the Phong lobe's zonal
 //!   factors ([`ZonalKernel::phong`](crate::sh::ZonalKernel::phong)), computed
 //!   view-first as `(Tᵀ w) · l` with `w_i = A_l(i) Y_i(r)`: `n² + 3n` multiply-adds
-//!   plus one basis evaluation ([`shade_glossy_sh`]);
+//!   plus one basis evaluation ([`shade_glossy_sh`]); the published order, `T l`
+//!   per channel then the lobe (`3n² + 3n`), is [`shade_glossy_sh_2002`], kept as
+//!   the baseline benchmarks compare MRT with;
 //! - MRT (P2 §3): view → vertex frame → hemi-octahedral cell ([`mrt_tap`]) → four
 //!   rows blended bilinearly, dotted with the lighting: `7n` multiply-adds
 //!   ([`shade_mrt`]);
@@ -162,7 +164,8 @@ pub use mrt::{
 pub use pca::{Pca, PcaError, PcaLevel};
 pub use shade::{
     GlossyLobe, Material, ShLighting, ShadeError, View, lighting_from_sh_rgb, shade_diffuse,
-    shade_glossy_sh, shade_glossy_sh_reference, shade_mrt, shade_mrt_pca, shade_mrt_reference,
+    shade_glossy_sh, shade_glossy_sh_2002, shade_glossy_sh_reference, shade_mrt, shade_mrt_pca,
+    shade_mrt_reference,
 };
 
 /// Which measurement a transfer set holds (also its code in bake files).

@@ -237,8 +237,81 @@ fn glossy_n<const N: usize>(
     blend_dot([&u], [1.0], &lighting.planes)
 }
 
-/// The obvious form of [`shade_glossy_sh`]: per channel the incident radiance
-/// `T l`, convolved with the lobe and evaluated at the mirror direction.
+/// Glossy SH transfer in the published order (Sloan, Kautz & Snyder 2002; Kautz,
+/// Sloan & Snyder 2002): per channel the transferred incident radiance `T l`
+/// (`3n²` multiply-adds), then convolved with the lobe and evaluated at the mirror
+/// direction, `Σ_i A_l(i) Y_i(r) (T l)_i` (`3n` more). The same value as
+/// [`shade_glossy_sh`] and [`shade_glossy_sh_reference`] (the latter is its serial
+/// twin), written in the same fixed-size, four-lane style as [`shade_mrt`] so that
+/// benchmarks compare MRT with an equally optimised form of the 2002 baseline:
+/// per row, four-lane partial sums of `T_i · l` per channel, weighted by
+/// `A_l(i) Y_i(r)` while still in lanes and reduced once at the end (a
+/// reassociation of the serial sums). Zero in the cases [`shade_glossy_sh`] is.
+#[inline]
+pub fn shade_glossy_sh_2002(
+    matrix: &[f32],
+    lobe: &GlossyLobe,
+    lighting: &ShLighting,
+    normal: Vec3,
+    to_eye: Vec3,
+) -> Vec3 {
+    let n = lobe.coeffs;
+    if matrix.len() < n * n || lighting.coeffs < n {
+        return Vec3::ZERO;
+    }
+    let Some(r) = mirror(normal, to_eye) else {
+        return Vec3::ZERO;
+    };
+    with_coeff_count!(n, glossy_2002_n, (matrix, lobe, lighting, r))
+}
+
+#[inline(always)]
+fn glossy_2002_n<const N: usize>(
+    matrix: &[f32],
+    lobe: &GlossyLobe,
+    lighting: &ShLighting,
+    r: Vec3,
+) -> Vec3 {
+    let Some(matrix) = matrix.get(..N * N) else {
+        return Vec3::ZERO;
+    };
+    let planes = &lighting.planes;
+    let y = eval_basis::<N>(r);
+    let full = N / 4 * 4;
+    let (mut out_r, mut out_g, mut out_b) = (Vec4::ZERO, Vec4::ZERO, Vec4::ZERO);
+    let mut out_tail = Vec3::ZERO;
+    for (i, row) in matrix.chunks_exact(N).enumerate() {
+        // (T l)_i per channel, in four-lane partial sums.
+        let (mut tr, mut tg, mut tb) = (Vec4::ZERO, Vec4::ZERO, Vec4::ZERO);
+        let mut j = 0;
+        while j < full {
+            let t = vec4_at(row, j);
+            tr += t * vec4_at(&planes[0], j);
+            tg += t * vec4_at(&planes[1], j);
+            tb += t * vec4_at(&planes[2], j);
+            j += 4;
+        }
+        let mut tail = Vec3::ZERO;
+        for (j, t) in row.iter().enumerate().skip(full) {
+            tail += *t * Vec3::new(planes[0][j], planes[1][j], planes[2][j]);
+        }
+        // The lobe evaluated at the mirror direction.
+        let w = lobe.factors[i] * y[i];
+        out_r += w * tr;
+        out_g += w * tg;
+        out_b += w * tb;
+        out_tail += w * tail;
+    }
+    Vec3::new(
+        out_r.element_sum(),
+        out_g.element_sum(),
+        out_b.element_sum(),
+    ) + out_tail
+}
+
+/// The obvious form of [`shade_glossy_sh`] and [`shade_glossy_sh_2002`]: per
+/// channel the incident radiance `T l`, convolved with the lobe and evaluated at
+/// the mirror direction.
 pub fn shade_glossy_sh_reference(
     matrix: &[f32],
     lobe: &GlossyLobe,
@@ -528,7 +601,66 @@ fn block_taps(
     taps
 }
 
-/// Dense MRT over blocks, compiled for `N` coefficients.
+/// Vertices ahead of the one being shaded whose rows [`mrt_blocks`] has already
+/// requested: enough that a row requested from memory (hundreds of cycles) has
+/// arrived by the time its vertex is shaded (tens of cycles each).
+const PREFETCH_AHEAD: usize = 8;
+
+/// Asks the cache for the line holding `data[index]`: a hint, which neither faults
+/// nor changes any value, whatever the address (no-op off x86).
+#[inline(always)]
+fn prefetch(data: &[f32], index: usize) {
+    #[cfg(all(
+        any(target_arch = "x86", target_arch = "x86_64"),
+        target_feature = "sse"
+    ))]
+    {
+        #[cfg(target_arch = "x86")]
+        use core::arch::x86::{_MM_HINT_T0, _mm_prefetch};
+        #[cfg(target_arch = "x86_64")]
+        use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        // Pointer arithmetic without a dereference: no bounds to keep.
+        let address = data.as_ptr().wrapping_add(index).cast::<i8>();
+        #[allow(unsafe_code)]
+        // SAFETY: `prefetch` has no architectural effect besides filling a cache
+        // line: it never faults and never reads memory visibly, for any address.
+        // The only reason it is `unsafe` is its `#[target_feature(enable = "sse")]`,
+        // which every x86-64 target has and which this build guards by `cfg`.
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(address)
+        };
+    }
+    #[cfg(not(all(
+        any(target_arch = "x86", target_arch = "x86_64"),
+        target_feature = "sse"
+    )))]
+    let _ = (data, index);
+}
+
+/// Requests the four rows of vertex `v`'s tap (two pairs of adjacent rows, `2N`
+/// values each, starting anywhere in a cache line).
+#[inline(always)]
+fn prefetch_tap<const N: usize>(data: &[f32], v: usize, len: usize, tap: &Option<MrtTap>) {
+    if let Some(tap) = tap {
+        for pair in [tap.nodes[0], tap.nodes[2]] {
+            // Wrapping: an address only, checked nowhere (a hint cannot fault).
+            let start = v.wrapping_mul(len).wrapping_add(pair as usize * N);
+            // One request per 16 floats (64-byte lines) and one for the last value.
+            let mut k = 0;
+            while k < 2 * N {
+                prefetch(data, start.wrapping_add(k));
+                k += 16;
+            }
+            prefetch(data, start.wrapping_add(2 * N - 1));
+        }
+    }
+}
+
+/// Dense MRT over blocks, compiled for `N` coefficients. Each vertex's matrix is
+/// kilobytes and the four rows it reads depend on the view, so they are cache
+/// misses the hardware prefetcher cannot foresee: the block's taps are computed
+/// first, then each vertex's rows are requested [`PREFETCH_AHEAD`] vertices
+/// before it is shaded.
 fn mrt_blocks<const N: usize>(
     data: &[f32],
     grid: u32,
@@ -540,7 +672,14 @@ fn mrt_blocks<const N: usize>(
     let len = node_values(grid, N);
     for_each_block(out, |first, block| {
         let taps = block_taps(grid, first, block.len(), &local);
+        for (i, tap) in taps.iter().enumerate().take(PREFETCH_AHEAD) {
+            prefetch_tap::<N>(data, first + i, len, tap);
+        }
         for (i, (o, tap)) in block.iter_mut().zip(taps).enumerate() {
+            // Past the block's end the taps are `None`: nothing is requested.
+            if let Some(ahead) = taps.get(i + PREFETCH_AHEAD) {
+                prefetch_tap::<N>(data, first + i + PREFETCH_AHEAD, len, ahead);
+            }
             let v = first + i;
             let c = match (tap, data.get(v * len..(v + 1) * len)) {
                 (Some(tap), Some(m)) => specular * mrt_n::<N>(m, lighting, tap),
@@ -558,8 +697,9 @@ impl TransferSet {
     /// compressed form, nothing per vertex; vertices run on rayon's pool with the
     /// `parallel` feature. Per call the lighting is split per channel; per vertex
     /// the set's cached frame is used, and MRT takes the raw view vector (its map
-    /// is scale-invariant) and computes the taps of a block of vertices before
-    /// reading their rows. Each vertex's value is that of the kernels given
+    /// is scale-invariant), computes the taps of a block of vertices first and
+    /// requests each vertex's rows from memory a few vertices before shading it
+    /// (a cache hint: no effect on the values). Each vertex's value is that of the kernels given
     /// [`Frame::from_normal`] of its normal. On error `out` is untouched.
     pub fn shade(
         &self,

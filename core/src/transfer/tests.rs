@@ -501,38 +501,50 @@ fn anisotropic_ward_mrt_shades_differently_along_its_axes() {
 #[test]
 fn kernels_match_their_reference_twins() {
     let mut rng = rng::SplitMix64::new(5);
-    let n = 25;
-    let lighting = test_lighting(n);
-    let lobe = GlossyLobe::phong(5, 12.0).unwrap();
-    let matrix: Vec<f32> = (0..n * n).map(|_| rng.next_f32() - 0.5).collect();
-    let grid = 9;
-    let mrt: Vec<f32> = (0..(grid * grid) as usize * n)
-        .map(|_| rng.next_f32())
-        .collect();
-    for k in 0..200 {
-        let normal = Vec3::new(
-            rng.next_f32() - 0.5,
-            rng.next_f32() - 0.5,
-            rng.next_f32() - 0.5,
-        )
-        .normalize();
-        let frame = Frame::from_normal(normal);
-        let to_eye = views(normal, 200)[k];
-        let a = shade_glossy_sh(&matrix, &lobe, &sl(&lighting), normal, to_eye);
-        let b = shade_glossy_sh_reference(&matrix, &lobe, &lighting, normal, to_eye);
-        assert!((a - b).length() <= 1e-4 * b.length().max(1.0), "{a} {b}");
-        let a = shade_mrt(&mrt, grid, &sl(&lighting), &frame, to_eye);
-        let b = shade_mrt_reference(&mrt, grid, &lighting, &frame, to_eye);
-        assert!((a - b).length() <= 1e-4 * b.length().max(1.0), "{a} {b}");
-        // Viewer behind the surface: black on both paths.
-        assert_eq!(
-            shade_mrt(&mrt, grid, &sl(&lighting), &frame, -normal),
-            Vec3::ZERO
-        );
-        assert_eq!(
-            shade_glossy_sh(&matrix, &lobe, &sl(&lighting), normal, -normal),
-            Vec3::ZERO
-        );
+    // 4 bands: rows of whole four-lane groups; 5 and 7: a tail; 6: 36 = 9 groups.
+    for bands in [4u32, 5, 6, 7] {
+        let n = (bands * bands) as usize;
+        let lighting = test_lighting(n);
+        let lobe = GlossyLobe::phong(bands, 12.0).unwrap();
+        let matrix: Vec<f32> = (0..n * n).map(|_| rng.next_f32() - 0.5).collect();
+        let grid = 9;
+        let mrt: Vec<f32> = (0..(grid * grid) as usize * n)
+            .map(|_| rng.next_f32())
+            .collect();
+        for k in 0..200 {
+            let normal = Vec3::new(
+                rng.next_f32() - 0.5,
+                rng.next_f32() - 0.5,
+                rng.next_f32() - 0.5,
+            )
+            .normalize();
+            let frame = Frame::from_normal(normal);
+            let to_eye = views(normal, 200)[k];
+            let b = shade_glossy_sh_reference(&matrix, &lobe, &lighting, normal, to_eye);
+            let a = shade_glossy_sh(&matrix, &lobe, &sl(&lighting), normal, to_eye);
+            assert!((a - b).length() <= 1e-4 * b.length().max(1.0), "{a} {b}");
+            let a = shade_glossy_sh_2002(&matrix, &lobe, &sl(&lighting), normal, to_eye);
+            assert!(
+                (a - b).length() <= 1e-4 * b.length().max(1.0),
+                "{bands} bands: {a} {b}"
+            );
+            let a = shade_mrt(&mrt, grid, &sl(&lighting), &frame, to_eye);
+            let b = shade_mrt_reference(&mrt, grid, &lighting, &frame, to_eye);
+            assert!((a - b).length() <= 1e-4 * b.length().max(1.0), "{a} {b}");
+            // Viewer behind the surface: black on every path.
+            assert_eq!(
+                shade_mrt(&mrt, grid, &sl(&lighting), &frame, -normal),
+                Vec3::ZERO
+            );
+            assert_eq!(
+                shade_glossy_sh(&matrix, &lobe, &sl(&lighting), normal, -normal),
+                Vec3::ZERO
+            );
+            assert_eq!(
+                shade_glossy_sh_2002(&matrix, &lobe, &sl(&lighting), normal, -normal),
+                Vec3::ZERO
+            );
+        }
     }
 }
 
@@ -1141,6 +1153,7 @@ mod kernel_inputs {
                 let _ = shade_mrt(&matrix, grid, &planar, &frame, to_eye);
                 if let Some(lobe) = GlossyLobe::phong(bands, 8.0) {
                     let _ = shade_glossy_sh(&matrix, &lobe, &planar, normal, to_eye);
+                    let _ = shade_glossy_sh_2002(&matrix, &lobe, &planar, normal, to_eye);
                 }
             }
             let _ = shade_mrt_reference(&matrix, grid, &lighting, &frame, to_eye);
