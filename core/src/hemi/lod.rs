@@ -70,11 +70,13 @@
 use alloc::vec::Vec;
 use core::fmt;
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 use super::mask::HemiMask;
 use super::shading::{PhongLobe, glossy_transfer, mirror_direction, shade_glossy};
+use super::table::HalfSpaceTable;
 use super::transfer::{TransferMethod, TransferRotation, shade_diffuse};
+use super::triangle::corner_unit;
 use super::{Accumulator, Culled, Quality, Receiver, TriangleCone, TriangleCounts, table_raster};
 use crate::geom::MeshView;
 use crate::sh::{Sh, ShRgb};
@@ -204,6 +206,35 @@ pub struct TriangleClusters {
     order: Vec<u32>,
     /// One box per cluster of `size` consecutive entries of `order`.
     bounds: Vec<Aabb>,
+    /// Each cluster's triangles in chunks of at most [`CHUNK`], each with its
+    /// own list of distinct vertices, so a receiver moves every vertex of a
+    /// chunk into its frame once instead of once per corner: cluster `c`'s
+    /// chunks are `chunks[cluster_chunks[c]..cluster_chunks[c + 1]]`.
+    chunks: Vec<Chunk>,
+    cluster_chunks: Vec<u32>,
+    /// The chunks' vertex lists (mesh vertex indices), back to back.
+    chunk_vertices: Vec<u32>,
+    /// Per entry of `order`, its corners as positions in its chunk's vertex list.
+    corners: Vec<[u8; 3]>,
+    /// The index buffer the chunks were built from: a mesh whose indices
+    /// changed is regrouped by [`TriangleClusters::update`].
+    indices: Vec<u32>,
+}
+
+/// Triangles per chunk: at most `3 CHUNK` distinct vertices, so a chunk's
+/// corners fit in a `u8` and its vertices in a small stack buffer.
+const CHUNK: usize = 32;
+
+/// The most distinct vertices a chunk can have.
+const CHUNK_VERTICES: usize = 3 * CHUNK;
+
+/// A run of at most [`CHUNK`] triangles of one cluster with its vertex list.
+#[derive(Clone, Copy, Debug)]
+struct Chunk {
+    /// Entries `triangles.0..triangles.1` of `order` (and of `corners`).
+    triangles: (u32, u32),
+    /// Entries `vertices.0..vertices.1` of `chunk_vertices`.
+    vertices: (u32, u32),
 }
 
 impl TriangleClusters {
@@ -219,6 +250,11 @@ impl TriangleClusters {
             size: triangles_per_cluster.max(1),
             order: Vec::new(),
             bounds: Vec::new(),
+            chunks: Vec::new(),
+            cluster_chunks: Vec::new(),
+            chunk_vertices: Vec::new(),
+            corners: Vec::new(),
+            indices: Vec::new(),
         };
         clusters.reorder(mesh);
         clusters
@@ -253,14 +289,58 @@ impl TriangleClusters {
         self.bounds.clear();
         self.bounds.resize(count.div_ceil(self.size), Aabb::EMPTY);
         self.compute_bounds(mesh);
+        self.build_chunks(mesh);
+    }
+
+    /// Splits every cluster into chunks and lists each chunk's distinct vertices.
+    fn build_chunks(&mut self, mesh: &MeshView<'_>) {
+        self.indices.clear();
+        self.indices.extend_from_slice(mesh.indices());
+        self.chunks.clear();
+        self.cluster_chunks.clear();
+        self.chunk_vertices.clear();
+        self.corners.clear();
+        // Position of each mesh vertex in the current chunk's list, u32::MAX
+        // when absent (reset after each chunk).
+        let mut slot = alloc::vec![u32::MAX; mesh.vertex_count()];
+        let count = self.order.len();
+        let mut start = 0;
+        while start < count {
+            self.cluster_chunks.push(self.chunks.len() as u32);
+            let cluster_end = (start + self.size).min(count);
+            while start < cluster_end {
+                let end = (start + CHUNK).min(cluster_end);
+                let first_vertex = self.chunk_vertices.len();
+                for &t in &self.order[start..end] {
+                    let corners = mesh.triangle_indices(t as usize).map(|v| {
+                        let v = v as usize;
+                        if slot[v] == u32::MAX {
+                            slot[v] = (self.chunk_vertices.len() - first_vertex) as u32;
+                            self.chunk_vertices.push(v as u32);
+                        }
+                        slot[v] as u8
+                    });
+                    self.corners.push(corners);
+                }
+                for &v in &self.chunk_vertices[first_vertex..] {
+                    slot[v as usize] = u32::MAX;
+                }
+                self.chunks.push(Chunk {
+                    triangles: (start as u32, end as u32),
+                    vertices: (first_vertex as u32, self.chunk_vertices.len() as u32),
+                });
+                start = end;
+            }
+        }
+        self.cluster_chunks.push(self.chunks.len() as u32);
     }
 
     /// Recomputes every cluster's box from the current positions of `mesh` and
     /// returns the mesh with its clusters, for one frame. One pass over the
-    /// triangles, no allocation unless the triangle count changed (then the
+    /// triangles, no allocation unless the index buffer changed (then the
     /// grouping is recomputed too).
     pub fn update<'a>(&'a mut self, mesh: MeshView<'a>) -> ClusteredMesh<'a> {
-        if self.order.len() != mesh.triangle_count() {
+        if self.indices != mesh.indices() {
             self.reorder(&mesh);
         } else {
             self.compute_bounds(&mesh);
@@ -432,19 +512,95 @@ pub fn scene_mask_with_counts(
 ) -> (HemiMask, TriangleCounts) {
     let receiver = Receiver::new(position, normal, options.normal_offset);
     let cull = options.cull_backfaces;
-    // One loop per quality so the per-triangle work is monomorphic. The mask
-    // function is passed down as a `Copy` value rather than wrapped in an `add`
-    // closure: a closure called from both mesh loops was not inlined, and the call
-    // per triangle cost as much as the culling itself.
+    // One loop per quality so the per-triangle work is monomorphic.
     match options.quality {
-        Quality::Exact => scene_loop(
-            scene,
-            &receiver,
-            position,
-            cull,
-            TriangleCone::or_exact_into,
-        ),
-        Quality::Table(table) => scene_loop(scene, &receiver, position, cull, table_raster(table)),
+        Quality::Exact => scene_loop(scene, &receiver, position, cull, ExactCones),
+        Quality::Table(table) => scene_loop(scene, &receiver, position, cull, TableCones(table)),
+    }
+}
+
+/// How a pass turns a triangle's local corners into mask cells: one
+/// implementation per quality, so the loops are monomorphic.
+trait ConeMask: Copy {
+    /// Culls or ORs the cone of local corners `a, b, c` into `mask`.
+    fn or_into(
+        self,
+        a: Vec3,
+        b: Vec3,
+        c: Vec3,
+        cull: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled>;
+
+    /// [`ConeMask::or_into`] for corners whose [`corner_unit`]s are known
+    /// (computed once per vertex of a chunk); the same bits.
+    fn or_into_units(
+        self,
+        corners: [Vec3; 3],
+        units: [Vec4; 3],
+        in_range: bool,
+        cull: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled>;
+}
+
+/// Exact quality.
+#[derive(Clone, Copy)]
+struct ExactCones;
+
+impl ConeMask for ExactCones {
+    #[inline(always)]
+    fn or_into(
+        self,
+        a: Vec3,
+        b: Vec3,
+        c: Vec3,
+        cull: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled> {
+        TriangleCone::or_exact_into(a, b, c, cull, mask)
+    }
+
+    #[inline(always)]
+    fn or_into_units(
+        self,
+        corners: [Vec3; 3],
+        units: [Vec4; 3],
+        in_range: bool,
+        cull: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled> {
+        TriangleCone::or_exact_into_units(corners, units, in_range, cull, mask)
+    }
+}
+
+/// Table quality.
+#[derive(Clone, Copy)]
+struct TableCones<'t>(&'t HalfSpaceTable);
+
+impl ConeMask for TableCones<'_> {
+    #[inline(always)]
+    fn or_into(
+        self,
+        a: Vec3,
+        b: Vec3,
+        c: Vec3,
+        cull: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled> {
+        table_raster(self.0)(a, b, c, cull, mask)
+    }
+
+    #[inline(always)]
+    fn or_into_units(
+        self,
+        [a, b, c]: [Vec3; 3],
+        _units: [Vec4; 3],
+        _in_range: bool,
+        cull: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled> {
+        self.or_into(a, b, c, cull, mask)
     }
 }
 
@@ -459,11 +615,30 @@ struct Pass<M> {
     cone_mask: M,
 }
 
-impl<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy> Pass<M> {
+impl<M: ConeMask> Pass<M> {
     #[inline(always)]
     fn near(&self, p: Vec3) -> bool {
         (p - self.position).length_squared() <= self.r2
     }
+}
+
+/// One chunk's vertices moved into the receiver's frame: local positions,
+/// [`corner_unit`]s and near flags, indexed by position in the chunk's list.
+/// On the stack, reused from chunk to chunk.
+struct Projected {
+    local: [Vec3; CHUNK_VERTICES],
+    units: [Vec4; CHUNK_VERTICES],
+    in_range: [bool; CHUNK_VERTICES],
+    near: [bool; CHUNK_VERTICES],
+}
+
+impl Projected {
+    const EMPTY: Projected = Projected {
+        local: [Vec3::ZERO; CHUNK_VERTICES],
+        units: [Vec4::ZERO; CHUNK_VERTICES],
+        in_range: [false; CHUNK_VERTICES],
+        near: [false; CHUNK_VERTICES],
+    };
 }
 
 #[inline(always)]
@@ -472,7 +647,7 @@ fn scene_loop(
     receiver: &Receiver,
     position: Vec3,
     cull: bool,
-    cone_mask: impl Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy,
+    cone_mask: impl ConeMask,
 ) -> (HemiMask, TriangleCounts) {
     let mut acc = Accumulator {
         receiver,
@@ -485,11 +660,12 @@ fn scene_loop(
         cull,
         cone_mask,
     };
+    let mut projected = Projected::EMPTY;
     match &scene.far {
-        None => mesh_loop(&scene.mesh, &mut acc, &pass, Select::All),
+        None => mesh_loop(&scene.mesh, &mut acc, &pass, Select::All, &mut projected),
         Some(far) => {
-            mesh_loop(&scene.mesh, &mut acc, &pass, Select::Near);
-            mesh_loop(far, &mut acc, &pass, Select::Far);
+            mesh_loop(&scene.mesh, &mut acc, &pass, Select::Near, &mut projected);
+            mesh_loop(far, &mut acc, &pass, Select::Far, &mut projected);
         }
     }
     (acc.mask, acc.counts)
@@ -498,11 +674,12 @@ fn scene_loop(
 /// Adds the triangles of `mesh` that `select` takes, cluster by cluster when there
 /// are clusters.
 #[inline(always)]
-fn mesh_loop<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy>(
+fn mesh_loop<M: ConeMask>(
     mesh: &ClusteredMesh<'_>,
     acc: &mut Accumulator<'_>,
     pass: &Pass<M>,
     select: Select,
+    projected: &mut Projected,
 ) {
     let view = &mesh.mesh;
     let Some(clusters) = mesh.clusters else {
@@ -512,11 +689,7 @@ fn mesh_loop<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> 
         return;
     };
     let (n, o) = (acc.receiver.frame.normal, acc.receiver.origin);
-    for (bounds, triangles) in clusters
-        .bounds
-        .iter()
-        .zip(clusters.order.chunks(clusters.size))
-    {
+    for (c, bounds) in clusters.bounds.iter().enumerate() {
         if bounds.below_plane(n, o) {
             continue;
         }
@@ -535,15 +708,79 @@ fn mesh_loop<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> 
                 }
             }
         };
-        for &t in triangles {
-            take(view, t as usize, acc, pass, here);
+        let chunks = clusters.cluster_chunks[c] as usize..clusters.cluster_chunks[c + 1] as usize;
+        for chunk in &clusters.chunks[chunks] {
+            chunk_loop(view, clusters, chunk, acc, pass, here, projected);
+        }
+    }
+}
+
+/// The triangles of one chunk: its vertices moved into the receiver's frame
+/// once, then every triangle culled and rasterized from them. The same
+/// expressions as [`take`] and [`Accumulator::add`] on the same values, so the
+/// same counts and bits.
+#[inline(always)]
+fn chunk_loop<M: ConeMask>(
+    view: &MeshView<'_>,
+    clusters: &TriangleClusters,
+    chunk: &Chunk,
+    acc: &mut Accumulator<'_>,
+    pass: &Pass<M>,
+    select: Select,
+    projected: &mut Projected,
+) {
+    let (o, frame) = (acc.receiver.origin, &acc.receiver.frame);
+    let vertices = &clusters.chunk_vertices[chunk.vertices.0 as usize..chunk.vertices.1 as usize];
+    for (k, &v) in vertices.iter().enumerate() {
+        let p = view.position(v as usize);
+        let local = frame.to_local(p - o);
+        let (unit, in_range) = corner_unit(local);
+        projected.local[k] = local;
+        projected.units[k] = unit;
+        projected.in_range[k] = in_range;
+        projected.near[k] = pass.near(p);
+    }
+    let triangles = chunk.triangles.0 as usize..chunk.triangles.1 as usize;
+    for &[ia, ib, ic] in &clusters.corners[triangles] {
+        let (ia, ib, ic) = (ia as usize, ib as usize, ic as usize);
+        let near = &projected.near;
+        let taken = match select {
+            Select::All => true,
+            Select::Near => near[ia] || near[ib] || near[ic],
+            Select::Far => !(near[ia] || near[ib] || near[ic]),
+        };
+        if !taken {
+            acc.counts.skipped += 1;
+            continue;
+        }
+        let (a, b, c) = (
+            projected.local[ia],
+            projected.local[ib],
+            projected.local[ic],
+        );
+        if a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0 {
+            acc.counts.below_horizon += 1;
+            continue;
+        }
+        let units = [
+            projected.units[ia],
+            projected.units[ib],
+            projected.units[ic],
+        ];
+        let in_range = projected.in_range[ia] & projected.in_range[ib] & projected.in_range[ic];
+        match pass
+            .cone_mask
+            .or_into_units([a, b, c], units, in_range, pass.cull, &mut acc.mask)
+        {
+            Ok(()) => acc.counts.rasterized += 1,
+            Err(culled) => acc.counts.count(culled),
         }
     }
 }
 
 /// Reads triangle `t`, applies the near/far rule and rasterizes it if taken.
 #[inline(always)]
-fn take<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy>(
+fn take<M: ConeMask>(
     view: &MeshView<'_>,
     t: usize,
     acc: &mut Accumulator<'_>,
@@ -562,7 +799,10 @@ fn take<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Cop
         Select::Far => !(pass.near(a) || pass.near(b) || pass.near(c)),
     };
     if taken {
-        acc.add(a, b, c, pass.cull, pass.cone_mask);
+        let m = pass.cone_mask;
+        acc.add(a, b, c, pass.cull, |a, b, c, cull, mask| {
+            m.or_into(a, b, c, cull, mask)
+        });
     } else {
         acc.counts.skipped += 1;
     }
@@ -931,6 +1171,95 @@ mod tests {
                     assert_eq!(a, expected, "twist {twist} radius {radius} vertex {v}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn chunked_clusters_match_the_plain_loop_in_counts_and_bits() {
+        // Cluster sizes below, at and above the chunk size (several chunks per
+        // cluster, a short last one), both qualities, culling on and off, with
+        // and without a far mesh: masks and counts as the unclustered loop.
+        let (positions, indices) = twisted_sphere(14, 22, 0.4);
+        let (far_positions, far_indices) = twisted_sphere(6, 9, 0.4);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let far = MeshView::new(&far_positions, &far_indices).unwrap();
+        let normals = normals_of(&mesh);
+        let table = HalfSpaceTable::new(32);
+        for size in [1, 31, 32, 33, 100, 5000] {
+            let mut clusters = TriangleClusters::new(&mesh, size);
+            let mut far_clusters = TriangleClusters::new(&far, size);
+            let (near, coarse) = (clusters.update(mesh), far_clusters.update(far));
+            for quality in [Quality::Exact, Quality::Table(&table)] {
+                for cull_backfaces in [false, true] {
+                    let options = BatchOptions {
+                        quality,
+                        cull_backfaces,
+                        normal_offset: 0.003,
+                    };
+                    for radius in [f32::INFINITY, 0.5] {
+                        let plain = HemiScene::with_far(
+                            ClusteredMesh::unclustered(mesh),
+                            ClusteredMesh::unclustered(far),
+                            radius,
+                        );
+                        let fast = HemiScene::with_far(near, coarse, radius);
+                        let (plain, fast) = if radius.is_finite() {
+                            (plain, fast)
+                        } else {
+                            (HemiScene::new(plain.mesh), HemiScene::new(fast.mesh))
+                        };
+                        for v in (0..mesh.vertex_count()).step_by(5) {
+                            let (p, n) = (mesh.position(v), normals[v]);
+                            let (a, ca) = scene_mask_with_counts(&plain, p, n, &options);
+                            let (b, cb) = scene_mask_with_counts(&fast, p, n, &options);
+                            assert_eq!(a, b, "size {size} vertex {v} radius {radius}");
+                            // Skipped clusters are not counted; what is read
+                            // is counted alike.
+                            assert_eq!(ca.rasterized, cb.rasterized, "size {size} vertex {v}");
+                            assert_eq!(ca.degenerate, cb.degenerate, "size {size} vertex {v}");
+                            assert_eq!(ca.back_facing, cb.back_facing, "size {size} vertex {v}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn clusters_regroup_when_the_indices_change() {
+        let (positions, indices) = twisted_sphere(10, 16, 0.0);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let mut clusters = TriangleClusters::new(&mesh, 40);
+        let _ = clusters.update(mesh);
+        // Same triangle count, other corners: every triangle's winding flipped
+        // and the triangles reversed.
+        let mut flipped: Vec<u32> = indices
+            .chunks(3)
+            .rev()
+            .flat_map(|t| [t[0], t[2], t[1]])
+            .collect();
+        flipped.truncate(indices.len());
+        let other = MeshView::new(&positions, &flipped).unwrap();
+        let normals = normals_of(&mesh);
+        let clustered = clusters.update(other);
+        let options = BatchOptions {
+            cull_backfaces: true,
+            normal_offset: 0.01,
+            ..BatchOptions::default()
+        };
+        for v in (0..mesh.vertex_count()).step_by(3) {
+            let (p, n) = (mesh.position(v), normals[v]);
+            let plain = scene_mask(
+                &HemiScene::new(ClusteredMesh::unclustered(other)),
+                p,
+                n,
+                &options,
+            );
+            assert_eq!(
+                scene_mask(&HemiScene::new(clustered), p, n, &options),
+                plain,
+                "vertex {v}"
+            );
         }
     }
 

@@ -107,6 +107,27 @@ impl RawCone {
         }
     }
 
+    /// [`RawCone::or_exact_into`] with the proven box's per-corner part
+    /// already computed (`units[k] = corner_unit(corners[k]).0`, `in_range`
+    /// the AND of the three flags): the same box, hence the same bits, without
+    /// a square root and division per corner.
+    #[inline(always)]
+    fn or_exact_into_units(self, units: [Vec4; 3], in_range: bool, mask: &mut HemiMask) {
+        let proven = if in_range {
+            let [a, b, c] = units;
+            let lanes = |k: usize| Vec4::new(a[k], b[k], c[k], a[k]);
+            proven_box_of_units(lanes(0), lanes(1), lanes(2), lanes(3), self.det_abs)
+        } else {
+            Proven::Tiny
+        };
+        match proven {
+            Proven::Cells(None) => {}
+            Proven::Cells(Some(cells)) => self.finish().or_in_proven_box(cells, mask),
+            Proven::Wide => self.finish().or_general_into(mask),
+            Proven::Tiny => self.finish().or_tiny_into(mask),
+        }
+    }
+
     /// The cone, its normals scaled by powers of two (exact, and still exactly
     /// opposite across a shared edge) so every quality sees the same normals.
     #[inline(always)]
@@ -173,6 +194,20 @@ impl TriangleCone {
         mask: &mut HemiMask,
     ) -> Result<(), Culled> {
         RawCone::new(a, b, c, cull_backfaces)?.or_exact_into(mask);
+        Ok(())
+    }
+
+    /// [`TriangleCone::or_exact_into`] for corners whose [`corner_unit`]s
+    /// were computed beforehand (once per mesh vertex): bit for bit the same.
+    #[inline(always)]
+    pub(crate) fn or_exact_into_units(
+        [a, b, c]: [Vec3; 3],
+        units: [Vec4; 3],
+        in_range: bool,
+        cull_backfaces: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled> {
+        RawCone::new(a, b, c, cull_backfaces)?.or_exact_into_units(units, in_range, mask);
         Ok(())
     }
 
@@ -670,12 +705,34 @@ fn proven_box(corners: [Vec3; 3], det_abs: f32) -> Proven {
     }
     // Correctly rounded square root and division: 1/|p| to within 3u.
     let inv = Vec4::ONE / lengths_sq.sqrt();
+    proven_box_of_units(xs * inv, ys * inv, zs * inv, inv, det_abs)
+}
+
+/// The per-corner part of [`proven_box`] for one corner `p`: `(p̂.x, p̂.y, p̂.z,
+/// 1/|p|)` from the same lane expressions (`|p|² = (x² + y²) + z²`, a correctly
+/// rounded square root and division, then the products), so a caller that
+/// computes it once per mesh vertex and hands three of them to
+/// [`RawCone::or_exact_into_units`] gets [`proven_box`]'s box bit for bit; and
+/// whether `|p|²` is in the range the proof needs (else the cone is
+/// [`Proven::Tiny`]).
+#[inline(always)]
+pub(crate) fn corner_unit(p: Vec3) -> (Vec4, bool) {
+    let length_sq = p.x * p.x + p.y * p.y + p.z * p.z;
+    let in_range = (1e-18..=1e18).contains(&length_sq);
+    let inv = 1.0 / libm::sqrtf(length_sq);
+    (Vec4::new(p.x * inv, p.y * inv, p.z * inv, inv), in_range)
+}
+
+/// [`proven_box`] from the corners' unit directions and inverse lengths
+/// (lanes `(a, b, c, a)`, as [`corner_unit`] gives them).
+#[inline(always)]
+fn proven_box_of_units(ux: Vec4, uy: Vec4, uz: Vec4, inv: Vec4, det_abs: f32) -> Proven {
     // det(â, b̂, ĉ) from below: the computed |det| is within 6.5u |a||b||c| of
     // the true one, and the product of the inverses within 1e-5 of
     // 1 / (|a||b||c|). Weights of passing cells are at least -6.5u / D
     // (3.9e-7 / D, rounded up).
     let d_lo = det_abs * (inv.x * inv.y * inv.z) * (1.0 - 1e-4) - 1e-6;
-    box_of_corners(xs * inv, ys * inv, zs * inv, 4e-7 / d_lo, 0.0)
+    box_of_corners(ux, uy, uz, 4e-7 / d_lo, 0.0)
 }
 
 /// The proven box of a cone from its scaled normals, for cones too small for
@@ -1216,12 +1273,26 @@ mod proven_box_tests {
                 Err(culled) => {
                     prop_assert_eq!(fused, Err(culled));
                     prop_assert_eq!(ored, start);
+                    let units = [a, b, c].map(|p| corner_unit(p).0);
+                    let mut from_units = start;
+                    prop_assert_eq!(
+                        TriangleCone::or_exact_into_units([a, b, c], units, true, cull, &mut from_units),
+                        Err(culled)
+                    );
+                    prop_assert_eq!(from_units, start);
                     return Ok(());
                 }
             };
             let reference = cone.mask_reference();
             prop_assert_eq!(fused, Ok(()));
             prop_assert_eq!(ored, start | reference);
+            // The same with the corners' units computed beforehand (per vertex).
+            let [(ua, ra), (ub, rb), (uc, rc)] = [a, b, c].map(corner_unit);
+            let mut from_units = start;
+            let fused_units = TriangleCone::or_exact_into_units(
+                [a, b, c], [ua, ub, uc], ra & rb & rc, cull, &mut from_units);
+            prop_assert_eq!(fused_units, Ok(()));
+            prop_assert_eq!(from_units, ored);
             prop_assert_eq!(cone.mask_exact(), reference);
             prop_assert_eq!(cone.mask_every_row(), reference);
             for proven in [cone.proven_box(), proven_box_from_normals(cone.normals)] {
