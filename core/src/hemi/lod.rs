@@ -76,7 +76,7 @@ use super::mask::HemiMask;
 use super::shading::{PhongLobe, glossy_transfer, mirror_direction, shade_glossy};
 use super::table::HalfSpaceTable;
 use super::transfer::{TransferMethod, TransferRotation, shade_diffuse};
-use super::triangle::corner_unit;
+use super::triangle::classify_four;
 use super::{Accumulator, Culled, Quality, Receiver, TriangleCone, TriangleCounts, table_raster};
 use crate::geom::MeshView;
 use crate::sh::{Sh, ShRgb};
@@ -227,6 +227,9 @@ const CHUNK: usize = 32;
 
 /// The most distinct vertices a chunk can have.
 const CHUNK_VERTICES: usize = 3 * CHUNK;
+
+// The projection writes four vertices at a time.
+const _: () = assert!(CHUNK_VERTICES % 4 == 0);
 
 /// A run of at most [`CHUNK`] triangles of one cluster with its vertex list.
 #[derive(Clone, Copy, Debug)]
@@ -522,6 +525,13 @@ pub fn scene_mask_with_counts(
 /// How a pass turns a triangle's local corners into mask cells: one
 /// implementation per quality, so the loops are monomorphic.
 trait ConeMask: Copy {
+    /// Whether every cone's mask is the exact one.
+    const ALWAYS_EXACT: bool;
+
+    /// Whether the cone of local corners `a, b, c` (not culled) gets its
+    /// exact mask in this quality, so [`classify_four`]'s proven box applies.
+    fn is_exact(self, corners: [Vec3; 3]) -> bool;
+
     /// Culls or ORs the cone of local corners `a, b, c` into `mask`.
     fn or_into(
         self,
@@ -532,7 +542,7 @@ trait ConeMask: Copy {
         mask: &mut HemiMask,
     ) -> Result<(), Culled>;
 
-    /// [`ConeMask::or_into`] for corners whose [`corner_unit`]s are known
+    /// [`ConeMask::or_into`] for corners whose `corner_unit`s are known
     /// (computed once per vertex of a chunk); the same bits.
     fn or_into_units(
         self,
@@ -549,6 +559,13 @@ trait ConeMask: Copy {
 struct ExactCones;
 
 impl ConeMask for ExactCones {
+    const ALWAYS_EXACT: bool = true;
+
+    #[inline(always)]
+    fn is_exact(self, _corners: [Vec3; 3]) -> bool {
+        true
+    }
+
     #[inline(always)]
     fn or_into(
         self,
@@ -579,6 +596,15 @@ impl ConeMask for ExactCones {
 struct TableCones<'t>(&'t HalfSpaceTable);
 
 impl ConeMask for TableCones<'_> {
+    const ALWAYS_EXACT: bool = false;
+
+    /// Cones whose three edges the table's rule makes exact get the exact
+    /// mask ([`TriangleCone::mask_table`]).
+    #[inline(always)]
+    fn is_exact(self, corners: [Vec3; 3]) -> bool {
+        self.0.has_exact_edges() && self.0.classify_edges(corners).exact == 0b111
+    }
+
     #[inline(always)]
     fn or_into(
         self,
@@ -623,19 +649,23 @@ impl<M: ConeMask> Pass<M> {
 }
 
 /// One chunk's vertices moved into the receiver's frame: local positions,
-/// [`corner_unit`]s and near flags, indexed by position in the chunk's list.
+/// `corner_unit`s and near flags, indexed by position in the chunk's list.
 /// On the stack, reused from chunk to chunk.
 struct Projected {
-    local: [Vec3; CHUNK_VERTICES],
+    /// `(x, y, z, 0)`.
+    local: [Vec4; CHUNK_VERTICES],
     units: [Vec4; CHUNK_VERTICES],
+    /// Not local `z <= 0`.
+    above: [bool; CHUNK_VERTICES],
     in_range: [bool; CHUNK_VERTICES],
     near: [bool; CHUNK_VERTICES],
 }
 
 impl Projected {
     const EMPTY: Projected = Projected {
-        local: [Vec3::ZERO; CHUNK_VERTICES],
+        local: [Vec4::ZERO; CHUNK_VERTICES],
         units: [Vec4::ZERO; CHUNK_VERTICES],
+        above: [false; CHUNK_VERTICES],
         in_range: [false; CHUNK_VERTICES],
         near: [false; CHUNK_VERTICES],
     };
@@ -719,6 +749,10 @@ fn mesh_loop<M: ConeMask>(
 /// once, then every triangle culled and rasterized from them. The same
 /// expressions as [`take`] and [`Accumulator::add`] on the same values, so the
 /// same counts and bits.
+///
+/// The triangles above the horizon are first classified four at a time
+/// ([`ConeMask::classify_four`]): most of a dense mesh's are culled or
+/// provably cover no cell center, and only the rest take the one-triangle path.
 #[inline(always)]
 fn chunk_loop<M: ConeMask>(
     view: &MeshView<'_>,
@@ -729,52 +763,206 @@ fn chunk_loop<M: ConeMask>(
     select: Select,
     projected: &mut Projected,
 ) {
-    let (o, frame) = (acc.receiver.origin, &acc.receiver.frame);
     let vertices = &clusters.chunk_vertices[chunk.vertices.0 as usize..chunk.vertices.1 as usize];
-    for (k, &v) in vertices.iter().enumerate() {
-        let p = view.position(v as usize);
-        let local = frame.to_local(p - o);
-        let (unit, in_range) = corner_unit(local);
-        projected.local[k] = local;
-        projected.units[k] = unit;
-        projected.in_range[k] = in_range;
-        projected.near[k] = pass.near(p);
-    }
+    let all_in_range = project_chunk(view, vertices, acc.receiver, pass, select, projected);
+    // The triangles taken and above the horizon: classified four at a time
+    // below. Without branches on the data (the horizon test is a coin flip
+    // for the triangles of a cluster crossing it): every triangle is written
+    // to the batch, and the count moves only for those kept.
+    let mut batch = [[0u8; 3]; CHUNK];
+    let mut batched = 0;
     let triangles = chunk.triangles.0 as usize..chunk.triangles.1 as usize;
-    for &[ia, ib, ic] in &clusters.corners[triangles] {
-        let (ia, ib, ic) = (ia as usize, ib as usize, ic as usize);
+    if !all_in_range {
+        // A vertex at (nearly) the center of projection or extremely far:
+        // one triangle at a time.
+        for &corners in &clusters.corners[triangles] {
+            let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
+            let near = &projected.near;
+            let taken = match select {
+                Select::All => true,
+                Select::Near => near[ia] | near[ib] | near[ic],
+                Select::Far => !(near[ia] | near[ib] | near[ic]),
+            };
+            if !taken {
+                acc.counts.skipped += 1;
+            } else if !(projected.above[ia] | projected.above[ib] | projected.above[ic]) {
+                acc.counts.below_horizon += 1;
+            } else {
+                one_triangle(projected, corners, acc, pass);
+            }
+        }
+        return;
+    }
+    let (mut skipped, mut below) = (0u32, 0u32);
+    for &corners in &clusters.corners[triangles] {
+        let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
         let near = &projected.near;
         let taken = match select {
             Select::All => true,
-            Select::Near => near[ia] || near[ib] || near[ic],
-            Select::Far => !(near[ia] || near[ib] || near[ic]),
+            Select::Near => near[ia] | near[ib] | near[ic],
+            Select::Far => !(near[ia] | near[ib] | near[ic]),
         };
-        if !taken {
-            acc.counts.skipped += 1;
-            continue;
-        }
-        let (a, b, c) = (
-            projected.local[ia],
-            projected.local[ib],
-            projected.local[ic],
-        );
-        if a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0 {
-            acc.counts.below_horizon += 1;
-            continue;
-        }
-        let units = [
-            projected.units[ia],
-            projected.units[ib],
-            projected.units[ic],
+        let above = projected.above[ia] | projected.above[ib] | projected.above[ic];
+        batch[batched] = corners;
+        batched += usize::from(taken & above);
+        skipped += u32::from(!taken);
+        below += u32::from(taken & !above);
+    }
+    acc.counts.skipped += skipped;
+    acc.counts.below_horizon += below;
+    for four in batch[..batched].chunks(4) {
+        // A short last group repeats its first triangle in the missing lanes,
+        // whose verdicts are then ignored.
+        let lane = |k: usize| {
+            let t = four[k.min(four.len() - 1)];
+            [usize::from(t[0]), usize::from(t[1]), usize::from(t[2])]
+        };
+        let (l0, l1, l2, l3) = (lane(0), lane(1), lane(2), lane(3));
+        let gather = |table: &[Vec4; CHUNK_VERTICES], corner: usize| {
+            glam::Mat4::from_cols(
+                table[l0[corner]],
+                table[l1[corner]],
+                table[l2[corner]],
+                table[l3[corner]],
+            )
+            .transpose()
+        };
+        let xyz = |m: glam::Mat4| [m.x_axis, m.y_axis, m.z_axis];
+        let xyzw = |m: glam::Mat4| [m.x_axis, m.y_axis, m.z_axis, m.w_axis];
+        let corners = [
+            xyz(gather(&projected.local, 0)),
+            xyz(gather(&projected.local, 1)),
+            xyz(gather(&projected.local, 2)),
         ];
-        let in_range = projected.in_range[ia] & projected.in_range[ib] & projected.in_range[ic];
-        match pass
-            .cone_mask
-            .or_into_units([a, b, c], units, in_range, pass.cull, &mut acc.mask)
-        {
-            Ok(()) => acc.counts.rasterized += 1,
-            Err(culled) => acc.counts.count(culled),
+        let units = [
+            xyzw(gather(&projected.units, 0)),
+            xyzw(gather(&projected.units, 1)),
+            xyzw(gather(&projected.units, 2)),
+        ];
+        let verdicts = classify_four(corners, units, pass.cull);
+        let used = (1u32 << four.len()) - 1;
+        acc.counts.degenerate += (verdicts.degenerate & used).count_ones();
+        acc.counts.back_facing += (verdicts.back_facing & used).count_ones();
+        let settled = verdicts.degenerate | verdicts.back_facing;
+        let mut rest = used & !settled;
+        if M::ALWAYS_EXACT {
+            // Provably no cell: nothing to do but count.
+            acc.counts.rasterized += (verdicts.empty & rest).count_ones();
+            rest &= !verdicts.empty;
         }
+        while rest != 0 {
+            let k = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let [ia, ib, ic] = [four[k][0], four[k][1], four[k][2]].map(usize::from);
+            let local = [
+                projected.local[ia].truncate(),
+                projected.local[ib].truncate(),
+                projected.local[ic].truncate(),
+            ];
+            if verdicts.boxed >> k & 1 == 1 && pass.cone_mask.is_exact(local) {
+                acc.counts.rasterized += 1;
+                if verdicts.empty >> k & 1 == 0 {
+                    let [first_i, last_i, first_j, last_j] = verdicts.cells;
+                    let cells = (
+                        first_i[k] as usize,
+                        last_i[k] as usize,
+                        first_j[k] as usize,
+                        last_j[k] as usize,
+                    );
+                    TriangleCone::or_exact_in_box(local, cells, &mut acc.mask);
+                }
+            } else {
+                one_triangle(projected, four[k], acc, pass);
+            }
+        }
+    }
+}
+
+/// Moves the chunk's `vertices` into the receiver's frame, four at a time
+/// (lane by lane the expressions of [`Receiver::to_local`] on `p - o`,
+/// `corner_unit` and [`Pass::near`]), into `projected`; returns whether
+/// every one's squared length is in `corner_unit`'s range.
+#[inline(always)]
+fn project_chunk<M: ConeMask>(
+    view: &MeshView<'_>,
+    vertices: &[u32],
+    receiver: &Receiver,
+    pass: &Pass<M>,
+    select: Select,
+    projected: &mut Projected,
+) -> bool {
+    let (o, frame) = (receiver.origin, &receiver.frame);
+    let splat = |v: Vec3| (Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z));
+    let (tx, ty, tz) = splat(frame.tangent);
+    let (bx, by, bz) = splat(frame.bitangent);
+    let (nx, ny, nz) = splat(frame.normal);
+    let (ox, oy, oz) = splat(o);
+    let (qx, qy, qz) = splat(pass.position);
+    let r2 = Vec4::splat(pass.r2);
+    let mut in_range = true;
+    let last = vertices.len() - 1;
+    let mut g = 0;
+    while g <= last {
+        // Lanes past the end repeat the last vertex (their slots are unused).
+        let p = |k: usize| {
+            view.position(vertices[(g + k).min(last)] as usize)
+                .extend(0.0)
+        };
+        let m = glam::Mat4::from_cols(p(0), p(1), p(2), p(3)).transpose();
+        let (px, py, pz) = (m.x_axis, m.y_axis, m.z_axis);
+        let (wx, wy, wz) = (px - ox, py - oy, pz - oz);
+        let x = tx * wx + ty * wy + tz * wz;
+        let y = bx * wx + by * wy + bz * wz;
+        let z = nx * wx + ny * wy + nz * wz;
+        let length_sq = x * x + y * y + z * z;
+        let ok = length_sq.cmpge(Vec4::splat(1e-18)) & length_sq.cmple(Vec4::splat(1e18));
+        in_range &= ok.all();
+        let inv = Vec4::ONE / length_sq.sqrt();
+        let local = glam::Mat4::from_cols(x, y, z, Vec4::ZERO).transpose();
+        let unit = glam::Mat4::from_cols(x * inv, y * inv, z * inv, inv).transpose();
+        // Not `z <= 0` (NaN included), the horizon test's negation.
+        let above = !z.cmple(Vec4::ZERO).bitmask() & 0xf;
+        let near = if select == Select::All {
+            0
+        } else {
+            let (dx, dy, dz) = (px - qx, py - qy, pz - qz);
+            (dx * dx + dy * dy + dz * dz).cmple(r2).bitmask()
+        };
+        let ok = ok.bitmask();
+        for k in 0..4 {
+            projected.local[g + k] = local.col(k);
+            projected.units[g + k] = unit.col(k);
+            projected.above[g + k] = above >> k & 1 == 1;
+            projected.in_range[g + k] = ok >> k & 1 == 1;
+            projected.near[g + k] = near >> k & 1 == 1;
+        }
+        g += 4;
+    }
+    in_range
+}
+
+/// One triangle of a chunk through the cone mask, with its counts.
+#[inline(always)]
+fn one_triangle<M: ConeMask>(
+    projected: &Projected,
+    corners: [u8; 3],
+    acc: &mut Accumulator<'_>,
+    pass: &Pass<M>,
+) {
+    let [ia, ib, ic] = corners.map(usize::from);
+    let local = [ia, ib, ic].map(|k| projected.local[k].truncate());
+    let units = [
+        projected.units[ia],
+        projected.units[ib],
+        projected.units[ic],
+    ];
+    let in_range = projected.in_range[ia] & projected.in_range[ib] & projected.in_range[ic];
+    match pass
+        .cone_mask
+        .or_into_units(local, units, in_range, pass.cull, &mut acc.mask)
+    {
+        Ok(()) => acc.counts.rasterized += 1,
+        Err(culled) => acc.counts.count(culled),
     }
 }
 
