@@ -541,17 +541,6 @@ trait ConeMask: Copy {
         cull: bool,
         mask: &mut HemiMask,
     ) -> Result<(), Culled>;
-
-    /// [`ConeMask::or_into`] for corners whose `corner_unit`s are known
-    /// (computed once per vertex of a chunk); the same bits.
-    fn or_into_units(
-        self,
-        corners: [Vec3; 3],
-        units: [Vec4; 3],
-        in_range: bool,
-        cull: bool,
-        mask: &mut HemiMask,
-    ) -> Result<(), Culled>;
 }
 
 /// Exact quality.
@@ -576,18 +565,6 @@ impl ConeMask for ExactCones {
         mask: &mut HemiMask,
     ) -> Result<(), Culled> {
         TriangleCone::or_exact_into(a, b, c, cull, mask)
-    }
-
-    #[inline(always)]
-    fn or_into_units(
-        self,
-        corners: [Vec3; 3],
-        units: [Vec4; 3],
-        in_range: bool,
-        cull: bool,
-        mask: &mut HemiMask,
-    ) -> Result<(), Culled> {
-        TriangleCone::or_exact_into_units(corners, units, in_range, cull, mask)
     }
 }
 
@@ -616,18 +593,6 @@ impl ConeMask for TableCones<'_> {
     ) -> Result<(), Culled> {
         table_raster(self.0)(a, b, c, cull, mask)
     }
-
-    #[inline(always)]
-    fn or_into_units(
-        self,
-        [a, b, c]: [Vec3; 3],
-        _units: [Vec4; 3],
-        _in_range: bool,
-        cull: bool,
-        mask: &mut HemiMask,
-    ) -> Result<(), Culled> {
-        self.or_into(a, b, c, cull, mask)
-    }
 }
 
 /// What every triangle of one receiver's pass is tested and rasterized with.
@@ -648,25 +613,21 @@ impl<M: ConeMask> Pass<M> {
     }
 }
 
-/// One chunk's vertices moved into the receiver's frame: local positions,
-/// `corner_unit`s and near flags, indexed by position in the chunk's list.
+/// One chunk's vertices moved into the receiver's frame: local positions and
+/// flags, indexed by position in the chunk's list.
 /// On the stack, reused from chunk to chunk.
 struct Projected {
     /// `(x, y, z, 0)`.
     local: [Vec4; CHUNK_VERTICES],
-    units: [Vec4; CHUNK_VERTICES],
     /// Not local `z <= 0`.
     above: [bool; CHUNK_VERTICES],
-    in_range: [bool; CHUNK_VERTICES],
     near: [bool; CHUNK_VERTICES],
 }
 
 impl Projected {
     const EMPTY: Projected = Projected {
         local: [Vec4::ZERO; CHUNK_VERTICES],
-        units: [Vec4::ZERO; CHUNK_VERTICES],
         above: [false; CHUNK_VERTICES],
-        in_range: [false; CHUNK_VERTICES],
         near: [false; CHUNK_VERTICES],
     };
 }
@@ -828,60 +789,86 @@ fn chunk_loop<M: ConeMask>(
             .transpose()
         };
         let xyz = |m: glam::Mat4| [m.x_axis, m.y_axis, m.z_axis];
-        let xyzw = |m: glam::Mat4| [m.x_axis, m.y_axis, m.z_axis, m.w_axis];
         let corners = [
             xyz(gather(&projected.local, 0)),
             xyz(gather(&projected.local, 1)),
             xyz(gather(&projected.local, 2)),
         ];
-        let units = [
-            xyzw(gather(&projected.units, 0)),
-            xyzw(gather(&projected.units, 1)),
-            xyzw(gather(&projected.units, 2)),
-        ];
-        let verdicts = classify_four(corners, units, pass.cull);
+        let verdicts = classify_four(corners, pass.cull);
         let used = (1u32 << four.len()) - 1;
         acc.counts.degenerate += (verdicts.degenerate & used).count_ones();
         acc.counts.back_facing += (verdicts.back_facing & used).count_ones();
         let settled = verdicts.degenerate | verdicts.back_facing;
-        let mut rest = used & !settled;
-        if M::ALWAYS_EXACT {
-            // Provably no cell: nothing to do but count.
-            acc.counts.rasterized += (verdicts.empty & rest).count_ones();
-            rest &= !verdicts.empty;
-        }
-        while rest != 0 {
-            let k = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
+        let local = |k: usize| {
             let [ia, ib, ic] = [four[k][0], four[k][1], four[k][2]].map(usize::from);
-            let local = [
+            [
                 projected.local[ia].truncate(),
                 projected.local[ib].truncate(),
                 projected.local[ic].truncate(),
-            ];
-            if verdicts.boxed >> k & 1 == 1 && pass.cone_mask.is_exact(local) {
-                acc.counts.rasterized += 1;
-                if verdicts.empty >> k & 1 == 0 {
-                    let [first_i, last_i, first_j, last_j] = verdicts.cells;
-                    let cells = (
-                        first_i[k] as usize,
-                        last_i[k] as usize,
-                        first_j[k] as usize,
-                        last_j[k] as usize,
-                    );
-                    TriangleCone::or_exact_in_box(local, cells, &mut acc.mask);
+            ]
+        };
+        // The lanes whose mask is the exact one (all of them in exact
+        // quality): the box verdicts apply to them.
+        let mut exact = used & !settled & verdicts.boxed;
+        if !M::ALWAYS_EXACT {
+            // Table quality: cones with a table plane take the one-triangle
+            // path.
+            let mut lanes = exact;
+            while lanes != 0 {
+                let k = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                if !pass.cone_mask.is_exact(local(k)) {
+                    exact &= !(1 << k);
                 }
-            } else {
-                one_triangle(projected, four[k], acc, pass);
             }
+        }
+        // Exact cones are counted here; those whose box is empty need nothing
+        // else.
+        acc.counts.rasterized += exact.count_ones();
+        // Small boxes: the window's bits, already evaluated.
+        let mut small = verdicts.small & exact;
+        while small != 0 {
+            let k = small.trailing_zeros() as usize;
+            small &= small - 1;
+            let [first_i, last_i, first_j, last_j] = verdicts.cells;
+            let (i0, i1) = (first_i[k] as usize, last_i[k] as usize);
+            let (j0, j1) = (first_j[k] as usize, last_j[k] as usize);
+            let columns = ((2u64 << i1) - (1u64 << i0)) as u32;
+            let [row0, row1] = verdicts.window[k];
+            acc.mask.rows[j0] |= (row0 << i0) & columns & HemiMask::VALID.rows[j0];
+            // One-row boxes OR their first row again (no change).
+            let row1 = if j1 > j0 { row1 } else { row0 };
+            acc.mask.rows[j1] |= (row1 << i0) & columns & HemiMask::VALID.rows[j1];
+        }
+        // Larger boxes: their cells one triangle at a time.
+        let mut boxed = exact & !verdicts.empty & !verdicts.small;
+        while boxed != 0 {
+            let k = boxed.trailing_zeros() as usize;
+            boxed &= boxed - 1;
+            let [first_i, last_i, first_j, last_j] = verdicts.cells;
+            let cells = (
+                first_i[k] as usize,
+                last_i[k] as usize,
+                first_j[k] as usize,
+                last_j[k] as usize,
+            );
+            TriangleCone::or_exact_in_box(local(k), cells, &mut acc.mask);
+        }
+        // The rest (wide or tiny cones, table planes): the one-triangle path.
+        let mut rest = used & !settled & !exact;
+        while rest != 0 {
+            let k = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            one_triangle(projected, four[k], acc, pass);
         }
     }
 }
 
 /// Moves the chunk's `vertices` into the receiver's frame, four at a time
-/// (lane by lane the expressions of [`Receiver::to_local`] on `p - o`,
-/// `corner_unit` and [`Pass::near`]), into `projected`; returns whether
-/// every one's squared length is in `corner_unit`'s range.
+/// (lane by lane the expressions of [`Receiver::to_local`] on `p - o` and of
+/// [`Pass::near`]), into `projected`; returns whether every one's squared
+/// length `(x² + y²) + z²` is in `[1e-18, 1e18]`, the range in which
+/// [`classify_four`] applies.
 #[inline(always)]
 fn project_chunk<M: ConeMask>(
     view: &MeshView<'_>,
@@ -917,9 +904,7 @@ fn project_chunk<M: ConeMask>(
         let length_sq = x * x + y * y + z * z;
         let ok = length_sq.cmpge(Vec4::splat(1e-18)) & length_sq.cmple(Vec4::splat(1e18));
         in_range &= ok.all();
-        let inv = Vec4::ONE / length_sq.sqrt();
         let local = glam::Mat4::from_cols(x, y, z, Vec4::ZERO).transpose();
-        let unit = glam::Mat4::from_cols(x * inv, y * inv, z * inv, inv).transpose();
         // Not `z <= 0` (NaN included), the horizon test's negation.
         let above = !z.cmple(Vec4::ZERO).bitmask() & 0xf;
         let near = if select == Select::All {
@@ -928,12 +913,9 @@ fn project_chunk<M: ConeMask>(
             let (dx, dy, dz) = (px - qx, py - qy, pz - qz);
             (dx * dx + dy * dy + dz * dz).cmple(r2).bitmask()
         };
-        let ok = ok.bitmask();
         for k in 0..4 {
             projected.local[g + k] = local.col(k);
-            projected.units[g + k] = unit.col(k);
             projected.above[g + k] = above >> k & 1 == 1;
-            projected.in_range[g + k] = ok >> k & 1 == 1;
             projected.near[g + k] = near >> k & 1 == 1;
         }
         g += 4;
@@ -949,18 +931,9 @@ fn one_triangle<M: ConeMask>(
     acc: &mut Accumulator<'_>,
     pass: &Pass<M>,
 ) {
-    let [ia, ib, ic] = corners.map(usize::from);
-    let local = [ia, ib, ic].map(|k| projected.local[k].truncate());
-    let units = [
-        projected.units[ia],
-        projected.units[ib],
-        projected.units[ic],
-    ];
-    let in_range = projected.in_range[ia] & projected.in_range[ib] & projected.in_range[ic];
-    match pass
-        .cone_mask
-        .or_into_units(local, units, in_range, pass.cull, &mut acc.mask)
-    {
+    let [a, b, c] =
+        [corners[0], corners[1], corners[2]].map(|k| projected.local[usize::from(k)].truncate());
+    match pass.cone_mask.or_into(a, b, c, pass.cull, &mut acc.mask) {
         Ok(()) => acc.counts.rasterized += 1,
         Err(culled) => acc.counts.count(culled),
     }

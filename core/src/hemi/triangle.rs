@@ -107,27 +107,6 @@ impl RawCone {
         }
     }
 
-    /// [`RawCone::or_exact_into`] with the proven box's per-corner part
-    /// already computed (`units[k] = corner_unit(corners[k]).0`, `in_range`
-    /// the AND of the three flags): the same box, hence the same bits, without
-    /// a square root and division per corner.
-    #[inline(always)]
-    fn or_exact_into_units(self, units: [Vec4; 3], in_range: bool, mask: &mut HemiMask) {
-        let proven = if in_range {
-            let [a, b, c] = units;
-            let lanes = |k: usize| Vec4::new(a[k], b[k], c[k], a[k]);
-            proven_box_of_units(lanes(0), lanes(1), lanes(2), lanes(3), self.det_abs)
-        } else {
-            Proven::Tiny
-        };
-        match proven {
-            Proven::Cells(None) => {}
-            Proven::Cells(Some(cells)) => self.finish().or_in_proven_box(cells, mask),
-            Proven::Wide => self.finish().or_general_into(mask),
-            Proven::Tiny => self.finish().or_tiny_into(mask),
-        }
-    }
-
     /// The cone, its normals scaled by powers of two (exact, and still exactly
     /// opposite across a shared edge) so every quality sees the same normals.
     #[inline(always)]
@@ -197,24 +176,10 @@ impl TriangleCone {
         Ok(())
     }
 
-    /// [`TriangleCone::or_exact_into`] for corners whose `corner_unit`s
-    /// were computed beforehand (once per mesh vertex): bit for bit the same.
-    #[inline(always)]
-    pub(crate) fn or_exact_into_units(
-        [a, b, c]: [Vec3; 3],
-        units: [Vec4; 3],
-        in_range: bool,
-        cull_backfaces: bool,
-        mask: &mut HemiMask,
-    ) -> Result<(), Culled> {
-        RawCone::new(a, b, c, cull_backfaces)?.or_exact_into_units(units, in_range, mask);
-        Ok(())
-    }
-
     /// The exact mask of the cone of local corners `a, b, c` ORed into `mask`,
     /// for a triangle that [`classify_four`] found not culled with the
     /// non-empty proven box `(first_i, last_i, first_j, last_j)` (inclusive):
-    /// what [`TriangleCone::or_exact_into_units`] does for it, bit for bit,
+    /// what [`TriangleCone::or_exact_into`] does for it, bit for bit,
     /// without computing the box again. Boxes of at most four columns and two
     /// rows (most of them) are evaluated without loops.
     #[inline(always)]
@@ -751,36 +716,12 @@ fn proven_box(corners: [Vec3; 3], det_abs: f32) -> Proven {
     }
     // Correctly rounded square root and division: 1/|p| to within 3u.
     let inv = Vec4::ONE / lengths_sq.sqrt();
-    proven_box_of_units(xs * inv, ys * inv, zs * inv, inv, det_abs)
-}
-
-/// The per-corner part of [`proven_box`] for one corner `p`: `(p̂.x, p̂.y, p̂.z,
-/// 1/|p|)` from the same lane expressions (`|p|² = (x² + y²) + z²`, a correctly
-/// rounded square root and division, then the products), so a caller that
-/// computes it once per mesh vertex and hands three of them to
-/// [`RawCone::or_exact_into_units`] gets [`proven_box`]'s box bit for bit; and
-/// whether `|p|²` is in the range the proof needs (else the cone is
-/// [`Proven::Tiny`]). The clustered loop computes it four vertices at a time
-/// with the same lane expressions; this is its scalar statement for tests.
-#[cfg(test)]
-#[inline(always)]
-pub(crate) fn corner_unit(p: Vec3) -> (Vec4, bool) {
-    let length_sq = p.x * p.x + p.y * p.y + p.z * p.z;
-    let in_range = (1e-18..=1e18).contains(&length_sq);
-    let inv = 1.0 / libm::sqrtf(length_sq);
-    (Vec4::new(p.x * inv, p.y * inv, p.z * inv, inv), in_range)
-}
-
-/// [`proven_box`] from the corners' unit directions and inverse lengths
-/// (lanes `(a, b, c, a)`, as `corner_unit` gives them).
-#[inline(always)]
-fn proven_box_of_units(ux: Vec4, uy: Vec4, uz: Vec4, inv: Vec4, det_abs: f32) -> Proven {
     // det(â, b̂, ĉ) from below: the computed |det| is within 6.5u |a||b||c| of
     // the true one, and the product of the inverses within 1e-5 of
     // 1 / (|a||b||c|). Weights of passing cells are at least -6.5u / D
     // (3.9e-7 / D, rounded up).
     let d_lo = det_abs * (inv.x * inv.y * inv.z) * (1.0 - 1e-4) - 1e-6;
-    box_of_corners(ux, uy, uz, 4e-7 / d_lo, 0.0)
+    box_of_corners(xs * inv, ys * inv, zs * inv, 4e-7 / d_lo, 0.0)
 }
 
 /// What [`classify_four`] found about four triangles, as lane bitmasks (bit
@@ -800,22 +741,28 @@ pub(crate) struct FourVerdicts {
     /// Per lane, the proven box's first and last column and first and last
     /// row (inclusive, whole numbers in `0..=31` when the box is not empty).
     pub(crate) cells: [Vec4; 4],
+    /// Lanes whose box is not empty, at most four columns wide and two rows
+    /// high, and whose normals need no power-of-two scaling (see
+    /// [`classify_four`]): `window` holds their mask.
+    pub(crate) small: u32,
+    /// Per lane, the predicate's bits on the four columns from the box's
+    /// first one, in the box's first row (`[k][0]`) and the next (`[k][1]`);
+    /// meaningful for `small` lanes, before masking with the box and
+    /// [`HemiMask::VALID`].
+    pub(crate) window: [[u32; 2]; 4],
 }
 
 /// [`RawCone::new`]'s culling (after the horizon test) and
-/// [`proven_box_of_units`]'s emptiness for four triangles at once, lane `k`
+/// [`proven_box`]'s box for four triangles at once, lane `k`
 /// evaluating the same `f32` expressions in the same order as the scalar code
 /// on triangle `k`, so the same verdicts. `corners[k]` holds the x, y and z
-/// lanes of corner `k` (local, relative to the center of projection),
-/// `units[k]` the lanes of its `corner_unit` (x, y, z, inverse length);
-/// every corner's squared length must be in `corner_unit`'s range. Throughput
-/// instead of latency: the square root and divisions of four boxes overlap.
+/// lanes of corner `k` (local, relative to the center of projection); every
+/// corner's squared length must be in `[1e-18, 1e18]` (else [`proven_box`]
+/// gives up on the triangle, which the caller sends down the one-triangle
+/// path). Throughput instead of latency: the square roots and divisions of
+/// four boxes overlap.
 #[inline(always)]
-pub(crate) fn classify_four(
-    corners: [[Vec4; 3]; 3],
-    units: [[Vec4; 4]; 3],
-    cull_backfaces: bool,
-) -> FourVerdicts {
+pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> FourVerdicts {
     let [[ax, ay, az], [bx, by, bz], [cx, cy, cz]] = corners;
     // cross(p, q), lane by lane.
     let cross = |px: Vec4, py: Vec4, pz: Vec4, qx: Vec4, qy: Vec4, qz: Vec4| {
@@ -841,12 +788,17 @@ pub(crate) fn classify_four(
     } else {
         0
     };
-    // proven_box_of_units and box_of_corners, lane by lane.
-    let [
-        [uax, uay, uaz, ia],
-        [ubx, uby, ubz, ib],
-        [ucx, ucy, ucz, ic],
-    ] = units;
+    // proven_box and box_of_corners, lane by lane.
+    // The corners' unit directions and inverse lengths, as proven_box
+    // computes them: |p|² = (x² + y²) + z², a correctly rounded square root
+    // and division, then the products.
+    let unit = |x: Vec4, y: Vec4, z: Vec4| {
+        let inv = Vec4::ONE / (x * x + y * y + z * z).sqrt();
+        (x * inv, y * inv, z * inv, inv)
+    };
+    let (uax, uay, uaz, ia) = unit(ax, ay, az);
+    let (ubx, uby, ubz, ib) = unit(bx, by, bz);
+    let (ucx, ucy, ucz, ic) = unit(cx, cy, cz);
     let d_lo = det.abs() * (ia * ib * ic) * (1.0 - 1e-4) - Vec4::splat(1e-6);
     let tau = Vec4::splat(4e-7) / d_lo;
     let tau_ok = tau.cmpge(zero) & tau.cmple(Vec4::splat(1.0 / 12.0));
@@ -867,14 +819,81 @@ pub(crate) fn classify_four(
     let (first_v, last_v) = cell_range_four(uay.min(uby).min(ucy), uay.max(uby).max(ucy), margin);
     let no_cell = first_u.cmpgt(last_u) | first_v.cmpgt(last_v);
     let boxed = (tau_ok & cos_ok & n_ok).bitmask() & !degenerate & !back_facing;
+    let empty = boxed & no_cell.bitmask();
+    // Small boxes: the three predicates on a window of 4 x 2 cells, all four
+    // lanes at once. The inward normals are the crosses, negated where the
+    // determinant is negative (exact). TriangleCone's normals are also
+    // scaled by a power of two, which changes no predicate when every
+    // component is zero or within 2^±60: then every product with a cell
+    // coordinate (at least 1/32 in size) and its scaled twin are in the
+    // normal range, so each product, and each sum of them (an exact
+    // cancellation included), is the scaled one's times the same power of
+    // two, and has the same sign.
+    let flip = det.cmplt(zero);
+    let orient = |v: Vec4| Vec4::select(flip, -v, v);
+    let normals = [
+        [orient(abx), orient(aby), orient(abz)],
+        [orient(bcx), orient(bcy), orient(bcz)],
+        [orient(cax), orient(cay), orient(caz)],
+    ];
+    let unscaled_ok = |v: Vec4| {
+        let a = v.abs();
+        a.cmpeq(zero)
+            | (a.cmpge(Vec4::splat(SCALE_FREE_MIN)) & a.cmple(Vec4::splat(SCALE_FREE_MAX)))
+    };
+    let mut scale_free = glam::BVec4A::splat(true);
+    for m in &normals {
+        for &c in m {
+            scale_free &= unscaled_ok(c);
+        }
+    }
+    let narrow = (last_u - first_u).cmple(Vec4::splat(3.0)) & (last_v - first_v).cmple(Vec4::ONE);
+    let small = (narrow & scale_free).bitmask() & boxed & !empty;
+    let mut window = [[0u32; 2]; 4];
+    if small != 0 {
+        // Cell centers as CELL_COORD and CELL_Z give them, bit for bit:
+        // (k + 0.5)/16 - 1 is exact, and so is 1 - u² - v² (multiples of
+        // 1/1024 below 2), whose correctly rounded square root CELL_Z holds.
+        let coordinate = |k: Vec4| (k + Vec4::splat(0.5)) * (1.0 / 16.0) - one;
+        // Bit 16 dj + 4 di + k: window cell (di, dj) of lane k.
+        let mut bits = 0u32;
+        for (dj, row_v) in [first_v, first_v + one].into_iter().enumerate() {
+            let v = coordinate(row_v);
+            for di in 0..4 {
+                let u = coordinate(first_u + Vec4::splat(di as f32));
+                let z = ((one - u * u) - v * v).sqrt();
+                let mut inside = glam::BVec4A::splat(true);
+                for [mx, my, mz] in normals {
+                    inside &= ((mx * u + my * v) + mz * z).cmpge(zero);
+                }
+                bits |= inside.bitmask() << (16 * dj + 4 * di);
+            }
+        }
+        // Transpose each 4 x 4 block of bits (delta swaps) to bit
+        // 16 dj + 4 k + di: lane k's row dj is then one nibble.
+        let t = (bits ^ (bits >> 3)) & 0x0a0a_0a0a;
+        let bits = bits ^ t ^ (t << 3);
+        let t = (bits ^ (bits >> 6)) & 0x00cc_00cc;
+        let bits = bits ^ t ^ (t << 6);
+        for (k, lane) in window.iter_mut().enumerate() {
+            *lane = [bits >> (4 * k) & 0xf, bits >> (16 + 4 * k) & 0xf];
+        }
+    }
     FourVerdicts {
         degenerate,
         back_facing,
-        empty: boxed & no_cell.bitmask(),
+        empty,
         boxed,
         cells: [first_u, last_u, first_v, last_v],
+        small,
+        window,
     }
 }
+
+/// Normal components with no power-of-two scaling in the small-box window
+/// of [`classify_four`] are zero or within `[2^-60, 2^60]` in size.
+const SCALE_FREE_MIN: f32 = f32::from_bits((127 - 60) << 23);
+const SCALE_FREE_MAX: f32 = f32::from_bits((127 + 60) << 23);
 
 /// [`cell_range`]`(lo, hi, margin)` on four lanes (finite inputs), in `f32`
 /// alone, as the first and last column (inclusive; empty when first > last):
@@ -1442,26 +1461,12 @@ mod proven_box_tests {
                 Err(culled) => {
                     prop_assert_eq!(fused, Err(culled));
                     prop_assert_eq!(ored, start);
-                    let units = [a, b, c].map(|p| corner_unit(p).0);
-                    let mut from_units = start;
-                    prop_assert_eq!(
-                        TriangleCone::or_exact_into_units([a, b, c], units, true, cull, &mut from_units),
-                        Err(culled)
-                    );
-                    prop_assert_eq!(from_units, start);
                     return Ok(());
                 }
             };
             let reference = cone.mask_reference();
             prop_assert_eq!(fused, Ok(()));
             prop_assert_eq!(ored, start | reference);
-            // The same with the corners' units computed beforehand (per vertex).
-            let [(ua, ra), (ub, rb), (uc, rc)] = [a, b, c].map(corner_unit);
-            let mut from_units = start;
-            let fused_units = TriangleCone::or_exact_into_units(
-                [a, b, c], [ua, ub, uc], ra & rb & rc, cull, &mut from_units);
-            prop_assert_eq!(fused_units, Ok(()));
-            prop_assert_eq!(from_units, ored);
             prop_assert_eq!(cone.mask_exact(), reference);
             prop_assert_eq!(cone.mask_every_row(), reference);
             for proven in [cone.proven_box(), proven_box_from_normals(cone.normals)] {
@@ -1490,14 +1495,8 @@ mod proven_box_tests {
         let lanes = |corner: usize, axis: usize| {
             Vec4::from_array(core::array::from_fn(|k| triangles[k][corner][axis]))
         };
-        let unit = |corner: usize, axis: usize| {
-            Vec4::from_array(core::array::from_fn(|k| {
-                corner_unit(triangles[k][corner]).0[axis]
-            }))
-        };
         let corners = core::array::from_fn(|c| [lanes(c, 0), lanes(c, 1), lanes(c, 2)]);
-        let units = core::array::from_fn(|c| [unit(c, 0), unit(c, 1), unit(c, 2), unit(c, 3)]);
-        let v = classify_four(corners, units, cull);
+        let v = classify_four(corners, cull);
         core::array::from_fn(|k| {
             if v.degenerate >> k & 1 == 1 {
                 return Err(Culled::Degenerate);
@@ -1518,6 +1517,20 @@ mod proven_box_tests {
                     lj[k] as usize,
                 );
                 TriangleCone::or_exact_in_box(triangles[k], cells, &mut mask);
+                if v.small >> k & 1 == 1 {
+                    // The window's bits, masked to the box, are the same.
+                    let (i0, i1, j0, j1) = cells;
+                    let columns = ((2u64 << i1) - (1u64 << i0)) as u32;
+                    let mut window = HemiMask::EMPTY;
+                    for (dj, &bits) in v.window[k].iter().enumerate() {
+                        let j = j0 + dj;
+                        if j <= j1 {
+                            window.rows[j] = (bits << i0) & columns & HemiMask::VALID.rows[j];
+                        }
+                    }
+                    assert_eq!(window, mask, "lane {k}");
+                    SMALL_LANES.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+                }
             }
             Ok(Some(mask))
         })
@@ -1537,7 +1550,7 @@ mod proven_box_tests {
             // The caller's contract: some corner above the horizon, all in
             // range; other triangles are replaced by a small one near the zenith.
             let usable = |[a, b, c]: [Vec3; 3]| {
-                !(a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0) && [a, b, c].iter().all(|&p| corner_unit(p).1)
+                !(a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0) && [a, b, c].iter().all(|&p| (1e-18..=1e18).contains(&p.length_squared()))
             };
             let stand_in = [Vec3::new(0.01, 0.0, 1.0), Vec3::new(0.0, 0.02, 1.0), Vec3::new(-0.01, 0.0, 1.0)];
             let triangles = [t0, t1, t2, t3].map(|t| if usable(t) { t } else { stand_in });
@@ -1551,6 +1564,28 @@ mod proven_box_tests {
                 }
             }
         }
+    }
+
+    /// Lanes that took the window in `through_four`, so the test can tell it
+    /// was exercised.
+    static SMALL_LANES: core::sync::atomic::AtomicUsize = core::sync::atomic::AtomicUsize::new(0);
+
+    #[test]
+    fn four_at_once_takes_the_window_for_small_boxes() {
+        // Triangles about 0.05 rad across around every tenth cell center.
+        let before = SMALL_LANES.load(core::sync::atomic::Ordering::Relaxed);
+        for k in (0..VALID_CELL_COUNT as usize).step_by(10) {
+            let c = cell_dir(k, Vec3::new(0.004, 0.003, 0.0)) * 3.0;
+            let (e1, e2) = c.normalize().any_orthonormal_pair();
+            let s = 0.05;
+            let t = [c + e1 * s, c + e2 * s, c - (e1 + e2) * s];
+            let cone = TriangleCone::new(t[0], t[1], t[2], false).unwrap();
+            for got in through_four([t; 4], false) {
+                assert_eq!(got, Ok(Some(cone.mask_reference())), "cell {k}");
+            }
+        }
+        let taken = SMALL_LANES.load(core::sync::atomic::Ordering::Relaxed) - before;
+        assert!(taken >= 4 * 60, "{taken} small lanes");
     }
 
     #[test]
