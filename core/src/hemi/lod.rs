@@ -36,31 +36,43 @@
 //! arithmetic. The mask, an OR over triangles, does not depend on their order
 //! (tested on spheres here and on the twisting bunny in `tests/tests/hemi_lod.rs`).
 //!
-//! Measured (`cargo bench -p antumbra-core --features bvh --bench hemi -- lod_
-//! frame_`, one thread of a 2-core VM), microseconds per receiver mask, without /
-//! with 32-triangle clusters; the table columns with the plain default table
-//! (three lookups per triangle), so they move with the table's configuration:
+//! Inside a cluster the triangles are in chunks of at most 32, each with its own
+//! list of distinct vertices (built with the grouping, rebuilt when the index
+//! buffer changes). Per receiver a chunk's vertices are moved into the
+//! receiver's frame four at a time, once per vertex instead of once per corner;
+//! its triangles are culled against the horizon (and the near/far rule)
+//! without branches; and those left are classified four at a time
+//! (`classify_four` in `triangle.rs`): culling and exact quality's proven cell
+//! box, lane by lane the same `f32` expressions as the one-triangle code, so
+//! the same verdicts. A box with no cell center is done; boxes of at most
+//! 4 × 2 cells are evaluated in the same pass for all four lanes; larger ones
+//! one triangle at a time from their box; wide and tiny cones, and table
+//! quality's cones with a table plane, take the one-triangle path. Masks and
+//! counts equal the unclustered loop's (tests below, and `classify_four`'s
+//! against `TriangleCone::new` and the per-cell predicate).
 //!
-//! | mesh                          | exact     | table   | exact + far | table + far |
-//! |-------------------------------|-----------|---------|-------------|-------------|
-//! | bunny, 3,674 triangles        | 116 / 107 | 67 / 59 | 57 / 44     | 37 / 24     |
-//! | bumpy sphere, 3,712 triangles | 105 / 101 | 53 / 50 | 52 / 43     | 28 / 18     |
+//! Measured (`antumbra bench hemi`, 400 vertex receivers, one thread of a 2-core
+//! VM shared with other builds, two runs): on the bunny, clustered exact
+//! 30.5–31.8 µs per receiver (50.9 before the chunks), table 56.6–58.4 (63.9),
+//! against 84–95 µs for Embree tracing the same 812 directions: 2.7–3.1× less
+//! time (1.6× before); the goal is 10×. On the armadillo (18,178 of
+//! 52,000 triangles rasterized per receiver) clustered exact takes 964 µs
+//! against Embree's 152: it needs the far mesh. Where the bunny's 30 µs go
+//! (stages cut off one at a time, best of 60 repetitions): 3.8 µs moving the
+//! vertices of the clusters not below the horizon into the frame (about 1,000),
+//! 1.7 µs culling their 1,240 triangles, about 13.5 µs classifying the 566
+//! above the horizon (about 125 vector operations per triangle: crosses,
+//! culling, three square roots and a division, the proven box, the 4 × 2
+//! windows) and about 10 µs for the rest one at a time (the 63 larger boxes,
+//! ORing the windows in, wide cones). Only about 72 of the 566 cones set any
+//! cell; 270 have no cell center in their proven box.
 //!
-//! Clusters cut the triangles read per receiver from 3,674 to about 1,240 on the
-//! bunny, but what remains is mostly the 566 triangles per receiver that are above
-//! the horizon and rasterized (most of them distant, grazing ones that cover few
-//! or no cells: 47 cells are occluded on average). Culling one triangle below the
-//! horizon costs only a few nanoseconds, so skipping whole clusters saves 8–13 %
-//! with the full mesh, and 23–36 % with a far mesh, where a cluster also settles
-//! the near/far distance tests of all its triangles at once. The far mesh (the
-//! bunny by vertex clustering on a 12³ grid, 902 triangles; near radius a tenth of
-//! the diagonal) halves the receiver's time and changes the bunny's transfer
-//! vectors by 0.65 % on average (p90 2 %, max 7.5 %; `tests/tests/hemi_lod.rs`).
-//!
-//! A whole frame (every vertex, diffuse + glossy, 9 coefficients, clusters): the
-//! bunny in 188 ms exact (5.3 frames per second on one core), 81 ms exact with the
-//! far mesh (12.4), 104 ms table (9.6), 44 ms table with the far mesh (22.8); on
-//! both cores of the VM (`--features parallel`) 96, 44, 57 and 23 ms.
+//! The far mesh (the bunny by vertex clustering on a 12³ grid, 902 triangles;
+//! near radius a tenth of the diagonal) changes the bunny's transfer vectors by
+//! 0.65 % on average (p90 2 %, max 7.5 %; `tests/tests/hemi_lod.rs`). A whole
+//! frame (every vertex, diffuse + glossy, 16 coefficients, clusters, exact;
+//! `antumbra bench hemi`): the bunny at 15.3–15.6 frames per second on one core
+//! (9.8 before the chunks), 18.9–20.4 with the far mesh (12.7).
 //!
 //! Invariants: everything per receiver is on the stack; the batch functions
 //! allocate nothing; they are safe to call from many threads at once (the scene is
@@ -826,15 +838,16 @@ fn chunk_loop<M: ConeMask>(
         // else.
         acc.counts.rasterized += exact.count_ones();
         // Small boxes: the window's bits, already evaluated.
-        let mut small = verdicts.small & exact;
-        while small != 0 {
-            let k = small.trailing_zeros() as usize;
-            small &= small - 1;
-            let [first_i, last_i, first_j, last_j] = verdicts.cells;
-            let (i0, i1) = (first_i[k] as usize, last_i[k] as usize);
-            let (j0, j1) = (first_j[k] as usize, last_j[k] as usize);
-            let columns = ((2u64 << i1) - (1u64 << i0)) as u32;
-            let [row0, row1] = verdicts.window[k];
+        // Every lane, without branches: lanes that are not small OR nothing.
+        let small = verdicts.small & exact;
+        let [first_i, last_i, first_j, last_j] = verdicts.cells;
+        for (k, &[row0, row1]) in verdicts.window.iter().enumerate() {
+            let on = 0u32.wrapping_sub(small >> k & 1);
+            // Other lanes' bounds may be anything in [-1, 32] (or NaN, which
+            // converts to 0): clamped only to stay in the grid.
+            let (i0, i1) = ((first_i[k] as usize).min(31), (last_i[k] as usize).min(31));
+            let (j0, j1) = ((first_j[k] as usize).min(31), (last_j[k] as usize).min(31));
+            let columns = ((2u64 << i1).wrapping_sub(1u64 << i0)) as u32 & on;
             acc.mask.rows[j0] |= (row0 << i0) & columns & HemiMask::VALID.rows[j0];
             // One-row boxes OR their first row again (no change).
             let row1 = if j1 > j0 { row1 } else { row0 };
