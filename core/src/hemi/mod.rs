@@ -43,7 +43,11 @@
 //! with 32-triangle clusters, against about 200 µs for the BVH and 80 µs for
 //! Embree. Per rasterized cone the proven box costs about 45 ns (a square
 //! root and a division per corner triple, latency-bound); the culling of the
-//! triangles below the horizon about 3 ns each.
+//! triangles below the horizon about 3 ns each. The clustered loop of the batch
+//! functions ([`scene_mask`], [`TriangleClusters`]) moves each vertex into the
+//! receiver's frame once and culls and boxes four triangles at a time, with the
+//! same bits: about 31 µs per bunny receiver exact, 2.7–3.1× less than Embree
+//! (figures and where the time goes in the `lod` module).
 //!
 //! Integration and shading (the rest of the paper's pipeline):
 //! [`TransferTable`] turns a mask into a local SH transfer vector with exact

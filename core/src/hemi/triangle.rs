@@ -438,6 +438,8 @@ impl TriangleCone {
     /// complements) or both test it exactly (sharing only the cells exactly on
     /// it): no pinholes either way. The work depends on the mix:
     /// - no exact edge: three table reads and one fused AND;
+    /// - every edge exact: the exact mask ([`TriangleCone::mask_exact`]), the
+    ///   three exact predicates on every cell;
     /// - otherwise only the cells that can hold the cone are looked at, the table
     ///   planes read there and the exact planes tested on the cells they leave:
     ///   for a cone whose edges are all under 0.5 rad, the cells within 1/64
@@ -452,9 +454,8 @@ impl TriangleCone {
     /// Cells outside the widened box are neither in this cone nor within the
     /// table's error of it, so leaving them out drops only table errors. With
     /// the default rule, most triangles of a dense mesh seen from its vertices
-    /// have all edges short and never touch the table: that path costs about
-    /// what [`TriangleCone::mask_exact`] does (its corner box is cheaper than
-    /// the exact path's proven box, its margin wider).
+    /// have all edges short and never touch the table: they cost what exact
+    /// quality does, and the clustered loop gives them its fast path.
     #[inline]
     pub fn mask_table(&self, table: &HalfSpaceTable) -> HemiMask {
         if !table.has_exact_edges() {
