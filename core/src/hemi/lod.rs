@@ -783,41 +783,140 @@ fn chunk_loop<M: ConeMask>(
     }
     acc.counts.skipped += skipped;
     acc.counts.below_horizon += below;
-    for four in batch[..batched].chunks(4) {
+    classify_batch(
+        batched,
+        |t| {
+            let [a, b, c] = batch[t];
+            let local = &projected.local;
+            [
+                local[usize::from(a)],
+                local[usize::from(b)],
+                local[usize::from(c)],
+            ]
+        },
+        acc,
+        pass,
+    );
+}
+
+/// [`rasterize_receiver_with_counts`](super::rasterize_receiver_with_counts):
+/// every triangle of `mesh` but the sorted `skip` list, each corner moved into
+/// the receiver's frame (three times per vertex, as there are no vertex
+/// lists), the horizon tested one triangle at a time, and the triangles above
+/// it rasterized [`classify_batch`]es of up to [`CHUNK`] at a time. The same
+/// expressions as [`Accumulator::add`], so the same bits and counts.
+pub(super) fn rasterize_mesh_batched(
+    mesh: &MeshView<'_>,
+    receiver: &Receiver,
+    skip: &[u32],
+    cull: bool,
+    quality: Quality<'_>,
+) -> (HemiMask, TriangleCounts) {
+    match quality {
+        Quality::Exact => batched_loop(mesh, receiver, skip, cull, ExactCones),
+        Quality::Table(table) => batched_loop(mesh, receiver, skip, cull, TableCones(table)),
+    }
+}
+
+#[inline(always)]
+fn batched_loop(
+    mesh: &MeshView<'_>,
+    receiver: &Receiver,
+    skip: &[u32],
+    cull: bool,
+    cone_mask: impl ConeMask,
+) -> (HemiMask, TriangleCounts) {
+    let mut acc = Accumulator {
+        receiver,
+        mask: HemiMask::EMPTY,
+        counts: TriangleCounts::default(),
+    };
+    let pass = Pass {
+        position: receiver.origin,
+        r2: f32::INFINITY,
+        cull,
+        cone_mask,
+    };
+    let (o, frame) = (receiver.origin, &receiver.frame);
+    let in_range = |p: Vec3| (1e-18..=1e18).contains(&(p.x * p.x + p.y * p.y + p.z * p.z));
+    let mut batch = [[Vec4::ZERO; 3]; CHUNK];
+    let mut batched = 0;
+    let mut skip = skip.iter().copied().peekable();
+    for t in 0..mesh.triangle_count() {
+        // Merge walk over the sorted skip list: O(1) per triangle.
+        while skip.next_if(|&s| (s as usize) < t).is_some() {}
+        if skip.next_if_eq(&(t as u32)).is_some() {
+            acc.counts.skipped += 1;
+            while skip.next_if_eq(&(t as u32)).is_some() {}
+            continue;
+        }
+        let [i0, i1, i2] = mesh.triangle_indices(t);
+        let a = frame.to_local(mesh.position(i0 as usize) - o);
+        let b = frame.to_local(mesh.position(i1 as usize) - o);
+        let c = frame.to_local(mesh.position(i2 as usize) - o);
+        if a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0 {
+            acc.counts.below_horizon += 1;
+            continue;
+        }
+        if !(in_range(a) & in_range(b) & in_range(c)) {
+            match pass.cone_mask.or_into(a, b, c, cull, &mut acc.mask) {
+                Ok(()) => acc.counts.rasterized += 1,
+                Err(culled) => acc.counts.count(culled),
+            }
+            continue;
+        }
+        batch[batched] = [a.extend(0.0), b.extend(0.0), c.extend(0.0)];
+        batched += 1;
+        if batched == CHUNK {
+            classify_batch(batched, |t| batch[t], &mut acc, &pass);
+            batched = 0;
+        }
+    }
+    classify_batch(batched, |t| batch[t], &mut acc, &pass);
+    (acc.mask, acc.counts)
+}
+
+/// Culls and rasterizes `count` triangles above the horizon whose local
+/// corners (`(x, y, z, 0)`, squared lengths in `[1e-18, 1e18]`) are
+/// `corners(t)`, four at a time ([`classify_four`]); adds their counts.
+#[inline(always)]
+fn classify_batch<M: ConeMask>(
+    count: usize,
+    corners: impl Fn(usize) -> [Vec4; 3],
+    acc: &mut Accumulator<'_>,
+    pass: &Pass<M>,
+) {
+    let mut start = 0;
+    while start < count {
+        let len = (count - start).min(4);
         // A short last group repeats its first triangle in the missing lanes,
         // whose verdicts are then ignored.
-        let lane = |k: usize| {
-            let t = four[k.min(four.len() - 1)];
-            [usize::from(t[0]), usize::from(t[1]), usize::from(t[2])]
-        };
-        let (l0, l1, l2, l3) = (lane(0), lane(1), lane(2), lane(3));
-        let gather = |table: &[Vec4; CHUNK_VERTICES], corner: usize| {
-            glam::Mat4::from_cols(
-                table[l0[corner]],
-                table[l1[corner]],
-                table[l2[corner]],
-                table[l3[corner]],
-            )
-            .transpose()
-        };
-        let xyz = |m: glam::Mat4| [m.x_axis, m.y_axis, m.z_axis];
-        let corners = [
-            xyz(gather(&projected.local, 0)),
-            xyz(gather(&projected.local, 1)),
-            xyz(gather(&projected.local, 2)),
+        // Written out: `array::map` is not reliably inlined here.
+        let four = [
+            corners(start),
+            corners(start + 1.min(len - 1)),
+            corners(start + 2.min(len - 1)),
+            corners(start + 3.min(len - 1)),
         ];
-        let verdicts = classify_four(corners, pass.cull);
-        let used = (1u32 << four.len()) - 1;
+        start += len;
+        let gather = |corner: usize| {
+            let m = glam::Mat4::from_cols(
+                four[0][corner],
+                four[1][corner],
+                four[2][corner],
+                four[3][corner],
+            )
+            .transpose();
+            [m.x_axis, m.y_axis, m.z_axis]
+        };
+        let verdicts = classify_four([gather(0), gather(1), gather(2)], pass.cull);
+        let used = (1u32 << len) - 1;
         acc.counts.degenerate += (verdicts.degenerate & used).count_ones();
         acc.counts.back_facing += (verdicts.back_facing & used).count_ones();
         let settled = verdicts.degenerate | verdicts.back_facing;
         let local = |k: usize| {
-            let [ia, ib, ic] = [four[k][0], four[k][1], four[k][2]].map(usize::from);
-            [
-                projected.local[ia].truncate(),
-                projected.local[ib].truncate(),
-                projected.local[ic].truncate(),
-            ]
+            let [a, b, c] = four[k];
+            [a.truncate(), b.truncate(), c.truncate()]
         };
         // The lanes whose mask is the exact one (all of them in exact
         // quality): the box verdicts apply to them.
@@ -872,7 +971,11 @@ fn chunk_loop<M: ConeMask>(
         while rest != 0 {
             let k = rest.trailing_zeros() as usize;
             rest &= rest - 1;
-            one_triangle(projected, four[k], acc, pass);
+            let [a, b, c] = local(k);
+            match pass.cone_mask.or_into(a, b, c, pass.cull, &mut acc.mask) {
+                Ok(()) => acc.counts.rasterized += 1,
+                Err(culled) => acc.counts.count(culled),
+            }
         }
     }
 }
