@@ -52,14 +52,15 @@
 //! against `TriangleCone::new` and the per-cell predicate).
 //!
 //! Measured (`antumbra bench hemi`, 400 vertex receivers, one thread of a 2-core
-//! VM shared with other builds, two runs): on the bunny, clustered exact
-//! 30.5–31.8 µs per receiver (50.9 before the chunks), table 56.6–58.4 (63.9),
-//! against 84–95 µs for Embree tracing the same 812 directions: 2.7–3.1× less
-//! time (1.6× before); the goal is 10×. On the armadillo (18,178 of
-//! 52,000 triangles rasterized per receiver) clustered exact takes 964 µs
-//! against Embree's 152: it needs the far mesh. Where the bunny's 30 µs go
-//! (stages cut off one at a time, best of 60 repetitions): 3.8 µs moving the
-//! vertices of the clusters not below the horizon into the frame (about 1,000),
+//! VM shared with other builds, two runs, each beside the code before the
+//! chunks): on the bunny, clustered exact 31.0–31.1 µs per receiver (52–55
+//! before), table 54.5–55.3 (67–69), against 87–97 µs for Embree tracing the
+//! same 812 directions: 2.8–3.1× less time (1.7× before); the goal is
+//! 10×. On the armadillo (18,178 of 52,000 triangles rasterized per receiver)
+//! clustered exact takes 964 µs against Embree's 152 (one run): it needs the
+//! far mesh. Where the bunny's 30 µs go (stages cut off one at a time, best of
+//! 60 repetitions): 3.8 µs moving the vertices of the clusters not below the
+//! horizon into the frame (about 1,000),
 //! 1.7 µs culling their 1,240 triangles, about 13.5 µs classifying the 566
 //! above the horizon (about 125 vector operations per triangle: crosses,
 //! culling, three square roots and a division, the proven box, the 4 × 2
@@ -71,8 +72,8 @@
 //! near radius a tenth of the diagonal) changes the bunny's transfer vectors by
 //! 0.65 % on average (p90 2 %, max 7.5 %; `tests/tests/hemi_lod.rs`). A whole
 //! frame (every vertex, diffuse + glossy, 16 coefficients, clusters, exact;
-//! `antumbra bench hemi`): the bunny at 15.3–15.6 frames per second on one core
-//! (9.8 before the chunks), 18.9–20.4 with the far mesh (12.7).
+//! `antumbra bench hemi`): the bunny at 15.1–15.4 frames per second on one core
+//! (8.8–9.5 before the chunks), 19.9–20.5 with the far mesh (12.9–14.0).
 //!
 //! Invariants: everything per receiver is on the stack; the batch functions
 //! allocate nothing; they are safe to call from many threads at once (the scene is
