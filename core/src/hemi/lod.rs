@@ -538,12 +538,10 @@ pub fn scene_mask_with_counts(
 /// How a pass turns a triangle's local corners into mask cells: one
 /// implementation per quality, so the loops are monomorphic.
 trait ConeMask: Copy {
-    /// Whether every cone's mask is the exact one.
-    const ALWAYS_EXACT: bool;
-
-    /// Whether the cone of local corners `a, b, c` (not culled) gets its
-    /// exact mask in this quality, so [`classify_four`]'s proven box applies.
-    fn is_exact(self, corners: [Vec3; 3]) -> bool;
+    /// Bit `k` set when the cone of triangle `k` (lanes of the local corners'
+    /// x, y and z; not culled) gets its exact mask in this quality, so
+    /// [`classify_four`]'s proven box applies.
+    fn exact_lanes(self, corners: [[Vec4; 3]; 3]) -> u32;
 
     /// Culls or ORs the cone of local corners `a, b, c` into `mask`.
     fn or_into(
@@ -561,11 +559,9 @@ trait ConeMask: Copy {
 struct ExactCones;
 
 impl ConeMask for ExactCones {
-    const ALWAYS_EXACT: bool = true;
-
     #[inline(always)]
-    fn is_exact(self, _corners: [Vec3; 3]) -> bool {
-        true
+    fn exact_lanes(self, _corners: [[Vec4; 3]; 3]) -> u32 {
+        0b1111
     }
 
     #[inline(always)]
@@ -586,13 +582,15 @@ impl ConeMask for ExactCones {
 struct TableCones<'t>(&'t HalfSpaceTable);
 
 impl ConeMask for TableCones<'_> {
-    const ALWAYS_EXACT: bool = false;
-
     /// Cones whose three edges the table's rule makes exact get the exact
     /// mask ([`TriangleCone::mask_table`]).
     #[inline(always)]
-    fn is_exact(self, corners: [Vec3; 3]) -> bool {
-        self.0.has_exact_edges() && self.0.classify_edges(corners).exact == 0b111
+    fn exact_lanes(self, corners: [[Vec4; 3]; 3]) -> u32 {
+        if self.0.has_exact_edges() {
+            self.0.all_edges_exact_four(corners)
+        } else {
+            0
+        }
     }
 
     #[inline(always)]
@@ -910,7 +908,8 @@ fn classify_batch<M: ConeMask>(
             .transpose();
             [m.x_axis, m.y_axis, m.z_axis]
         };
-        let verdicts = classify_four([gather(0), gather(1), gather(2)], pass.cull);
+        let lanes = [gather(0), gather(1), gather(2)];
+        let verdicts = classify_four(lanes, pass.cull);
         let used = (1u32 << len) - 1;
         acc.counts.degenerate += (verdicts.degenerate & used).count_ones();
         acc.counts.back_facing += (verdicts.back_facing & used).count_ones();
@@ -921,19 +920,8 @@ fn classify_batch<M: ConeMask>(
         };
         // The lanes whose mask is the exact one (all of them in exact
         // quality): the box verdicts apply to them.
-        let mut exact = used & !settled & verdicts.boxed;
-        if !M::ALWAYS_EXACT {
-            // Table quality: cones with a table plane take the one-triangle
-            // path.
-            let mut lanes = exact;
-            while lanes != 0 {
-                let k = lanes.trailing_zeros() as usize;
-                lanes &= lanes - 1;
-                if !pass.cone_mask.is_exact(local(k)) {
-                    exact &= !(1 << k);
-                }
-            }
-        }
+        // Table quality: cones with a table plane take the one-triangle path.
+        let exact = used & !settled & verdicts.boxed & pass.cone_mask.exact_lanes(lanes);
         // Exact cones are counted here; those whose box is empty need nothing
         // else.
         acc.counts.rasterized += exact.count_ones();
