@@ -53,9 +53,9 @@
 //!
 //! Measured (`antumbra bench hemi`, 400 vertex receivers, one thread of a 2-core
 //! VM shared with other builds, two runs, each beside the code before the
-//! chunks): on the bunny, clustered exact 31.0–31.1 µs per receiver (52–55
-//! before), table 54.5–55.3 (67–69), against 87–97 µs for Embree tracing the
-//! same 812 directions: 2.8–3.1× less time (1.7× before); the goal is
+//! chunks): on the bunny, clustered exact 29.7–31.3 µs per receiver (51–52
+//! before), table 46.6–48.5 (63–65), against 80–89 µs for Embree tracing the
+//! same 812 directions: 2.7–2.8× less time (1.6× before); the goal is
 //! 10×. On the armadillo (18,178 of 52,000 triangles rasterized per receiver)
 //! clustered exact takes 964 µs against Embree's 152 (one run): it needs the
 //! far mesh. Where the bunny's 30 µs go (stages cut off one at a time, best of
@@ -72,8 +72,8 @@
 //! near radius a tenth of the diagonal) changes the bunny's transfer vectors by
 //! 0.65 % on average (p90 2 %, max 7.5 %; `tests/tests/hemi_lod.rs`). A whole
 //! frame (every vertex, diffuse + glossy, 16 coefficients, clusters, exact;
-//! `antumbra bench hemi`): the bunny at 15.1–15.4 frames per second on one core
-//! (8.8–9.5 before the chunks), 19.9–20.5 with the far mesh (12.9–14.0).
+//! `antumbra bench hemi`): the bunny at 15.1–16.1 frames per second on one core
+//! (9.1–9.7 before the chunks), 20.9–21.4 with the far mesh (13.8–14.2).
 //!
 //! Invariants: everything per receiver is on the stack; the batch functions
 //! allocate nothing; they are safe to call from many threads at once (the scene is

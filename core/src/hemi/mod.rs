@@ -48,9 +48,9 @@
 //! [`rasterize_receiver`] after moving each triangle's corners into the frame,
 //! the clustered loop of the batch functions ([`scene_mask`],
 //! [`TriangleClusters`]) after moving each vertex of a chunk once. On the
-//! bunny that is 47–52 µs per receiver exact without clusters and 31 µs with
-//! them, 2.8–3.1× less than Embree (figures and where the time goes in the
-//! `lod` module).
+//! bunny that is 47–48 µs per receiver exact without clusters and 30–31 µs
+//! with them, 2.7–2.8× less than Embree (figures and where the time goes in
+//! the `lod` module).
 //!
 //! Integration and shading (the rest of the paper's pipeline):
 //! [`TransferTable`] turns a mask into a local SH transfer vector with exact
