@@ -36,31 +36,44 @@
 //! arithmetic. The mask, an OR over triangles, does not depend on their order
 //! (tested on spheres here and on the twisting bunny in `tests/tests/hemi_lod.rs`).
 //!
-//! Measured (`cargo bench -p antumbra-core --features bvh --bench hemi -- lod_
-//! frame_`, one thread of a 2-core VM), microseconds per receiver mask, without /
-//! with 32-triangle clusters; the table columns with the plain default table
-//! (three lookups per triangle), so they move with the table's configuration:
+//! Inside a cluster the triangles are in chunks of at most 32, each with its own
+//! list of distinct vertices (built with the grouping, rebuilt when the index
+//! buffer changes). Per receiver a chunk's vertices are moved into the
+//! receiver's frame four at a time, once per vertex instead of once per corner;
+//! its triangles are culled against the horizon (and the near/far rule)
+//! without branches; and those left are classified four at a time
+//! (`classify_four` in `triangle.rs`): culling and exact quality's proven cell
+//! box, lane by lane the same `f32` expressions as the one-triangle code, so
+//! the same verdicts. A box with no cell center is done; boxes of at most
+//! 4 × 2 cells are evaluated in the same pass for all four lanes; larger ones
+//! one triangle at a time from their box; wide and tiny cones, and table
+//! quality's cones with a table plane, take the one-triangle path. Masks and
+//! counts equal the unclustered loop's (tests below, and `classify_four`'s
+//! against `TriangleCone::new` and the per-cell predicate).
 //!
-//! | mesh                          | exact     | table   | exact + far | table + far |
-//! |-------------------------------|-----------|---------|-------------|-------------|
-//! | bunny, 3,674 triangles        | 116 / 107 | 67 / 59 | 57 / 44     | 37 / 24     |
-//! | bumpy sphere, 3,712 triangles | 105 / 101 | 53 / 50 | 52 / 43     | 28 / 18     |
+//! Measured (`antumbra bench hemi`, 400 vertex receivers, one thread of a 2-core
+//! VM shared with other builds, two runs, each beside the code before the
+//! chunks): on the bunny, clustered exact 29.7–31.3 µs per receiver (51–52
+//! before), table 46.6–48.5 (63–65), against 80–89 µs for Embree tracing the
+//! same 812 directions: 2.7–2.8× less time (1.6× before); the goal is
+//! 10×. On the armadillo (18,178 of 52,000 triangles rasterized per receiver)
+//! clustered exact takes 964 µs against Embree's 152 (one run): it needs the
+//! far mesh. Where the bunny's 30 µs go (stages cut off one at a time, best of
+//! 60 repetitions): 3.8 µs moving the vertices of the clusters not below the
+//! horizon into the frame (about 1,000),
+//! 1.7 µs culling their 1,240 triangles, about 13.5 µs classifying the 566
+//! above the horizon (about 125 vector operations per triangle: crosses,
+//! culling, three square roots and a division, the proven box, the 4 × 2
+//! windows) and about 10 µs for the rest one at a time (the 63 larger boxes,
+//! ORing the windows in, wide cones). Only about 72 of the 566 cones set any
+//! cell; 270 have no cell center in their proven box.
 //!
-//! Clusters cut the triangles read per receiver from 3,674 to about 1,240 on the
-//! bunny, but what remains is mostly the 566 triangles per receiver that are above
-//! the horizon and rasterized (most of them distant, grazing ones that cover few
-//! or no cells: 47 cells are occluded on average). Culling one triangle below the
-//! horizon costs only a few nanoseconds, so skipping whole clusters saves 8–13 %
-//! with the full mesh, and 23–36 % with a far mesh, where a cluster also settles
-//! the near/far distance tests of all its triangles at once. The far mesh (the
-//! bunny by vertex clustering on a 12³ grid, 902 triangles; near radius a tenth of
-//! the diagonal) halves the receiver's time and changes the bunny's transfer
-//! vectors by 0.65 % on average (p90 2 %, max 7.5 %; `tests/tests/hemi_lod.rs`).
-//!
-//! A whole frame (every vertex, diffuse + glossy, 9 coefficients, clusters): the
-//! bunny in 188 ms exact (5.3 frames per second on one core), 81 ms exact with the
-//! far mesh (12.4), 104 ms table (9.6), 44 ms table with the far mesh (22.8); on
-//! both cores of the VM (`--features parallel`) 96, 44, 57 and 23 ms.
+//! The far mesh (the bunny by vertex clustering on a 12³ grid, 902 triangles;
+//! near radius a tenth of the diagonal) changes the bunny's transfer vectors by
+//! 0.65 % on average (p90 2 %, max 7.5 %; `tests/tests/hemi_lod.rs`). A whole
+//! frame (every vertex, diffuse + glossy, 16 coefficients, clusters, exact;
+//! `antumbra bench hemi`): the bunny at 15.1–16.1 frames per second on one core
+//! (9.1–9.7 before the chunks), 20.9–21.4 with the far mesh (13.8–14.2).
 //!
 //! Invariants: everything per receiver is on the stack; the batch functions
 //! allocate nothing; they are safe to call from many threads at once (the scene is
@@ -70,11 +83,13 @@
 use alloc::vec::Vec;
 use core::fmt;
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 use super::mask::HemiMask;
 use super::shading::{PhongLobe, glossy_transfer, mirror_direction, shade_glossy};
+use super::table::HalfSpaceTable;
 use super::transfer::{TransferMethod, TransferRotation, shade_diffuse};
+use super::triangle::classify_four;
 use super::{Accumulator, Culled, Quality, Receiver, TriangleCone, TriangleCounts, table_raster};
 use crate::geom::MeshView;
 use crate::sh::{Sh, ShRgb};
@@ -204,6 +219,38 @@ pub struct TriangleClusters {
     order: Vec<u32>,
     /// One box per cluster of `size` consecutive entries of `order`.
     bounds: Vec<Aabb>,
+    /// Each cluster's triangles in chunks of at most [`CHUNK`], each with its
+    /// own list of distinct vertices, so a receiver moves every vertex of a
+    /// chunk into its frame once instead of once per corner: cluster `c`'s
+    /// chunks are `chunks[cluster_chunks[c]..cluster_chunks[c + 1]]`.
+    chunks: Vec<Chunk>,
+    cluster_chunks: Vec<u32>,
+    /// The chunks' vertex lists (mesh vertex indices), back to back.
+    chunk_vertices: Vec<u32>,
+    /// Per entry of `order`, its corners as positions in its chunk's vertex list.
+    corners: Vec<[u8; 3]>,
+    /// The index buffer the chunks were built from: a mesh whose indices
+    /// changed is regrouped by [`TriangleClusters::update`].
+    indices: Vec<u32>,
+}
+
+/// Triangles per chunk: at most `3 CHUNK` distinct vertices, so a chunk's
+/// corners fit in a `u8` and its vertices in a small stack buffer.
+const CHUNK: usize = 32;
+
+/// The most distinct vertices a chunk can have.
+const CHUNK_VERTICES: usize = 3 * CHUNK;
+
+// The projection writes four vertices at a time.
+const _: () = assert!(CHUNK_VERTICES % 4 == 0);
+
+/// A run of at most [`CHUNK`] triangles of one cluster with its vertex list.
+#[derive(Clone, Copy, Debug)]
+struct Chunk {
+    /// Entries `triangles.0..triangles.1` of `order` (and of `corners`).
+    triangles: (u32, u32),
+    /// Entries `vertices.0..vertices.1` of `chunk_vertices`.
+    vertices: (u32, u32),
 }
 
 impl TriangleClusters {
@@ -219,6 +266,11 @@ impl TriangleClusters {
             size: triangles_per_cluster.max(1),
             order: Vec::new(),
             bounds: Vec::new(),
+            chunks: Vec::new(),
+            cluster_chunks: Vec::new(),
+            chunk_vertices: Vec::new(),
+            corners: Vec::new(),
+            indices: Vec::new(),
         };
         clusters.reorder(mesh);
         clusters
@@ -253,14 +305,58 @@ impl TriangleClusters {
         self.bounds.clear();
         self.bounds.resize(count.div_ceil(self.size), Aabb::EMPTY);
         self.compute_bounds(mesh);
+        self.build_chunks(mesh);
+    }
+
+    /// Splits every cluster into chunks and lists each chunk's distinct vertices.
+    fn build_chunks(&mut self, mesh: &MeshView<'_>) {
+        self.indices.clear();
+        self.indices.extend_from_slice(mesh.indices());
+        self.chunks.clear();
+        self.cluster_chunks.clear();
+        self.chunk_vertices.clear();
+        self.corners.clear();
+        // Position of each mesh vertex in the current chunk's list, u32::MAX
+        // when absent (reset after each chunk).
+        let mut slot = alloc::vec![u32::MAX; mesh.vertex_count()];
+        let count = self.order.len();
+        let mut start = 0;
+        while start < count {
+            self.cluster_chunks.push(self.chunks.len() as u32);
+            let cluster_end = (start + self.size).min(count);
+            while start < cluster_end {
+                let end = (start + CHUNK).min(cluster_end);
+                let first_vertex = self.chunk_vertices.len();
+                for &t in &self.order[start..end] {
+                    let corners = mesh.triangle_indices(t as usize).map(|v| {
+                        let v = v as usize;
+                        if slot[v] == u32::MAX {
+                            slot[v] = (self.chunk_vertices.len() - first_vertex) as u32;
+                            self.chunk_vertices.push(v as u32);
+                        }
+                        slot[v] as u8
+                    });
+                    self.corners.push(corners);
+                }
+                for &v in &self.chunk_vertices[first_vertex..] {
+                    slot[v as usize] = u32::MAX;
+                }
+                self.chunks.push(Chunk {
+                    triangles: (start as u32, end as u32),
+                    vertices: (first_vertex as u32, self.chunk_vertices.len() as u32),
+                });
+                start = end;
+            }
+        }
+        self.cluster_chunks.push(self.chunks.len() as u32);
     }
 
     /// Recomputes every cluster's box from the current positions of `mesh` and
     /// returns the mesh with its clusters, for one frame. One pass over the
-    /// triangles, no allocation unless the triangle count changed (then the
+    /// triangles, no allocation unless the index buffer changed (then the
     /// grouping is recomputed too).
     pub fn update<'a>(&'a mut self, mesh: MeshView<'a>) -> ClusteredMesh<'a> {
-        if self.order.len() != mesh.triangle_count() {
+        if self.indices != mesh.indices() {
             self.reorder(&mesh);
         } else {
             self.compute_bounds(&mesh);
@@ -432,19 +528,81 @@ pub fn scene_mask_with_counts(
 ) -> (HemiMask, TriangleCounts) {
     let receiver = Receiver::new(position, normal, options.normal_offset);
     let cull = options.cull_backfaces;
-    // One loop per quality so the per-triangle work is monomorphic. The mask
-    // function is passed down as a `Copy` value rather than wrapped in an `add`
-    // closure: a closure called from both mesh loops was not inlined, and the call
-    // per triangle cost as much as the culling itself.
+    // One loop per quality so the per-triangle work is monomorphic.
     match options.quality {
-        Quality::Exact => scene_loop(
-            scene,
-            &receiver,
-            position,
-            cull,
-            TriangleCone::or_exact_into,
-        ),
-        Quality::Table(table) => scene_loop(scene, &receiver, position, cull, table_raster(table)),
+        Quality::Exact => scene_loop(scene, &receiver, position, cull, ExactCones),
+        Quality::Table(table) => scene_loop(scene, &receiver, position, cull, TableCones(table)),
+    }
+}
+
+/// How a pass turns a triangle's local corners into mask cells: one
+/// implementation per quality, so the loops are monomorphic.
+trait ConeMask: Copy {
+    /// Bit `k` set when the cone of triangle `k` (lanes of the local corners'
+    /// x, y and z; not culled) gets its exact mask in this quality, so
+    /// [`classify_four`]'s proven box applies.
+    fn exact_lanes(self, corners: [[Vec4; 3]; 3]) -> u32;
+
+    /// Culls or ORs the cone of local corners `a, b, c` into `mask`.
+    fn or_into(
+        self,
+        a: Vec3,
+        b: Vec3,
+        c: Vec3,
+        cull: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled>;
+}
+
+/// Exact quality.
+#[derive(Clone, Copy)]
+struct ExactCones;
+
+impl ConeMask for ExactCones {
+    #[inline(always)]
+    fn exact_lanes(self, _corners: [[Vec4; 3]; 3]) -> u32 {
+        0b1111
+    }
+
+    #[inline(always)]
+    fn or_into(
+        self,
+        a: Vec3,
+        b: Vec3,
+        c: Vec3,
+        cull: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled> {
+        TriangleCone::or_exact_into(a, b, c, cull, mask)
+    }
+}
+
+/// Table quality.
+#[derive(Clone, Copy)]
+struct TableCones<'t>(&'t HalfSpaceTable);
+
+impl ConeMask for TableCones<'_> {
+    /// Cones whose three edges the table's rule makes exact get the exact
+    /// mask ([`TriangleCone::mask_table`]).
+    #[inline(always)]
+    fn exact_lanes(self, corners: [[Vec4; 3]; 3]) -> u32 {
+        if self.0.has_exact_edges() {
+            self.0.all_edges_exact_four(corners)
+        } else {
+            0
+        }
+    }
+
+    #[inline(always)]
+    fn or_into(
+        self,
+        a: Vec3,
+        b: Vec3,
+        c: Vec3,
+        cull: bool,
+        mask: &mut HemiMask,
+    ) -> Result<(), Culled> {
+        table_raster(self.0)(a, b, c, cull, mask)
     }
 }
 
@@ -459,11 +617,30 @@ struct Pass<M> {
     cone_mask: M,
 }
 
-impl<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy> Pass<M> {
+impl<M: ConeMask> Pass<M> {
     #[inline(always)]
     fn near(&self, p: Vec3) -> bool {
         (p - self.position).length_squared() <= self.r2
     }
+}
+
+/// One chunk's vertices moved into the receiver's frame: local positions and
+/// flags, indexed by position in the chunk's list.
+/// On the stack, reused from chunk to chunk.
+struct Projected {
+    /// `(x, y, z, 0)`.
+    local: [Vec4; CHUNK_VERTICES],
+    /// Not local `z <= 0`.
+    above: [bool; CHUNK_VERTICES],
+    near: [bool; CHUNK_VERTICES],
+}
+
+impl Projected {
+    const EMPTY: Projected = Projected {
+        local: [Vec4::ZERO; CHUNK_VERTICES],
+        above: [false; CHUNK_VERTICES],
+        near: [false; CHUNK_VERTICES],
+    };
 }
 
 #[inline(always)]
@@ -472,7 +649,7 @@ fn scene_loop(
     receiver: &Receiver,
     position: Vec3,
     cull: bool,
-    cone_mask: impl Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy,
+    cone_mask: impl ConeMask,
 ) -> (HemiMask, TriangleCounts) {
     let mut acc = Accumulator {
         receiver,
@@ -485,11 +662,12 @@ fn scene_loop(
         cull,
         cone_mask,
     };
+    let mut projected = Projected::EMPTY;
     match &scene.far {
-        None => mesh_loop(&scene.mesh, &mut acc, &pass, Select::All),
+        None => mesh_loop(&scene.mesh, &mut acc, &pass, Select::All, &mut projected),
         Some(far) => {
-            mesh_loop(&scene.mesh, &mut acc, &pass, Select::Near);
-            mesh_loop(far, &mut acc, &pass, Select::Far);
+            mesh_loop(&scene.mesh, &mut acc, &pass, Select::Near, &mut projected);
+            mesh_loop(far, &mut acc, &pass, Select::Far, &mut projected);
         }
     }
     (acc.mask, acc.counts)
@@ -498,11 +676,12 @@ fn scene_loop(
 /// Adds the triangles of `mesh` that `select` takes, cluster by cluster when there
 /// are clusters.
 #[inline(always)]
-fn mesh_loop<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy>(
+fn mesh_loop<M: ConeMask>(
     mesh: &ClusteredMesh<'_>,
     acc: &mut Accumulator<'_>,
     pass: &Pass<M>,
     select: Select,
+    projected: &mut Projected,
 ) {
     let view = &mesh.mesh;
     let Some(clusters) = mesh.clusters else {
@@ -512,11 +691,7 @@ fn mesh_loop<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> 
         return;
     };
     let (n, o) = (acc.receiver.frame.normal, acc.receiver.origin);
-    for (bounds, triangles) in clusters
-        .bounds
-        .iter()
-        .zip(clusters.order.chunks(clusters.size))
-    {
+    for (c, bounds) in clusters.bounds.iter().enumerate() {
         if bounds.below_plane(n, o) {
             continue;
         }
@@ -535,15 +710,343 @@ fn mesh_loop<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> 
                 }
             }
         };
-        for &t in triangles {
-            take(view, t as usize, acc, pass, here);
+        let chunks = clusters.cluster_chunks[c] as usize..clusters.cluster_chunks[c + 1] as usize;
+        for chunk in &clusters.chunks[chunks] {
+            chunk_loop(view, clusters, chunk, acc, pass, here, projected);
         }
+    }
+}
+
+/// The triangles of one chunk: its vertices moved into the receiver's frame
+/// once, then every triangle culled and rasterized from them. The same
+/// expressions as [`take`] and [`Accumulator::add`] on the same values, so the
+/// same counts and bits.
+///
+/// The triangles above the horizon are first classified four at a time
+/// ([`ConeMask::classify_four`]): most of a dense mesh's are culled or
+/// provably cover no cell center, and only the rest take the one-triangle path.
+#[inline(always)]
+fn chunk_loop<M: ConeMask>(
+    view: &MeshView<'_>,
+    clusters: &TriangleClusters,
+    chunk: &Chunk,
+    acc: &mut Accumulator<'_>,
+    pass: &Pass<M>,
+    select: Select,
+    projected: &mut Projected,
+) {
+    let vertices = &clusters.chunk_vertices[chunk.vertices.0 as usize..chunk.vertices.1 as usize];
+    let all_in_range = project_chunk(view, vertices, acc.receiver, pass, select, projected);
+    // The triangles taken and above the horizon: classified four at a time
+    // below. Without branches on the data (the horizon test is a coin flip
+    // for the triangles of a cluster crossing it): every triangle is written
+    // to the batch, and the count moves only for those kept.
+    let mut batch = [[0u8; 3]; CHUNK];
+    let mut batched = 0;
+    let triangles = chunk.triangles.0 as usize..chunk.triangles.1 as usize;
+    if !all_in_range {
+        // A vertex at (nearly) the center of projection or extremely far:
+        // one triangle at a time.
+        for &corners in &clusters.corners[triangles] {
+            let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
+            let near = &projected.near;
+            let taken = match select {
+                Select::All => true,
+                Select::Near => near[ia] | near[ib] | near[ic],
+                Select::Far => !(near[ia] | near[ib] | near[ic]),
+            };
+            if !taken {
+                acc.counts.skipped += 1;
+            } else if !(projected.above[ia] | projected.above[ib] | projected.above[ic]) {
+                acc.counts.below_horizon += 1;
+            } else {
+                one_triangle(projected, corners, acc, pass);
+            }
+        }
+        return;
+    }
+    let (mut skipped, mut below) = (0u32, 0u32);
+    for &corners in &clusters.corners[triangles] {
+        let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
+        let near = &projected.near;
+        let taken = match select {
+            Select::All => true,
+            Select::Near => near[ia] | near[ib] | near[ic],
+            Select::Far => !(near[ia] | near[ib] | near[ic]),
+        };
+        let above = projected.above[ia] | projected.above[ib] | projected.above[ic];
+        batch[batched] = corners;
+        batched += usize::from(taken & above);
+        skipped += u32::from(!taken);
+        below += u32::from(taken & !above);
+    }
+    acc.counts.skipped += skipped;
+    acc.counts.below_horizon += below;
+    classify_batch(
+        batched,
+        |t| {
+            let [a, b, c] = batch[t];
+            let local = &projected.local;
+            [
+                local[usize::from(a)],
+                local[usize::from(b)],
+                local[usize::from(c)],
+            ]
+        },
+        acc,
+        pass,
+    );
+}
+
+/// [`rasterize_receiver_with_counts`](super::rasterize_receiver_with_counts):
+/// every triangle of `mesh` but the sorted `skip` list, each corner moved into
+/// the receiver's frame (three times per vertex, as there are no vertex
+/// lists), the horizon tested one triangle at a time, and the triangles above
+/// it rasterized [`classify_batch`]es of up to [`CHUNK`] at a time. The same
+/// expressions as [`Accumulator::add`], so the same bits and counts.
+pub(super) fn rasterize_mesh_batched(
+    mesh: &MeshView<'_>,
+    receiver: &Receiver,
+    skip: &[u32],
+    cull: bool,
+    quality: Quality<'_>,
+) -> (HemiMask, TriangleCounts) {
+    match quality {
+        Quality::Exact => batched_loop(mesh, receiver, skip, cull, ExactCones),
+        Quality::Table(table) => batched_loop(mesh, receiver, skip, cull, TableCones(table)),
+    }
+}
+
+#[inline(always)]
+fn batched_loop(
+    mesh: &MeshView<'_>,
+    receiver: &Receiver,
+    skip: &[u32],
+    cull: bool,
+    cone_mask: impl ConeMask,
+) -> (HemiMask, TriangleCounts) {
+    let mut acc = Accumulator {
+        receiver,
+        mask: HemiMask::EMPTY,
+        counts: TriangleCounts::default(),
+    };
+    let pass = Pass {
+        position: receiver.origin,
+        r2: f32::INFINITY,
+        cull,
+        cone_mask,
+    };
+    let (o, frame) = (receiver.origin, &receiver.frame);
+    let in_range = |p: Vec3| (1e-18..=1e18).contains(&(p.x * p.x + p.y * p.y + p.z * p.z));
+    let mut batch = [[Vec4::ZERO; 3]; CHUNK];
+    let mut batched = 0;
+    let mut skip = skip.iter().copied().peekable();
+    for t in 0..mesh.triangle_count() {
+        // Merge walk over the sorted skip list: O(1) per triangle.
+        while skip.next_if(|&s| (s as usize) < t).is_some() {}
+        if skip.next_if_eq(&(t as u32)).is_some() {
+            acc.counts.skipped += 1;
+            while skip.next_if_eq(&(t as u32)).is_some() {}
+            continue;
+        }
+        let [i0, i1, i2] = mesh.triangle_indices(t);
+        let a = frame.to_local(mesh.position(i0 as usize) - o);
+        let b = frame.to_local(mesh.position(i1 as usize) - o);
+        let c = frame.to_local(mesh.position(i2 as usize) - o);
+        if a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0 {
+            acc.counts.below_horizon += 1;
+            continue;
+        }
+        if !(in_range(a) & in_range(b) & in_range(c)) {
+            match pass.cone_mask.or_into(a, b, c, cull, &mut acc.mask) {
+                Ok(()) => acc.counts.rasterized += 1,
+                Err(culled) => acc.counts.count(culled),
+            }
+            continue;
+        }
+        batch[batched] = [a.extend(0.0), b.extend(0.0), c.extend(0.0)];
+        batched += 1;
+        if batched == CHUNK {
+            classify_batch(batched, |t| batch[t], &mut acc, &pass);
+            batched = 0;
+        }
+    }
+    classify_batch(batched, |t| batch[t], &mut acc, &pass);
+    (acc.mask, acc.counts)
+}
+
+/// Culls and rasterizes `count` triangles above the horizon whose local
+/// corners (`(x, y, z, 0)`, squared lengths in `[1e-18, 1e18]`) are
+/// `corners(t)`, four at a time ([`classify_four`]); adds their counts.
+#[inline(always)]
+fn classify_batch<M: ConeMask>(
+    count: usize,
+    corners: impl Fn(usize) -> [Vec4; 3],
+    acc: &mut Accumulator<'_>,
+    pass: &Pass<M>,
+) {
+    let mut start = 0;
+    while start < count {
+        let len = (count - start).min(4);
+        // A short last group repeats its first triangle in the missing lanes,
+        // whose verdicts are then ignored.
+        // Written out: `array::map` is not reliably inlined here.
+        let four = [
+            corners(start),
+            corners(start + 1.min(len - 1)),
+            corners(start + 2.min(len - 1)),
+            corners(start + 3.min(len - 1)),
+        ];
+        start += len;
+        let gather = |corner: usize| {
+            let m = glam::Mat4::from_cols(
+                four[0][corner],
+                four[1][corner],
+                four[2][corner],
+                four[3][corner],
+            )
+            .transpose();
+            [m.x_axis, m.y_axis, m.z_axis]
+        };
+        let lanes = [gather(0), gather(1), gather(2)];
+        let verdicts = classify_four(lanes, pass.cull);
+        let used = (1u32 << len) - 1;
+        acc.counts.degenerate += (verdicts.degenerate & used).count_ones();
+        acc.counts.back_facing += (verdicts.back_facing & used).count_ones();
+        let settled = verdicts.degenerate | verdicts.back_facing;
+        let local = |k: usize| {
+            let [a, b, c] = four[k];
+            [a.truncate(), b.truncate(), c.truncate()]
+        };
+        // The lanes whose mask is the exact one (all of them in exact
+        // quality): the box verdicts apply to them.
+        // Table quality: cones with a table plane take the one-triangle path.
+        let exact = used & !settled & verdicts.boxed & pass.cone_mask.exact_lanes(lanes);
+        // Exact cones are counted here; those whose box is empty need nothing
+        // else.
+        acc.counts.rasterized += exact.count_ones();
+        // Small boxes: the window's bits, already evaluated.
+        // Every lane, without branches: lanes that are not small OR nothing.
+        let small = verdicts.small & exact;
+        let [first_i, last_i, first_j, last_j] = verdicts.cells;
+        for (k, &[row0, row1]) in verdicts.window.iter().enumerate() {
+            let on = 0u32.wrapping_sub(small >> k & 1);
+            // Other lanes' bounds may be anything in [-1, 32] (or NaN, which
+            // converts to 0): clamped only to stay in the grid.
+            let (i0, i1) = ((first_i[k] as usize).min(31), (last_i[k] as usize).min(31));
+            let (j0, j1) = ((first_j[k] as usize).min(31), (last_j[k] as usize).min(31));
+            let columns = ((2u64 << i1).wrapping_sub(1u64 << i0)) as u32 & on;
+            acc.mask.rows[j0] |= (row0 << i0) & columns & HemiMask::VALID.rows[j0];
+            // One-row boxes OR their first row again (no change).
+            let row1 = if j1 > j0 { row1 } else { row0 };
+            acc.mask.rows[j1] |= (row1 << i0) & columns & HemiMask::VALID.rows[j1];
+        }
+        // Larger boxes: their cells one triangle at a time.
+        let mut boxed = exact & !verdicts.empty & !verdicts.small;
+        while boxed != 0 {
+            let k = boxed.trailing_zeros() as usize;
+            boxed &= boxed - 1;
+            let [first_i, last_i, first_j, last_j] = verdicts.cells;
+            let cells = (
+                first_i[k] as usize,
+                last_i[k] as usize,
+                first_j[k] as usize,
+                last_j[k] as usize,
+            );
+            TriangleCone::or_exact_in_box(local(k), cells, &mut acc.mask);
+        }
+        // The rest (wide or tiny cones, table planes): the one-triangle path.
+        let mut rest = used & !settled & !exact;
+        while rest != 0 {
+            let k = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let [a, b, c] = local(k);
+            match pass.cone_mask.or_into(a, b, c, pass.cull, &mut acc.mask) {
+                Ok(()) => acc.counts.rasterized += 1,
+                Err(culled) => acc.counts.count(culled),
+            }
+        }
+    }
+}
+
+/// Moves the chunk's `vertices` into the receiver's frame, four at a time
+/// (lane by lane the expressions of [`Receiver::to_local`] on `p - o` and of
+/// [`Pass::near`]), into `projected`; returns whether every one's squared
+/// length `(x² + y²) + z²` is in `[1e-18, 1e18]`, the range in which
+/// [`classify_four`] applies.
+#[inline(always)]
+fn project_chunk<M: ConeMask>(
+    view: &MeshView<'_>,
+    vertices: &[u32],
+    receiver: &Receiver,
+    pass: &Pass<M>,
+    select: Select,
+    projected: &mut Projected,
+) -> bool {
+    let (o, frame) = (receiver.origin, &receiver.frame);
+    let splat = |v: Vec3| (Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z));
+    let (tx, ty, tz) = splat(frame.tangent);
+    let (bx, by, bz) = splat(frame.bitangent);
+    let (nx, ny, nz) = splat(frame.normal);
+    let (ox, oy, oz) = splat(o);
+    let (qx, qy, qz) = splat(pass.position);
+    let r2 = Vec4::splat(pass.r2);
+    let mut in_range = true;
+    let last = vertices.len() - 1;
+    let mut g = 0;
+    while g <= last {
+        // Lanes past the end repeat the last vertex (their slots are unused).
+        let p = |k: usize| {
+            view.position(vertices[(g + k).min(last)] as usize)
+                .extend(0.0)
+        };
+        let m = glam::Mat4::from_cols(p(0), p(1), p(2), p(3)).transpose();
+        let (px, py, pz) = (m.x_axis, m.y_axis, m.z_axis);
+        let (wx, wy, wz) = (px - ox, py - oy, pz - oz);
+        let x = tx * wx + ty * wy + tz * wz;
+        let y = bx * wx + by * wy + bz * wz;
+        let z = nx * wx + ny * wy + nz * wz;
+        let length_sq = x * x + y * y + z * z;
+        let ok = length_sq.cmpge(Vec4::splat(1e-18)) & length_sq.cmple(Vec4::splat(1e18));
+        in_range &= ok.all();
+        let local = glam::Mat4::from_cols(x, y, z, Vec4::ZERO).transpose();
+        // Not `z <= 0` (NaN included), the horizon test's negation.
+        let above = !z.cmple(Vec4::ZERO).bitmask() & 0xf;
+        let near = if select == Select::All {
+            0
+        } else {
+            let (dx, dy, dz) = (px - qx, py - qy, pz - qz);
+            (dx * dx + dy * dy + dz * dz).cmple(r2).bitmask()
+        };
+        for k in 0..4 {
+            projected.local[g + k] = local.col(k);
+            projected.above[g + k] = above >> k & 1 == 1;
+            projected.near[g + k] = near >> k & 1 == 1;
+        }
+        g += 4;
+    }
+    in_range
+}
+
+/// One triangle of a chunk through the cone mask, with its counts.
+#[inline(always)]
+fn one_triangle<M: ConeMask>(
+    projected: &Projected,
+    corners: [u8; 3],
+    acc: &mut Accumulator<'_>,
+    pass: &Pass<M>,
+) {
+    let [a, b, c] =
+        [corners[0], corners[1], corners[2]].map(|k| projected.local[usize::from(k)].truncate());
+    match pass.cone_mask.or_into(a, b, c, pass.cull, &mut acc.mask) {
+        Ok(()) => acc.counts.rasterized += 1,
+        Err(culled) => acc.counts.count(culled),
     }
 }
 
 /// Reads triangle `t`, applies the near/far rule and rasterizes it if taken.
 #[inline(always)]
-fn take<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Copy>(
+fn take<M: ConeMask>(
     view: &MeshView<'_>,
     t: usize,
     acc: &mut Accumulator<'_>,
@@ -562,7 +1065,10 @@ fn take<M: Fn(Vec3, Vec3, Vec3, bool, &mut HemiMask) -> Result<(), Culled> + Cop
         Select::Far => !(pass.near(a) || pass.near(b) || pass.near(c)),
     };
     if taken {
-        acc.add(a, b, c, pass.cull, pass.cone_mask);
+        let m = pass.cone_mask;
+        acc.add(a, b, c, pass.cull, |a, b, c, cull, mask| {
+            m.or_into(a, b, c, cull, mask)
+        });
     } else {
         acc.counts.skipped += 1;
     }
@@ -931,6 +1437,95 @@ mod tests {
                     assert_eq!(a, expected, "twist {twist} radius {radius} vertex {v}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn chunked_clusters_match_the_plain_loop_in_counts_and_bits() {
+        // Cluster sizes below, at and above the chunk size (several chunks per
+        // cluster, a short last one), both qualities, culling on and off, with
+        // and without a far mesh: masks and counts as the unclustered loop.
+        let (positions, indices) = twisted_sphere(14, 22, 0.4);
+        let (far_positions, far_indices) = twisted_sphere(6, 9, 0.4);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let far = MeshView::new(&far_positions, &far_indices).unwrap();
+        let normals = normals_of(&mesh);
+        let table = HalfSpaceTable::new(32);
+        for size in [1, 31, 32, 33, 100, 5000] {
+            let mut clusters = TriangleClusters::new(&mesh, size);
+            let mut far_clusters = TriangleClusters::new(&far, size);
+            let (near, coarse) = (clusters.update(mesh), far_clusters.update(far));
+            for quality in [Quality::Exact, Quality::Table(&table)] {
+                for cull_backfaces in [false, true] {
+                    let options = BatchOptions {
+                        quality,
+                        cull_backfaces,
+                        normal_offset: 0.003,
+                    };
+                    for radius in [f32::INFINITY, 0.5] {
+                        let plain = HemiScene::with_far(
+                            ClusteredMesh::unclustered(mesh),
+                            ClusteredMesh::unclustered(far),
+                            radius,
+                        );
+                        let fast = HemiScene::with_far(near, coarse, radius);
+                        let (plain, fast) = if radius.is_finite() {
+                            (plain, fast)
+                        } else {
+                            (HemiScene::new(plain.mesh), HemiScene::new(fast.mesh))
+                        };
+                        for v in (0..mesh.vertex_count()).step_by(5) {
+                            let (p, n) = (mesh.position(v), normals[v]);
+                            let (a, ca) = scene_mask_with_counts(&plain, p, n, &options);
+                            let (b, cb) = scene_mask_with_counts(&fast, p, n, &options);
+                            assert_eq!(a, b, "size {size} vertex {v} radius {radius}");
+                            // Skipped clusters are not counted; what is read
+                            // is counted alike.
+                            assert_eq!(ca.rasterized, cb.rasterized, "size {size} vertex {v}");
+                            assert_eq!(ca.degenerate, cb.degenerate, "size {size} vertex {v}");
+                            assert_eq!(ca.back_facing, cb.back_facing, "size {size} vertex {v}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn clusters_regroup_when_the_indices_change() {
+        let (positions, indices) = twisted_sphere(10, 16, 0.0);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let mut clusters = TriangleClusters::new(&mesh, 40);
+        let _ = clusters.update(mesh);
+        // Same triangle count, other corners: every triangle's winding flipped
+        // and the triangles reversed.
+        let mut flipped: Vec<u32> = indices
+            .chunks(3)
+            .rev()
+            .flat_map(|t| [t[0], t[2], t[1]])
+            .collect();
+        flipped.truncate(indices.len());
+        let other = MeshView::new(&positions, &flipped).unwrap();
+        let normals = normals_of(&mesh);
+        let clustered = clusters.update(other);
+        let options = BatchOptions {
+            cull_backfaces: true,
+            normal_offset: 0.01,
+            ..BatchOptions::default()
+        };
+        for v in (0..mesh.vertex_count()).step_by(3) {
+            let (p, n) = (mesh.position(v), normals[v]);
+            let plain = scene_mask(
+                &HemiScene::new(ClusteredMesh::unclustered(other)),
+                p,
+                n,
+                &options,
+            );
+            assert_eq!(
+                scene_mask(&HemiScene::new(clustered), p, n, &options),
+                plain,
+                "vertex {v}"
+            );
         }
     }
 

@@ -80,7 +80,7 @@ use alloc::boxed::Box;
 use alloc::collections::TryReserveError;
 use alloc::vec::Vec;
 
-use glam::Vec3;
+use glam::{BVec4A, Vec3, Vec4};
 
 use super::half_space::{half_space_mask, normalize_exponent};
 use super::mask::{GRID, HemiMask};
@@ -107,6 +107,17 @@ impl AngleTest {
             sin2: s * s,
             cos2: c * c,
             obtuse: angle > core::f32::consts::FRAC_PI_2,
+        }
+    }
+
+    /// [`AngleTest::below`] on four lanes, the same expressions.
+    #[inline(always)]
+    fn below_four(&self, s2: Vec4, d: Vec4) -> BVec4A {
+        let (lhs, rhs) = (s2 * self.cos2, d * d * self.sin2);
+        if self.obtuse {
+            d.cmpge(Vec4::ZERO) | lhs.cmpgt(rhs)
+        } else {
+            d.cmpgt(Vec4::ZERO) & lhs.cmplt(rhs)
         }
     }
 
@@ -492,6 +503,30 @@ impl HalfSpaceTable {
         self.long_enabled | (self.short.sin2 > 0.0)
     }
 
+    /// For four triangles (lanes of the corners' x, y and z, relative to the
+    /// center of projection): bit `k` set when every edge of triangle `k` is
+    /// exact, i.e. [`HalfSpaceTable::classify_edges`] gives `exact == 0b111`,
+    /// lane by lane the same expressions, so the same answer.
+    #[inline(always)]
+    pub(crate) fn all_edges_exact_four(&self, corners: [[Vec4; 3]; 3]) -> u32 {
+        let edge = |p: [Vec4; 3], q: [Vec4; 3]| {
+            let [px, py, pz] = p;
+            let [qx, qy, qz] = q;
+            let e = [py * qz - qy * pz, pz * qx - qz * px, px * qy - qx * py];
+            let s2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+            let d = px * qx + py * qy + pz * qz;
+            let short = self.short.below_four(s2, d);
+            let long = if self.long_enabled {
+                !self.long.below_four(s2, d)
+            } else {
+                BVec4A::splat(false)
+            };
+            short | long
+        };
+        let [a, b, c] = corners;
+        (edge(a, b) & edge(b, c) & edge(c, a)).bitmask()
+    }
+
     /// How table quality treats the three edges `(c0, c1)`, `(c1, c2)`, `(c2,
     /// c0)` of a triangle with corners `c` (relative to the center of
     /// projection): bit `k` of [`EdgeClasses::exact`] is set when edge `k` is
@@ -631,6 +666,44 @@ mod tests {
     use super::*;
     use crate::hemi::mask::VALID_CELL_COUNT;
     use rand::{Rng, SeedableRng, rngs::SmallRng};
+
+    #[test]
+    fn four_lanes_classify_edges_as_one() {
+        // Triangles of every size seen from the origin, with edges at and
+        // around the thresholds of several tables (exact short and long
+        // edges, the pure table, tables with only short edges exact).
+        let mut rng = SmallRng::seed_from_u64(7);
+        let tables = [
+            HalfSpaceTable::new(16),
+            HalfSpaceTable::new(128),
+            HalfSpaceTable::new(24).with_exact_edges(0.0, f32::INFINITY),
+            HalfSpaceTable::new(24).with_exact_edges(0.3, 0.9),
+            HalfSpaceTable::new(24).with_exact_edges(2.0, 3.0),
+        ];
+        let (mut seen, mut all) = (0, 0);
+        for _ in 0..4000 {
+            let size = libm::exp2f(rng.random_range(-12.0..1.5));
+            let center = random_unit(&mut rng) * rng.random_range(0.1f32..10.0);
+            let triangles: [[Vec3; 3]; 4] = core::array::from_fn(|_| {
+                core::array::from_fn(|_| center + random_unit(&mut rng) * size * center.length())
+            });
+            let lanes = |corner: usize| {
+                [0, 1, 2].map(|axis| {
+                    Vec4::from_array(core::array::from_fn(|k| triangles[k][corner][axis]))
+                })
+            };
+            for table in &tables {
+                let four = table.all_edges_exact_four([lanes(0), lanes(1), lanes(2)]);
+                for (k, t) in triangles.iter().enumerate() {
+                    let one = table.classify_edges(*t).exact == 0b111;
+                    assert_eq!(four >> k & 1 == 1, one, "{table:?} {t:?}");
+                    seen += 1;
+                    all += usize::from(one);
+                }
+            }
+        }
+        assert!(all > seen / 10 && all < seen * 9 / 10, "{all} of {seen}");
+    }
 
     fn random_unit(rng: &mut SmallRng) -> Vec3 {
         loop {

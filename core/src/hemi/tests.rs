@@ -799,3 +799,60 @@ fn receiver_helpers_follow_the_conventions() {
     let p = Vec3::new(4.0, -1.0, 2.0);
     assert!((f.to_world(receiver.to_local(p)) + receiver.origin - p).length() < 1e-5);
 }
+
+/// The batched loop of `rasterize_receiver_with_counts` against its slow twin,
+/// one triangle at a time through `Accumulator::add`: masks and counts equal on
+/// a closed bumpy sphere, a soup of large and tiny triangles (some far, some
+/// touching the receiver), with and without skip lists, back-face culling and
+/// offsets, in both qualities.
+#[test]
+fn batched_receiver_loop_is_the_one_triangle_loop() {
+    let mut rng = SmallRng::seed_from_u64(0x5eed_4a11);
+    let table = HalfSpaceTable::new(64);
+    let (sphere_p, sphere_i) = bumpy_sphere(18, 30, 0.2);
+    let (mut soup_p, mut soup_i) = soup(&mut rng, 400, 3.0, 0.4);
+    let (tiny_p, tiny_i) = soup(&mut rng, 300, 3.0, 1e-3);
+    let base = soup_p.len() as u32;
+    soup_p.extend_from_slice(&tiny_p);
+    soup_i.extend(tiny_i.iter().map(|i| i + base));
+    // Triangles with a corner at the origin (a receiver below): degenerate
+    // for offset 0, out of the batched range either way.
+    let base = soup_p.len() as u32;
+    soup_p.extend_from_slice(&[[0.0, 0.0, 0.0], [1.0, 0.2, 0.5], [0.3, 1.0, 0.7]]);
+    soup_i.extend_from_slice(&[base, base + 1, base + 2]);
+    let scenes = [(sphere_p, sphere_i), (soup_p, soup_i)];
+    let mut checked = 0;
+    for (positions, indices) in &scenes {
+        let mesh = MeshView::new(positions, indices).unwrap();
+        let count = mesh.triangle_count() as u32;
+        let normals = vertex_normals(positions, indices);
+        let mut receivers: Vec<(Vec3, Vec3)> = (0..mesh.vertex_count())
+            .step_by(37)
+            .filter(|&v| normals[v].length_squared() > 0.5)
+            .map(|v| (mesh.position(v), normals[v]))
+            .collect();
+        receivers.push((Vec3::ZERO, Vec3::Z));
+        receivers.extend((0..8).map(|_| (random_in_cube(&mut rng, 2.0), random_unit(&mut rng))));
+        for (k, &(p, n)) in receivers.iter().enumerate() {
+            let mut skip: Vec<u32> = (0..k % 4 * 5).map(|_| rng.random_range(0..count)).collect();
+            skip.sort_unstable();
+            for quality in [Quality::Exact, Quality::Table(&table)] {
+                for cull_backfaces in [false, true] {
+                    for normal_offset in [0.0, 0.01] {
+                        let options = RasterOptions {
+                            quality,
+                            cull_backfaces,
+                            normal_offset,
+                            skip_triangles: &skip,
+                        };
+                        let fast = rasterize_receiver_with_counts(&mesh, p, n, &options);
+                        let slow = rasterize_receiver_one_at_a_time(&mesh, p, n, &options);
+                        assert_eq!(fast, slow, "receiver {k} {options:?}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked > 300, "{checked}");
+}

@@ -176,6 +176,47 @@ impl TriangleCone {
         Ok(())
     }
 
+    /// The exact mask of the cone of local corners `a, b, c` ORed into `mask`,
+    /// for a triangle that [`classify_four`] found not culled with the
+    /// non-empty proven box `(first_i, last_i, first_j, last_j)` (inclusive):
+    /// what [`TriangleCone::or_exact_into`] does for it, bit for bit,
+    /// without computing the box again. Boxes of at most four columns and two
+    /// rows (most of them) are evaluated without loops.
+    #[inline(always)]
+    pub(crate) fn or_exact_in_box(
+        [a, b, c]: [Vec3; 3],
+        (i0, i1, j0, j1): (usize, usize, usize, usize),
+        mask: &mut HemiMask,
+    ) {
+        let (ab, bc, ca) = (cross(a, b), cross(b, c), cross(c, a));
+        let det = dot(ab, c);
+        let normals = if det < 0.0 {
+            [-ab, -bc, -ca]
+        } else {
+            [ab, bc, ca]
+        };
+        let planes = [
+            PlaneRow::new(normalize_exponent(normals[0])),
+            PlaneRow::new(normalize_exponent(normals[1])),
+            PlaneRow::new(normalize_exponent(normals[2])),
+        ];
+        if i1 < i0 + 4 && j1 <= j0 + 1 {
+            let columns = ((2u64 << i1) - (1u64 << i0)) as u32;
+            let bits =
+                |j: usize| planes[0].bits(i0, j) & planes[1].bits(i0, j) & planes[2].bits(i0, j);
+            // Row j1 is j0 again for one-row boxes: ORing it twice changes nothing.
+            mask.rows[j0] |= (bits(j0) << i0) & columns & HemiMask::VALID.rows[j0];
+            mask.rows[j1] |= (bits(j1) << i0) & columns & HemiMask::VALID.rows[j1];
+            return;
+        }
+        let cone = TriangleCone {
+            corners: [a, b, c],
+            normals: [planes[0].m, planes[1].m, planes[2].m],
+            det_abs: det.abs(),
+        };
+        cone.or_in_proven_box((i0, i1 + 1, j0, j1 + 1), mask);
+    }
+
     /// The corners as given.
     #[inline]
     pub fn corners(&self) -> [Vec3; 3] {
@@ -397,6 +438,8 @@ impl TriangleCone {
     /// complements) or both test it exactly (sharing only the cells exactly on
     /// it): no pinholes either way. The work depends on the mix:
     /// - no exact edge: three table reads and one fused AND;
+    /// - every edge exact: the exact mask ([`TriangleCone::mask_exact`]), the
+    ///   three exact predicates on every cell;
     /// - otherwise only the cells that can hold the cone are looked at, the table
     ///   planes read there and the exact planes tested on the cells they leave:
     ///   for a cone whose edges are all under 0.5 rad, the cells within 1/64
@@ -411,9 +454,8 @@ impl TriangleCone {
     /// Cells outside the widened box are neither in this cone nor within the
     /// table's error of it, so leaving them out drops only table errors. With
     /// the default rule, most triangles of a dense mesh seen from its vertices
-    /// have all edges short and never touch the table: that path costs about
-    /// what [`TriangleCone::mask_exact`] does (its corner box is cheaper than
-    /// the exact path's proven box, its margin wider).
+    /// have all edges short and never touch the table: they cost what exact
+    /// quality does, and the clustered loop gives them its fast path.
     #[inline]
     pub fn mask_table(&self, table: &HalfSpaceTable) -> HemiMask {
         if !table.has_exact_edges() {
@@ -422,6 +464,11 @@ impl TriangleCone {
         let classes = table.classify_edges(self.corners);
         if classes.exact == 0 {
             return self.mask_from_table(table);
+        }
+        if classes.exact == 0b111 {
+            // No table plane: the exact mask (the three exact predicates on
+            // every cell the cone can reach).
+            return self.mask_exact();
         }
         self.mask_with_exact_edges(table, classes)
     }
@@ -676,6 +723,205 @@ fn proven_box(corners: [Vec3; 3], det_abs: f32) -> Proven {
     // (3.9e-7 / D, rounded up).
     let d_lo = det_abs * (inv.x * inv.y * inv.z) * (1.0 - 1e-4) - 1e-6;
     box_of_corners(xs * inv, ys * inv, zs * inv, 4e-7 / d_lo, 0.0)
+}
+
+/// What [`classify_four`] found about four triangles, as lane bitmasks (bit
+/// `k` for lane `k`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct FourVerdicts {
+    /// [`RawCone::new`] culls the lane as [`Culled::Degenerate`].
+    pub(crate) degenerate: u32,
+    /// Not degenerate, and culled as [`Culled::BackFacing`].
+    pub(crate) back_facing: u32,
+    /// Not culled, and the proven box holds no cell center
+    /// ([`Proven::Cells`]`(None)`): the cone sets no cell.
+    pub(crate) empty: u32,
+    /// Not culled, and the proven box is [`Proven::Cells`]: lanes of `cells`
+    /// hold it (empty or not).
+    pub(crate) boxed: u32,
+    /// Per lane, the proven box's first and last column and first and last
+    /// row (inclusive, whole numbers in `0..=31` when the box is not empty).
+    pub(crate) cells: [Vec4; 4],
+    /// Lanes whose box is not empty, at most four columns wide and two rows
+    /// high, and whose normals need no power-of-two scaling (see
+    /// [`classify_four`]): `window` holds their mask.
+    pub(crate) small: u32,
+    /// Per lane, the predicate's bits on the four columns from the box's
+    /// first one, in the box's first row (`[k][0]`) and the next (`[k][1]`);
+    /// meaningful for `small` lanes, before masking with the box and
+    /// [`HemiMask::VALID`].
+    pub(crate) window: [[u32; 2]; 4],
+}
+
+/// [`RawCone::new`]'s culling (after the horizon test) and
+/// [`proven_box`]'s box for four triangles at once, lane `k`
+/// evaluating the same `f32` expressions in the same order as the scalar code
+/// on triangle `k`, so the same verdicts. `corners[k]` holds the x, y and z
+/// lanes of corner `k` (local, relative to the center of projection); every
+/// corner's squared length must be in `[1e-18, 1e18]` (else [`proven_box`]
+/// gives up on the triangle, which the caller sends down the one-triangle
+/// path). Throughput instead of latency: the square roots and divisions of
+/// four boxes overlap.
+#[inline(always)]
+pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> FourVerdicts {
+    let [[ax, ay, az], [bx, by, bz], [cx, cy, cz]] = corners;
+    // cross(p, q), lane by lane.
+    let cross = |px: Vec4, py: Vec4, pz: Vec4, qx: Vec4, qy: Vec4, qz: Vec4| {
+        (py * qz - qy * pz, pz * qx - qz * px, px * qy - qx * py)
+    };
+    let (abx, aby, abz) = cross(ax, ay, az, bx, by, bz);
+    let (bcx, bcy, bcz) = cross(bx, by, bz, cx, cy, cz);
+    let (cax, cay, caz) = cross(cx, cy, cz, ax, ay, az);
+    let det = abx * cx + aby * cy + abz * cz;
+    let finite = Vec4::is_finite_mask;
+    let all_finite =
+        finite(det) & finite(abx + bcx + cax) & finite(aby + bcy + cay) & finite(abz + bcz + caz);
+    let zero = Vec4::ZERO;
+    let is_zero = |x: Vec4, y: Vec4, z: Vec4| x.cmpeq(zero) & y.cmpeq(zero) & z.cmpeq(zero);
+    let degenerate = !all_finite
+        | det.cmpeq(zero)
+        | is_zero(abx, aby, abz)
+        | is_zero(bcx, bcy, bcz)
+        | is_zero(cax, cay, caz);
+    let degenerate = degenerate.bitmask();
+    let back_facing = if cull_backfaces {
+        det.cmpgt(zero).bitmask() & !degenerate
+    } else {
+        0
+    };
+    // proven_box and box_of_corners, lane by lane.
+    // The corners' unit directions and inverse lengths, as proven_box
+    // computes them: |p|² = (x² + y²) + z², a correctly rounded square root
+    // and division, then the products.
+    let unit = |x: Vec4, y: Vec4, z: Vec4| {
+        let inv = Vec4::ONE / (x * x + y * y + z * z).sqrt();
+        (x * inv, y * inv, z * inv, inv)
+    };
+    let (uax, uay, uaz, ia) = unit(ax, ay, az);
+    let (ubx, uby, ubz, ib) = unit(bx, by, bz);
+    let (ucx, ucy, ucz, ic) = unit(cx, cy, cz);
+    let d_lo = det.abs() * (ia * ib * ic) * (1.0 - 1e-4) - Vec4::splat(1e-6);
+    let tau = Vec4::splat(4e-7) / d_lo;
+    let tau_ok = tau.cmpge(zero) & tau.cmple(Vec4::splat(1.0 / 12.0));
+    let cab = uax * ubx + uay * uby + uaz * ubz;
+    let cbc = ubx * ucx + uby * ucy + ubz * ucz;
+    let cca = ucx * uax + ucy * uay + ucz * uaz;
+    let cos_min = cab.min(cbc).min(cca) - Vec4::splat(1e-4);
+    let cos_ok = cos_min.cmpge(Vec4::splat(0.5));
+    let kappa = 6.01 * tau;
+    let chord = (Vec4::splat(2.0) - 2.0 * cos_min).sqrt() + Vec4::splat(1e-5);
+    let e = kappa * chord;
+    let n = cos_min - e;
+    let n_ok = !n.cmplt(Vec4::splat(0.5));
+    let one = Vec4::ONE;
+    let bulge = ((one - n) * (one + 2.0 * (one - n))).max(e);
+    let margin = e + (one + e) * bulge + Vec4::splat(6e-5);
+    let (first_u, last_u) = cell_range_four(uax.min(ubx).min(ucx), uax.max(ubx).max(ucx), margin);
+    let (first_v, last_v) = cell_range_four(uay.min(uby).min(ucy), uay.max(uby).max(ucy), margin);
+    let no_cell = first_u.cmpgt(last_u) | first_v.cmpgt(last_v);
+    let boxed = (tau_ok & cos_ok & n_ok).bitmask() & !degenerate & !back_facing;
+    let empty = boxed & no_cell.bitmask();
+    // Small boxes: the three predicates on a window of 4 x 2 cells, all four
+    // lanes at once. The inward normals are the crosses, negated where the
+    // determinant is negative (exact). TriangleCone's normals are also
+    // scaled by a power of two, which changes no predicate when every
+    // component is zero or within 2^±60: then every product with a cell
+    // coordinate (at least 1/32 in size) and its scaled twin are in the
+    // normal range, so each product, and each sum of them (an exact
+    // cancellation included), is the scaled one's times the same power of
+    // two, and has the same sign.
+    let flip = det.cmplt(zero);
+    let orient = |v: Vec4| Vec4::select(flip, -v, v);
+    let normals = [
+        [orient(abx), orient(aby), orient(abz)],
+        [orient(bcx), orient(bcy), orient(bcz)],
+        [orient(cax), orient(cay), orient(caz)],
+    ];
+    let unscaled_ok = |v: Vec4| {
+        let a = v.abs();
+        a.cmpeq(zero)
+            | (a.cmpge(Vec4::splat(SCALE_FREE_MIN)) & a.cmple(Vec4::splat(SCALE_FREE_MAX)))
+    };
+    let mut scale_free = glam::BVec4A::splat(true);
+    for m in &normals {
+        for &c in m {
+            scale_free &= unscaled_ok(c);
+        }
+    }
+    let narrow = (last_u - first_u).cmple(Vec4::splat(3.0)) & (last_v - first_v).cmple(Vec4::ONE);
+    let small = (narrow & scale_free).bitmask() & boxed & !empty;
+    let mut window = [[0u32; 2]; 4];
+    if small != 0 {
+        // Cell centers as CELL_COORD and CELL_Z give them, bit for bit:
+        // (k + 0.5)/16 - 1 is exact, and so is 1 - u² - v² (multiples of
+        // 1/1024 below 2), whose correctly rounded square root CELL_Z holds.
+        let coordinate = |k: Vec4| (k + Vec4::splat(0.5)) * (1.0 / 16.0) - one;
+        // Bit 16 dj + 4 di + k: window cell (di, dj) of lane k.
+        let mut bits = 0u32;
+        for (dj, row_v) in [first_v, first_v + one].into_iter().enumerate() {
+            let v = coordinate(row_v);
+            for di in 0..4 {
+                let u = coordinate(first_u + Vec4::splat(di as f32));
+                let z = ((one - u * u) - v * v).sqrt();
+                let mut inside = glam::BVec4A::splat(true);
+                for [mx, my, mz] in normals {
+                    inside &= ((mx * u + my * v) + mz * z).cmpge(zero);
+                }
+                bits |= inside.bitmask() << (16 * dj + 4 * di);
+            }
+        }
+        // Transpose each 4 x 4 block of bits (delta swaps) to bit
+        // 16 dj + 4 k + di: lane k's row dj is then one nibble.
+        let t = (bits ^ (bits >> 3)) & 0x0a0a_0a0a;
+        let bits = bits ^ t ^ (t << 3);
+        let t = (bits ^ (bits >> 6)) & 0x00cc_00cc;
+        let bits = bits ^ t ^ (t << 6);
+        for (k, lane) in window.iter_mut().enumerate() {
+            *lane = [bits >> (4 * k) & 0xf, bits >> (16 + 4 * k) & 0xf];
+        }
+    }
+    FourVerdicts {
+        degenerate,
+        back_facing,
+        empty,
+        boxed,
+        cells: [first_u, last_u, first_v, last_v],
+        small,
+        window,
+    }
+}
+
+/// Normal components with no power-of-two scaling in the small-box window
+/// of [`classify_four`] are zero or within `[2^-60, 2^60]` in size.
+const SCALE_FREE_MIN: f32 = f32::from_bits((127 - 60) << 23);
+const SCALE_FREE_MAX: f32 = f32::from_bits((127 + 60) << 23);
+
+/// [`cell_range`]`(lo, hi, margin)` on four lanes (finite inputs), in `f32`
+/// alone, as the first and last column (inclusive; empty when first > last):
+/// [`cell_range`]'s `first` is `max(ceil(lo'), 0)` and its `end` is
+/// `min(floor(hi') + 1, 32)` for the clamped fractional columns `lo'`, `hi'`
+/// computed here by the same expressions. Floors and ceilings of values in
+/// `[-1, 32]` are exact: adding and subtracting `1.5 * 2^23` rounds to the
+/// nearest integer, then one comparison corrects it.
+#[inline(always)]
+fn cell_range_four(lo: Vec4, hi: Vec4, margin: Vec4) -> (Vec4, Vec4) {
+    let (below, above) = (Vec4::splat(-1.0), Vec4::splat(32.0));
+    let lo = ((lo - margin) * 16.0 + Vec4::splat(15.5))
+        .min(above)
+        .max(below);
+    let hi = ((hi + margin) * 16.0 + Vec4::splat(15.5))
+        .min(above)
+        .max(below);
+    // 1.5 * 2^23: sums with values in [-1, 32] lie in [2^23, 2^24), where
+    // the spacing of f32 is exactly 1.
+    let magic = Vec4::splat(12_582_912.0);
+    let (lo_near, hi_near) = ((lo + magic) - magic, (hi + magic) - magic);
+    let one = Vec4::ONE;
+    let ceil_lo = lo_near + Vec4::select(lo_near.cmplt(lo), one, Vec4::ZERO);
+    let floor_hi = hi_near - Vec4::select(hi_near.cmpgt(hi), one, Vec4::ZERO);
+    let first = ceil_lo.max(Vec4::ZERO);
+    let last = floor_hi.min(Vec4::splat((GRID - 1) as f32));
+    (first, last)
 }
 
 /// The proven box of a cone from its scaled normals, for cones too small for
@@ -1237,6 +1483,122 @@ mod proven_box_tests {
                     }
                 }
             }
+        }
+    }
+
+    /// `classify_four` and `or_exact_in_box` on four triangles, as the
+    /// clustered loop uses them: the mask each lane gets, or `None` for a
+    /// culled lane (with its reason) or one left to the one-triangle path.
+    fn through_four(
+        triangles: [[Vec3; 3]; 4],
+        cull: bool,
+    ) -> [Result<Option<HemiMask>, Culled>; 4] {
+        let lanes = |corner: usize, axis: usize| {
+            Vec4::from_array(core::array::from_fn(|k| triangles[k][corner][axis]))
+        };
+        let corners = core::array::from_fn(|c| [lanes(c, 0), lanes(c, 1), lanes(c, 2)]);
+        let v = classify_four(corners, cull);
+        core::array::from_fn(|k| {
+            if v.degenerate >> k & 1 == 1 {
+                return Err(Culled::Degenerate);
+            }
+            if v.back_facing >> k & 1 == 1 {
+                return Err(Culled::BackFacing);
+            }
+            if v.boxed >> k & 1 == 0 {
+                return Ok(None);
+            }
+            let mut mask = HemiMask::EMPTY;
+            if v.empty >> k & 1 == 0 {
+                let [fi, li, fj, lj] = v.cells;
+                let cells = (
+                    fi[k] as usize,
+                    li[k] as usize,
+                    fj[k] as usize,
+                    lj[k] as usize,
+                );
+                TriangleCone::or_exact_in_box(triangles[k], cells, &mut mask);
+                if v.small >> k & 1 == 1 {
+                    // The window's bits, masked to the box, are the same.
+                    let (i0, i1, j0, j1) = cells;
+                    let columns = ((2u64 << i1) - (1u64 << i0)) as u32;
+                    let mut window = HemiMask::EMPTY;
+                    for (dj, &bits) in v.window[k].iter().enumerate() {
+                        let j = j0 + dj;
+                        if j <= j1 {
+                            window.rows[j] = (bits << i0) & columns & HemiMask::VALID.rows[j];
+                        }
+                    }
+                    assert_eq!(window, mask, "lane {k}");
+                    SMALL_LANES.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+                }
+            }
+            Ok(Some(mask))
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(3000))]
+
+        /// Four triangles classified at once: the same culling as
+        /// `TriangleCone::new`, and where the box path is taken, the mask of
+        /// the per-cell predicate, bit for bit.
+        #[test]
+        fn four_at_once_is_one_at_a_time(
+            t0 in small_triangle(), t1 in small_triangle(), t2 in small_triangle(),
+            t3 in small_triangle(), cull in any::<bool>(),
+        ) {
+            // The caller's contract: some corner above the horizon, all in
+            // range; other triangles are replaced by a small one near the zenith.
+            let usable = |[a, b, c]: [Vec3; 3]| {
+                !(a.z <= 0.0 && b.z <= 0.0 && c.z <= 0.0) && [a, b, c].iter().all(|&p| (1e-18..=1e18).contains(&p.length_squared()))
+            };
+            let stand_in = [Vec3::new(0.01, 0.0, 1.0), Vec3::new(0.0, 0.02, 1.0), Vec3::new(-0.01, 0.0, 1.0)];
+            let triangles = [t0, t1, t2, t3].map(|t| if usable(t) { t } else { stand_in });
+            for (k, got) in through_four(triangles, cull).into_iter().enumerate() {
+                let [a, b, c] = triangles[k];
+                match (TriangleCone::new(a, b, c, cull), got) {
+                    (Err(expected), got) => prop_assert_eq!(got, Err(expected)),
+                    (Ok(_), Err(culled)) => prop_assert!(false, "lane {} culled as {:?}", k, culled),
+                    (Ok(_), Ok(None)) => {}
+                    (Ok(cone), Ok(Some(mask))) => prop_assert_eq!(mask, cone.mask_reference(), "lane {}", k),
+                }
+            }
+        }
+    }
+
+    /// Lanes that took the window in `through_four`, so the test can tell it
+    /// was exercised.
+    static SMALL_LANES: core::sync::atomic::AtomicUsize = core::sync::atomic::AtomicUsize::new(0);
+
+    #[test]
+    fn four_at_once_takes_the_window_for_small_boxes() {
+        // Triangles about 0.05 rad across around every tenth cell center.
+        let before = SMALL_LANES.load(core::sync::atomic::Ordering::Relaxed);
+        for k in (0..VALID_CELL_COUNT as usize).step_by(10) {
+            let c = cell_dir(k, Vec3::new(0.004, 0.003, 0.0)) * 3.0;
+            let (e1, e2) = c.normalize().any_orthonormal_pair();
+            let s = 0.05;
+            let t = [c + e1 * s, c + e2 * s, c - (e1 + e2) * s];
+            let cone = TriangleCone::new(t[0], t[1], t[2], false).unwrap();
+            for got in through_four([t; 4], false) {
+                assert_eq!(got, Ok(Some(cone.mask_reference())), "cell {k}");
+            }
+        }
+        let taken = SMALL_LANES.load(core::sync::atomic::Ordering::Relaxed) - before;
+        assert!(taken >= 4 * 60, "{taken} small lanes");
+    }
+
+    #[test]
+    fn four_at_once_on_a_grazing_bunny_triangle() {
+        let t = [
+            Vec3::new(-2.6647358, -0.8712141, 0.054670885),
+            Vec3::new(-2.5519676, -0.43020418, 0.21368954),
+            Vec3::new(-2.739491, -0.693104, 0.4280038),
+        ];
+        let cone = TriangleCone::new(t[0], t[1], t[2], false).unwrap();
+        for got in through_four([t; 4], false) {
+            assert_eq!(got, Ok(Some(cone.mask_reference())));
         }
     }
 
