@@ -187,6 +187,19 @@ fn bunny_surface_occluded(bencher: divan::Bencher<'_, '_>) {
         .bench_local(|| rays.iter().filter(|r| scene.occluded(r)).count());
 }
 
+/// The same rays with the portable four-lane box test instead of AVX's eight
+/// lanes (the same answers).
+#[divan::bench]
+fn bunny_surface_occluded_four_lanes(bencher: divan::Bencher<'_, '_>) {
+    let (positions, indices) = bunny();
+    let mesh = MeshView::new(&positions, &indices).unwrap();
+    let scene = BvhScene::new(&mesh).unwrap().with_wide_box_test(false);
+    let rays = surface_rays(&mesh, SURFACE_RAYS);
+    bencher
+        .counter(divan::counter::ItemsCount::new(SURFACE_RAYS))
+        .bench_local(|| rays.iter().filter(|r| scene.occluded(r)).count());
+}
+
 #[divan::bench]
 fn bunny_surface_closest_hit(bencher: divan::Bencher<'_, '_>) {
     let (positions, indices) = bunny();

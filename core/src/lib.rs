@@ -71,6 +71,9 @@ pub mod hemi;
 pub mod raycast;
 pub mod rng;
 pub mod sh;
+// Only the BVH's traversal has hand-written kernels so far.
+#[cfg(feature = "bvh")]
+mod simd;
 pub mod ssv;
 pub mod transfer;
 

@@ -14,7 +14,9 @@
 //! box test of our own ([`TraversalRay`]): child boxes padded against decoding
 //! rounding, no epsilon. Ordinary rays (direction components within 2^-40..2^40,
 //! origin within 2^64) test child boxes decoded to `f32` once per scene, slab
-//! distances as in Ize 2013 with the exit padded for rounding; other rays
+//! distances as in Ize 2013 with the exit padded for rounding (all eight
+//! children in one AVX pass where the processor has AVX, `simd::avx`, else two
+//! four-lane halves; the same bits either way); other rays
 //! (axis-parallel ones among them) take the general form, exit distances rounded
 //! up likewise and parallel axes decided by the origin. The stack holds one
 //! group of siblings per level, so it is sized by the tree's depth, measured at
@@ -41,6 +43,7 @@ use obvhs::{
 
 use super::{Hit, PreparedRay, Ray, RayCaster};
 use crate::geom::MeshView;
+use crate::simd::{self, Planes8, SlabRay};
 
 /// A bounding volume hierarchy over a copy of a mesh's triangles.
 ///
@@ -59,6 +62,10 @@ pub struct BvhScene {
     /// Nodes on the longest root-to-leaf path: a bound on the entries
     /// [`BvhScene::search`]'s stack ever holds.
     depth: usize,
+    /// Whether queries test a node's eight child boxes in one AVX pass
+    /// ([`simd::avx`]) instead of two four-lane halves: the same bits, decided
+    /// once per scene by run-time detection.
+    wide: bool,
 }
 
 /// Entries of the traversal's stack on the call stack: at most one group of
@@ -131,6 +138,7 @@ impl BvhScene {
                 original: Vec::new(),
                 planes: Vec::new(),
                 depth: 0,
+                wide: simd::avx_available(),
             });
         }
         triangles.extend(mesh.triangles().map(|[a, b, c]| Triangle {
@@ -169,6 +177,7 @@ impl BvhScene {
             original,
             planes,
             depth,
+            wide: simd::avx_available(),
         })
     }
 
@@ -216,14 +225,28 @@ impl BvhScene {
         traversal: &mut TraversalRay,
         test: impl FnMut(usize) -> Option<f32>,
     ) -> bool {
-        self.search::<ANY_HIT>(&mut alloc::vec![0u64; self.depth], traversal, test)
+        self.search::<ANY_HIT, false>(&mut alloc::vec![0u64; self.depth], traversal, test)
+    }
+
+    /// The same scene with the eight-lane AVX box test on (where the processor
+    /// has AVX, the default) or off (two four-lane halves, the portable path).
+    /// Every answer is the same either way; this is for benchmarks and tests
+    /// that compare the two.
+    pub fn with_wide_box_test(mut self, wide: bool) -> Self {
+        self.wide = wide && simd::avx_available();
+        self
+    }
+
+    /// Whether queries use the eight-lane AVX box test.
+    #[cfg(test)]
+    pub(super) fn wide_box_test(&self) -> bool {
+        self.wide
     }
 }
 
 /// The child boxes of one node decoded to `f32`, padded outwards exactly as
 /// [`TraversalRay::entered_general`] pads them: `planes[axis][0]` the minima,
-/// `planes[axis][1]` the maxima, children `4 * half .. 4 * half + 4` in lanes
-/// `[half]`. Decoding once per scene instead of once per visit saves 48 byte to
+/// `planes[axis][1]` the maxima, child `i` in lane `i`. Decoding once per scene instead of once per visit saves 48 byte to
 /// float conversions and the per-node setup of the affine test per node visited,
 /// for 192 bytes per node (the compressed node is 80).
 ///
@@ -232,7 +255,7 @@ impl BvhScene {
 /// instead of this and the compressed node.
 #[derive(Clone, Copy, Debug)]
 struct NodePlanes {
-    planes: [[[Vec4; 2]; 2]; 3],
+    planes: Planes8,
     /// [`CwBvhNode::child_base_idx`].
     child_base: u32,
     /// [`CwBvhNode::primitive_base_idx`].
@@ -262,11 +285,16 @@ impl NodePlanes {
                 } else {
                     (q_hi, hi_base[axis])
                 };
-                core::array::from_fn(|half| TraversalRay::lanes(q, half) * extent[axis] + offset)
+                let mut lanes = [0.0; 8];
+                for half in 0..2 {
+                    let values = TraversalRay::lanes(q, half) * extent[axis] + offset;
+                    lanes[4 * half..4 * half + 4].copy_from_slice(&values.to_array());
+                }
+                lanes
             })
         });
         NodePlanes {
-            planes,
+            planes: Planes8(planes),
             child_base: node.child_base_idx,
             primitive_base: node.primitive_base_idx,
             imask: u32::from(node.imask),
@@ -514,17 +542,22 @@ impl TraversalRay {
     /// less than that). The fast limits keep every distance finite.
     #[inline(always)]
     fn entered_planes(&self, planes: &NodePlanes) -> u32 {
+        self.entered_quads(&planes.planes)
+    }
+
+    /// [`Self::entered_planes`] on the planes alone: the portable four-lane
+    /// twin of [`simd::avx::entered8`], which must give the same bits.
+    #[inline(always)]
+    fn entered_quads(&self, planes: &Planes8) -> u32 {
         let mut entered = 0;
         for half in 0..2 {
             let slab = |axis: usize| {
                 let side = usize::from(self.negative[axis]);
                 let o = Vec4::splat(self.origin[axis]);
                 let inv = Vec4::splat(self.inverse[axis]);
-                let axis_planes = &planes.planes[axis];
-                (
-                    (axis_planes[side][half] - o) * inv,
-                    (axis_planes[1 - side][half] - o) * inv,
-                )
+                let axis_planes = &planes.0[axis];
+                let quad = |side: usize| Vec4::from_slice(&axis_planes[side][4 * half..]);
+                ((quad(side) - o) * inv, (quad(1 - side) - o) * inv)
             };
             let (near_x, far_x) = slab(0);
             let (near_y, far_y) = slab(1);
@@ -536,6 +569,41 @@ impl TraversalRay {
             entered |= near.cmple(far).bitmask() << (4 * half);
         }
         entered
+    }
+
+    /// The constants of the eight-lane test of [`simd::avx::entered8`], which
+    /// evaluates [`Self::entered_planes`]'s operations (fast rays only).
+    #[inline(always)]
+    fn slab_ray(&self) -> SlabRay {
+        SlabRay {
+            origin: self.origin.to_array(),
+            inverse: self.inverse.to_array(),
+            negative: self.negative.map(usize::from),
+            t_min: self.t_min,
+            slack: PLANE_SLACK,
+        }
+    }
+
+    /// [`Self::entered_planes`] in one pass of eight AVX lanes. Only for searches
+    /// entered through a `#[target_feature(enable = "avx")]` query, which run only
+    /// where [`simd::avx_available`] said so.
+    #[inline(always)]
+    fn entered_wide(&self, planes: &NodePlanes, slab: &SlabRay) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        {
+            // SAFETY: wide searches are entered only from `occluded_avx` and
+            // `closest_hit_avx`, which are called only when `BvhScene::wide`, set
+            // from run-time detection of AVX.
+            #[allow(unsafe_code)]
+            unsafe {
+                simd::avx::entered8(&planes.planes, slab, self.t_max)
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = slab;
+            self.entered_planes(planes)
+        }
     }
 
     /// Bit `i` set when the ray may enter child `i`, for any valid ray: child boxes
@@ -609,13 +677,18 @@ impl BvhScene {
     /// stops at the first hit and returns true; otherwise each hit shortens the
     /// box test and the search runs to the end (the closest-hit search), returning
     /// false.
+    ///
+    /// With `WIDE` the child boxes of ordinary rays are tested in one pass of
+    /// eight AVX lanes (callers enter such searches only where AVX runs), else in
+    /// two four-lane halves; the two give the same bits.
     #[inline(always)]
-    fn search<const ANY_HIT: bool>(
+    fn search<const ANY_HIT: bool, const WIDE: bool>(
         &self,
         stack: &mut [u64],
         traversal: &mut TraversalRay,
         mut test: impl FnMut(usize) -> Option<f32>,
     ) -> bool {
+        let slab = traversal.slab_ray();
         let octant = (u32::from(traversal.negative[0]) << 2)
             | (u32::from(traversal.negative[1]) << 1)
             | u32::from(traversal.negative[2]);
@@ -623,10 +696,12 @@ impl BvhScene {
         let mut index = 0;
         loop {
             let node = &self.planes[index];
-            let entered = if traversal.fast {
-                traversal.entered_planes(node)
-            } else {
+            let entered = if !traversal.fast {
                 traversal.entered_general(&self.bvh.nodes[index])
+            } else if WIDE {
+                traversal.entered_wide(node, &slab)
+            } else {
+                traversal.entered_planes(node)
             };
             let imask = node.imask;
             let inner = entered & imask;
@@ -784,8 +859,25 @@ impl BvhScene {
     }
 }
 
-impl RayCaster for BvhScene {
-    fn occluded(&self, ray: &Ray) -> bool {
+impl BvhScene {
+    /// [`RayCaster::occluded`] compiled with AVX, testing eight child boxes at a
+    /// time.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn occluded_avx(&self, ray: &Ray) -> bool {
+        self.occluded_with::<true>(ray)
+    }
+
+    /// [`RayCaster::closest_hit`] compiled with AVX, testing eight child boxes at
+    /// a time.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn closest_hit_avx(&self, ray: &Ray) -> Option<Hit> {
+        self.closest_hit_with::<true>(ray)
+    }
+
+    #[inline(always)]
+    fn occluded_with<const WIDE: bool>(&self, ray: &Ray) -> bool {
         if self.corners.is_empty() {
             return false;
         }
@@ -796,7 +888,7 @@ impl RayCaster for BvhScene {
         // Two closures over one inlined body: each has a single call site, so
         // the common path's leaf test is inlined into its traversal loop.
         if self.depth <= STACK_GROUPS {
-            self.search::<true>(&mut [0u64; STACK_GROUPS], &mut traversal, |primitive| {
+            self.search::<true, WIDE>(&mut [0u64; STACK_GROUPS], &mut traversal, |primitive| {
                 self.any_hit_leaf(&prepared, primitive)
             })
         } else {
@@ -806,7 +898,8 @@ impl RayCaster for BvhScene {
         }
     }
 
-    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+    #[inline(always)]
+    fn closest_hit_with<const WIDE: bool>(&self, ray: &Ray) -> Option<Hit> {
         if self.corners.is_empty() {
             return None;
         }
@@ -814,7 +907,7 @@ impl RayCaster for BvhScene {
         let mut traversal = TraversalRay::new(ray);
         let mut best: Option<Hit> = None;
         if self.depth <= STACK_GROUPS {
-            self.search::<false>(&mut [0u64; STACK_GROUPS], &mut traversal, |primitive| {
+            self.search::<false, WIDE>(&mut [0u64; STACK_GROUPS], &mut traversal, |primitive| {
                 self.closest_hit_leaf(&mut prepared, &mut best, primitive)
             });
         } else {
@@ -823,5 +916,139 @@ impl RayCaster for BvhScene {
             });
         }
         best
+    }
+}
+
+impl RayCaster for BvhScene {
+    fn occluded(&self, ray: &Ray) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide {
+            // SAFETY: `wide` is set only where run-time detection found AVX.
+            #[allow(unsafe_code)]
+            return unsafe { self.occluded_avx(ray) };
+        }
+        self.occluded_with::<false>(ray)
+    }
+
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide {
+            // SAFETY: `wide` is set only where run-time detection found AVX.
+            #[allow(unsafe_code)]
+            return unsafe { self.closest_hit_avx(ray) };
+        }
+        self.closest_hit_with::<false>(ray)
+    }
+}
+
+#[cfg(test)]
+mod wide_box_test {
+    use super::*;
+    use rand::{Rng, SeedableRng, rngs::SmallRng};
+
+    fn point(rng: &mut SmallRng, spread: f32) -> Vec3 {
+        Vec3::new(
+            rng.random_range(-spread..spread),
+            rng.random_range(-spread..spread),
+            rng.random_range(-spread..spread),
+        )
+    }
+
+    /// The eight-lane AVX box test gives the bits of the two four-lane halves on
+    /// every node of a random soup, for rays from inside and outside it, with
+    /// finite and infinite ends and negative starts: the slow twin of the fast
+    /// path `BvhScene::occluded` and `closest_hit` take wherever AVX runs.
+    #[test]
+    fn eight_lanes_equal_two_halves_on_every_node() {
+        if !simd::avx_available() {
+            std::println!("this processor has no AVX: the eight-lane test is never used here");
+            return;
+        }
+        let mut rng = SmallRng::seed_from_u64(31);
+        let mut positions = Vec::new();
+        for _ in 0..600 {
+            let center = point(&mut rng, 1.0);
+            for _ in 0..3 {
+                positions.push((center + point(&mut rng, 0.15)).to_array());
+            }
+        }
+        let indices: Vec<u32> = (0..positions.len() as u32).collect();
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let scene = BvhScene::new(&mesh).unwrap();
+        let (mut checked, mut entered) = (0usize, 0usize);
+        for _ in 0..3000 {
+            let origin = point(&mut rng, 2.0);
+            // Half the rays aim at a corner of some child box, where entry and
+            // exit distances meet and the padding and the comparison decide.
+            let target = if rng.random_bool(0.5) {
+                let node = &scene.planes[rng.random_range(0..scene.planes.len())]
+                    .planes
+                    .0;
+                let child = rng.random_range(0..8);
+                Vec3::from_array(core::array::from_fn(|axis| {
+                    node[axis][rng.random_range(0..2)][child]
+                }))
+            } else {
+                point(&mut rng, 1.0)
+            };
+            let direction = (target - origin) * rng.random_range(0.01..100.0);
+            let mut ray = Ray::new(origin, direction, f32::INFINITY);
+            if rng.random_bool(0.3) {
+                ray.t_max = rng.random_range(0.0..1.5);
+            } else if rng.random_bool(0.1) {
+                // Entry and exit both clamped to zero for boxes around the origin.
+                ray.t_max = 0.0;
+            }
+            if rng.random_bool(0.2) {
+                ray.t_min = -rng.random_range(0.0..1.0);
+            }
+            let traversal = TraversalRay::new(&ray);
+            if !traversal.fast {
+                continue;
+            }
+            let slab = traversal.slab_ray();
+            for node in &scene.planes {
+                let quads = traversal.entered_quads(&node.planes);
+                // SAFETY: AVX was detected above.
+                #[allow(unsafe_code)]
+                let eight = unsafe { simd::avx::entered8(&node.planes, &slab, traversal.t_max) };
+                assert_eq!(eight, quads, "{ray:?}");
+                checked += 1;
+                entered += quads.count_ones() as usize;
+            }
+        }
+        assert!(
+            checked > 100_000 && entered > 10_000,
+            "{checked} nodes, {entered} children"
+        );
+    }
+
+    /// Whole queries with the eight-lane and the four-lane box test agree.
+    #[test]
+    fn queries_agree_with_and_without_the_wide_box_test() {
+        let mut rng = SmallRng::seed_from_u64(32);
+        let mut positions = Vec::new();
+        for _ in 0..2000 {
+            let center = point(&mut rng, 1.0);
+            for _ in 0..3 {
+                positions.push((center + point(&mut rng, 0.1)).to_array());
+            }
+        }
+        let indices: Vec<u32> = (0..positions.len() as u32).collect();
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let wide = BvhScene::new(&mesh).unwrap();
+        assert_eq!(wide.wide_box_test(), simd::avx_available());
+        let narrow = wide.clone().with_wide_box_test(false);
+        assert!(!narrow.wide_box_test());
+        let mut hits = 0;
+        for _ in 0..20_000 {
+            let origin = point(&mut rng, 2.0);
+            let ray = Ray::new(origin, point(&mut rng, 1.0) - origin, f32::INFINITY);
+            let expected = narrow.closest_hit(&ray);
+            assert_eq!(wide.closest_hit(&ray), expected, "{ray:?}");
+            assert_eq!(wide.occluded(&ray), narrow.occluded(&ray), "{ray:?}");
+            hits += usize::from(expected.is_some());
+        }
+        assert!(hits > 5000, "too few hits to mean anything: {hits}");
     }
 }

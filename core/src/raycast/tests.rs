@@ -289,6 +289,9 @@ mod bvh_against_brute_force {
         let brute = BruteForceCaster::new(mesh);
         let bvh = BvhScene::new(&mesh).unwrap();
         assert_eq!(bvh.triangle_count(), mesh.triangle_count());
+        // The portable four-lane box test (the only one off x86-64 or without
+        // AVX) against the same reference.
+        let narrow = bvh.clone().with_wide_box_test(false);
         // Queries take our own traversal loop; check obvhs's `traverse!` path too
         // (whose 32-entry stack holds these trees).
         assert!(bvh.depth() <= 32);
@@ -298,6 +301,8 @@ mod bvh_against_brute_force {
             let expected = brute.closest_hit(&ray);
             let got = bvh.closest_hit(&ray);
             assert_eq!(bvh.occluded(&ray), expected.is_some(), "{ray:?}");
+            assert_eq!(narrow.occluded(&ray), expected.is_some(), "{ray:?}");
+            assert_eq!(narrow.closest_hit(&ray), got, "{ray:?}");
             assert_eq!(
                 bvh.occluded_through_traverse_macro(&ray),
                 expected.is_some(),
