@@ -178,22 +178,22 @@ const SURFACE_RAYS: usize = 4096;
 
 #[divan::bench]
 fn bunny_surface_occluded(bencher: divan::Bencher<'_, '_>) {
-    let (positions, indices) = bunny();
-    let mesh = MeshView::new(&positions, &indices).unwrap();
-    let scene = BvhScene::new(&mesh).unwrap();
-    let rays = surface_rays(&mesh, SURFACE_RAYS);
-    bencher
-        .counter(divan::counter::ItemsCount::new(SURFACE_RAYS))
-        .bench_local(|| rays.iter().filter(|r| scene.occluded(r)).count());
+    bunny_surface_occluded_with(bencher, true);
 }
 
 /// The same rays with the portable four-lane box test instead of AVX's eight
 /// lanes (the same answers).
 #[divan::bench]
 fn bunny_surface_occluded_four_lanes(bencher: divan::Bencher<'_, '_>) {
+    bunny_surface_occluded_with(bencher, false);
+}
+
+/// Occlusion of the bunny's surface rays, with or without the eight-lane box
+/// test (`BvhScene::with_wide_box_test`).
+fn bunny_surface_occluded_with(bencher: divan::Bencher<'_, '_>, wide: bool) {
     let (positions, indices) = bunny();
     let mesh = MeshView::new(&positions, &indices).unwrap();
-    let scene = BvhScene::new(&mesh).unwrap().with_wide_box_test(false);
+    let scene = BvhScene::new(&mesh).unwrap().with_wide_box_test(wide);
     let rays = surface_rays(&mesh, SURFACE_RAYS);
     bencher
         .counter(divan::counter::ItemsCount::new(SURFACE_RAYS))

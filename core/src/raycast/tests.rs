@@ -292,6 +292,8 @@ mod bvh_against_brute_force {
         // The portable four-lane box test (the only one off x86-64 or without
         // AVX) against the same reference.
         let narrow = bvh.clone().with_wide_box_test(false);
+        assert_eq!(bvh.wide_box_test(), crate::simd::avx_available());
+        assert!(!narrow.wide_box_test());
         // Queries take our own traversal loop; check obvhs's `traverse!` path too
         // (whose 32-entry stack holds these trees).
         assert!(bvh.depth() <= 32);
