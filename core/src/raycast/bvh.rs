@@ -2,8 +2,11 @@
 //! built with obvhs's PLOC builder, answering [`RayCaster`] queries with the same
 //! watertight triangle test as the brute-force reference.
 //!
-//! Triangles are copied into BVH leaf order at build time so a leaf's triangles are
-//! contiguous in memory; each keeps its original index for hits.
+//! Triangles are copied into one block per BVH leaf at build time, coordinates
+//! in lanes ([`TriangleLanes`]), so a leaf's (up to three) triangles are tested
+//! in one pass of four lanes ([`PreparedRay::intersect_lanes`], the scalar
+//! watertight test's operations lane by lane); each keeps its original index for
+//! hits.
 //!
 //! obvhs's own box test is tuned for rendering, not exact answers: it ignores boxes
 //! that end before t = 1e-4, clamps 1/d to ±8.4e6 (with the wrong sign for -0.0),
@@ -41,7 +44,7 @@ use obvhs::{
     triangle::Triangle,
 };
 
-use super::{Hit, PreparedRay, Ray, RayCaster};
+use super::{Hit, PreparedRay, Ray, RayCaster, TriangleHit, TriangleLanes};
 use crate::geom::MeshView;
 use crate::simd::{self, Planes8, SlabRay};
 
@@ -52,9 +55,20 @@ use crate::simd::{self, Planes8, SlabRay};
 #[derive(Clone, Debug)]
 pub struct BvhScene {
     bvh: CwBvh,
-    /// Triangle corners in BVH primitive order.
+    /// The triangles of each leaf in lanes, in the order leaves are met walking
+    /// the nodes ([`NodePlanes::block_base`] and [`NodePlanes::leaves`] address
+    /// them).
+    blocks: Vec<TriangleLanes>,
+    /// Original triangle index of each lane of `blocks`.
+    block_triangles: Vec<[u32; 4]>,
+    /// Triangles in the scene.
+    triangle_count: usize,
+    /// Triangle corners in BVH primitive order, for obvhs's `traverse!` (the
+    /// reference the search is tested against).
+    #[cfg(test)]
     corners: Vec<[Vec3; 3]>,
     /// Original triangle index of each entry of `corners`.
+    #[cfg(test)]
     original: Vec<u32>,
     /// Each node's child boxes decoded once, for the any-hit loop (same index as
     /// the node).
@@ -124,17 +138,18 @@ impl BvhScene {
         }
         let count = mesh.triangle_count();
         let mut triangles: Vec<Triangle> = Vec::new();
-        let mut corners: Vec<[Vec3; 3]> = Vec::new();
         triangles
-            .try_reserve_exact(count)
-            .map_err(BvhError::OutOfMemory)?;
-        corners
             .try_reserve_exact(count)
             .map_err(BvhError::OutOfMemory)?;
         if count == 0 {
             return Ok(BvhScene {
                 bvh: CwBvh::default(),
-                corners,
+                blocks: Vec::new(),
+                block_triangles: Vec::new(),
+                triangle_count: 0,
+                #[cfg(test)]
+                corners: Vec::new(),
+                #[cfg(test)]
                 original: Vec::new(),
                 planes: Vec::new(),
                 depth: 0,
@@ -163,18 +178,54 @@ impl BvhScene {
         let bvh = bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false);
         drop(bvh2);
         drop(triangles);
-        let original = bvh.primitive_indices.clone();
-        corners.extend(original.iter().map(|&t| mesh.triangle(t as usize)));
         let depth = depth(&bvh.nodes);
         let mut planes = Vec::new();
         planes
             .try_reserve_exact(bvh.nodes.len())
             .map_err(BvhError::OutOfMemory)?;
-        planes.extend(bvh.nodes.iter().map(NodePlanes::new));
+        let leaf_count: usize = bvh
+            .nodes
+            .iter()
+            .map(|node| leaf_slots(node).count_ones() as usize)
+            .sum();
+        let mut blocks = Vec::new();
+        blocks
+            .try_reserve_exact(leaf_count)
+            .map_err(BvhError::OutOfMemory)?;
+        let mut block_triangles = Vec::new();
+        block_triangles
+            .try_reserve_exact(leaf_count)
+            .map_err(BvhError::OutOfMemory)?;
+        for node in &bvh.nodes {
+            planes.push(NodePlanes::new(node, blocks.len() as u32));
+            let mut leaves = leaf_slots(node);
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let (first, count) =
+                    leaf_primitives(node.primitive_base_idx, node.child_meta[slot]);
+                let leaf = &bvh.primitive_indices[first..first + count];
+                let mut lanes = [[Vec3::ZERO; 3]; 4];
+                for (lane, &t) in lanes.iter_mut().zip(leaf) {
+                    *lane = mesh.triangle(t as usize);
+                }
+                blocks.push(TriangleLanes::new(&lanes[..count]));
+                block_triangles.push(core::array::from_fn(|lane| leaf[lane.min(count - 1)]));
+            }
+        }
         Ok(BvhScene {
+            #[cfg(test)]
+            corners: bvh
+                .primitive_indices
+                .iter()
+                .map(|&t| mesh.triangle(t as usize))
+                .collect(),
+            #[cfg(test)]
+            original: bvh.primitive_indices.clone(),
             bvh,
-            corners,
-            original,
+            blocks,
+            block_triangles,
+            triangle_count: count,
             planes,
             depth,
             wide: simd::avx_available(),
@@ -183,14 +234,14 @@ impl BvhScene {
 
     /// Number of triangles in the scene.
     pub fn triangle_count(&self) -> usize {
-        self.corners.len()
+        self.triangle_count
     }
 
     /// [`RayCaster::occluded`] through the general traversal (obvhs's `traverse!`),
     /// for checking the any-hit loop against it.
     #[cfg(test)]
     pub(super) fn occluded_through_traverse_macro(&self, ray: &Ray) -> bool {
-        if self.corners.is_empty() {
+        if self.triangle_count == 0 {
             return false;
         }
         PreparedRay::new(ray)
@@ -201,7 +252,7 @@ impl BvhScene {
     /// `traverse!`), for checking the closest-hit loop against it.
     #[cfg(test)]
     pub(super) fn closest_hit_through_traverse_macro(&self, ray: &Ray) -> Option<Hit> {
-        if self.corners.is_empty() {
+        if self.triangle_count == 0 {
             return None;
         }
         let mut prepared = PreparedRay::new(ray)?;
@@ -223,7 +274,7 @@ impl BvhScene {
     fn search_deep<const ANY_HIT: bool>(
         &self,
         traversal: &mut TraversalRay,
-        test: impl FnMut(usize) -> Option<f32>,
+        test: impl FnMut(usize, usize) -> Option<f32>,
     ) -> bool {
         self.search::<ANY_HIT, false>(&mut alloc::vec![0u64; self.depth], traversal, test)
     }
@@ -258,16 +309,37 @@ struct NodePlanes {
     planes: Planes8,
     /// [`CwBvhNode::child_base_idx`].
     child_base: u32,
-    /// [`CwBvhNode::primitive_base_idx`].
-    primitive_base: u32,
+    /// Index in [`BvhScene::blocks`] of the node's first leaf.
+    block_base: u32,
     /// [`CwBvhNode::imask`].
     imask: u32,
-    /// [`CwBvhNode::child_meta`].
-    meta: [u8; 8],
+    /// Per child slot that is a leaf, its block's offset from `block_base` in
+    /// the low five bits and its triangle count in unary in the top three, the
+    /// layout of [`CwBvhNode::child_meta`] (whose low bits are the offset of the
+    /// first primitive instead); 0 for every other slot.
+    leaves: [u8; 8],
+}
+
+/// The child slots of `node` that are leaves with triangles, as a bit mask.
+fn leaf_slots(node: &CwBvhNode) -> u32 {
+    (0..8)
+        .filter(|&slot| node.imask & (1 << slot) == 0 && node.child_meta[slot] >> 5 != 0)
+        .fold(0, |mask, slot| mask | 1 << slot)
+}
+
+/// The first primitive (in BVH primitive order) and the count of a leaf whose
+/// node has primitive base `base` and whose slot has meta `meta`.
+fn leaf_primitives(base: u32, meta: u8) -> (usize, usize) {
+    (
+        (base + u32::from(meta & 0b1_1111)) as usize,
+        (meta >> 5).count_ones() as usize,
+    )
 }
 
 impl NodePlanes {
-    fn new(node: &CwBvhNode) -> Self {
+    /// `node`'s planes and links, its leaves' blocks numbered from `block_base`
+    /// in slot order.
+    fn new(node: &CwBvhNode, block_base: u32) -> Self {
         let extent = node.compute_extent();
         let base = Vec3A::from(node.p);
         let padding = (base.abs() + extent * 255.0) * BOX_PADDING;
@@ -288,12 +360,21 @@ impl NodePlanes {
                 core::array::from_fn(|child| f32::from(q[child]) * extent[axis] + offset)
             })
         });
+        let mut leaves = [0u8; 8];
+        let mut rank = 0;
+        let mut slots = leaf_slots(node);
+        while slots != 0 {
+            let slot = slots.trailing_zeros() as usize;
+            slots &= slots - 1;
+            leaves[slot] = (node.child_meta[slot] & !0b1_1111) | rank;
+            rank += 1;
+        }
         NodePlanes {
             planes: Planes8(planes),
             child_base: node.child_base_idx,
-            primitive_base: node.primitive_base_idx,
+            block_base,
             imask: u32::from(node.imask),
-            meta: node.child_meta,
+            leaves,
         }
     }
 }
@@ -662,11 +743,11 @@ impl BvhScene {
     /// so the lowest bit is the child nearest the ray's origin side, as in the
     /// CWBVH paper's ordering.
     ///
-    /// `test` is called with the index (in leaf order) of every triangle in an
-    /// entered leaf and returns the hit's `t`, if any. With `ANY_HIT` the search
-    /// stops at the first hit and returns true; otherwise each hit shortens the
-    /// box test and the search runs to the end (the closest-hit search), returning
-    /// false.
+    /// `test` is called with the block (in [`Self::blocks`]) and triangle count of
+    /// every entered leaf and returns the `t` of the nearest hit it accepted, if
+    /// any. With `ANY_HIT` the search stops at the first hit and returns true;
+    /// otherwise each hit shortens the box test and the search runs to the end
+    /// (the closest-hit search), returning false.
     ///
     /// With `WIDE` the child boxes of ordinary rays are tested in one pass of
     /// eight AVX lanes (callers enter such searches only where AVX runs), else in
@@ -676,7 +757,7 @@ impl BvhScene {
         &self,
         stack: &mut [u64],
         traversal: &mut TraversalRay,
-        mut test: impl FnMut(usize) -> Option<f32>,
+        mut test: impl FnMut(usize, usize) -> Option<f32>,
     ) -> bool {
         let slab = traversal.slab_ray();
         let octant = (u32::from(traversal.negative[0]) << 2)
@@ -718,17 +799,16 @@ impl BvhScene {
             while leaves != 0 {
                 let slot = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
-                let meta = node.meta[slot];
-                // An empty slot's meta is 0: no primitives.
-                let first = (node.primitive_base + u32::from(meta & 0b1_1111)) as usize;
-                let count = (meta >> 5).count_ones() as usize;
-                for primitive in first..first + count {
-                    if let Some(t) = test(primitive) {
-                        if ANY_HIT {
-                            return true;
-                        }
-                        traversal.shorten(t);
+                let (block, count) = leaf_primitives(node.block_base, node.leaves[slot]);
+                // An empty slot has no triangles (and no block).
+                if count == 0 {
+                    continue;
+                }
+                if let Some(t) = test(block, count) {
+                    if ANY_HIT {
+                        return true;
                     }
+                    traversal.shorten(t);
                 }
             }
             let Some(next) = next else {
@@ -820,32 +900,74 @@ fn octant_order(mut mask: u32, octant: u32) -> u32 {
 }
 
 impl BvhScene {
-    /// The any-hit leaf test: `t` of a hit on triangle `primitive` (leaf order).
+    /// The any-hit leaf test: `t` of a hit on one of the first `count` triangles
+    /// of block `block`. The lanes decide all but the rare triangles that leave
+    /// the common `f32` path, which the scalar test decides.
     #[inline(always)]
-    fn any_hit_leaf(&self, prepared: &PreparedRay, primitive: usize) -> Option<f32> {
-        let [a, b, c] = self.corners[primitive];
-        prepared.intersect(a, b, c).map(|hit| hit.t)
+    fn any_hit_leaf(&self, prepared: &PreparedRay, block: usize, count: usize) -> Option<f32> {
+        let lanes = &self.blocks[block];
+        let decided = prepared.intersect_lanes(lanes);
+        let present = (1u32 << count) - 1;
+        let hits = decided.hits & present;
+        if hits != 0 {
+            return Some(decided.t[hits.trailing_zeros() as usize]);
+        }
+        let mut undecided = decided.undecided & present;
+        while undecided != 0 {
+            let lane = undecided.trailing_zeros() as usize;
+            undecided &= undecided - 1;
+            let [a, b, c] = lanes.triangle(lane);
+            if let Some(hit) = prepared.intersect(a, b, c) {
+                return Some(hit.t);
+            }
+        }
+        None
     }
 
-    /// The closest-hit leaf test: a hit on triangle `primitive` (leaf order)
-    /// shortens `prepared` and becomes `best`; returns its `t`.
+    /// The closest-hit leaf test over the first `count` triangles of block
+    /// `block`, in lane order as the scalar loop would take them: each hit
+    /// nearer than the current end shortens `prepared` and becomes `best`;
+    /// returns the `t` of the last (nearest) one.
     #[inline(always)]
     fn closest_hit_leaf(
         &self,
         prepared: &mut PreparedRay,
         best: &mut Option<Hit>,
-        primitive: usize,
+        block: usize,
+        count: usize,
     ) -> Option<f32> {
-        let [a, b, c] = self.corners[primitive];
-        let hit = prepared.intersect(a, b, c)?;
-        prepared.set_t_max(hit.t);
-        *best = Some(Hit {
-            t: hit.t,
-            triangle: self.original[primitive],
-            u: hit.u,
-            v: hit.v,
-        });
-        Some(hit.t)
+        let lanes = &self.blocks[block];
+        let decided = prepared.intersect_lanes(lanes);
+        let mut pending = (decided.hits | decided.undecided) & ((1u32 << count) - 1);
+        let mut nearest = None;
+        while pending != 0 {
+            let lane = pending.trailing_zeros() as usize;
+            pending &= pending - 1;
+            let hit = if decided.undecided & (1 << lane) != 0 {
+                let [a, b, c] = lanes.triangle(lane);
+                prepared.intersect(a, b, c)
+            } else {
+                // Decided against the interval's end when the leaf began: an
+                // earlier lane may have shortened it since.
+                let t = decided.t[lane];
+                (t < prepared.t_max()).then(|| TriangleHit {
+                    t,
+                    u: decided.u[lane],
+                    v: decided.v[lane],
+                })
+            };
+            if let Some(hit) = hit {
+                prepared.set_t_max(hit.t);
+                *best = Some(Hit {
+                    t: hit.t,
+                    triangle: self.block_triangles[block][lane],
+                    u: hit.u,
+                    v: hit.v,
+                });
+                nearest = Some(hit.t);
+            }
+        }
+        nearest
     }
 }
 
@@ -868,7 +990,7 @@ impl BvhScene {
 
     #[inline(always)]
     fn occluded_with<const WIDE: bool>(&self, ray: &Ray) -> bool {
-        if self.corners.is_empty() {
+        if self.triangle_count == 0 {
             return false;
         }
         let Some(prepared) = PreparedRay::new(ray) else {
@@ -878,31 +1000,33 @@ impl BvhScene {
         // Two closures over one inlined body: each has a single call site, so
         // the common path's leaf test is inlined into its traversal loop.
         if self.depth <= STACK_GROUPS {
-            self.search::<true, WIDE>(&mut [0u64; STACK_GROUPS], &mut traversal, |primitive| {
-                self.any_hit_leaf(&prepared, primitive)
+            self.search::<true, WIDE>(&mut [0u64; STACK_GROUPS], &mut traversal, |block, count| {
+                self.any_hit_leaf(&prepared, block, count)
             })
         } else {
-            self.search_deep::<true>(&mut traversal, |primitive| {
-                self.any_hit_leaf(&prepared, primitive)
+            self.search_deep::<true>(&mut traversal, |block, count| {
+                self.any_hit_leaf(&prepared, block, count)
             })
         }
     }
 
     #[inline(always)]
     fn closest_hit_with<const WIDE: bool>(&self, ray: &Ray) -> Option<Hit> {
-        if self.corners.is_empty() {
+        if self.triangle_count == 0 {
             return None;
         }
         let mut prepared = PreparedRay::new(ray)?;
         let mut traversal = TraversalRay::new(ray);
         let mut best: Option<Hit> = None;
         if self.depth <= STACK_GROUPS {
-            self.search::<false, WIDE>(&mut [0u64; STACK_GROUPS], &mut traversal, |primitive| {
-                self.closest_hit_leaf(&mut prepared, &mut best, primitive)
-            });
+            self.search::<false, WIDE>(
+                &mut [0u64; STACK_GROUPS],
+                &mut traversal,
+                |block, count| self.closest_hit_leaf(&mut prepared, &mut best, block, count),
+            );
         } else {
-            self.search_deep::<false>(&mut traversal, |primitive| {
-                self.closest_hit_leaf(&mut prepared, &mut best, primitive)
+            self.search_deep::<false>(&mut traversal, |block, count| {
+                self.closest_hit_leaf(&mut prepared, &mut best, block, count)
             });
         }
         best

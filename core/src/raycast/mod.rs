@@ -22,7 +22,7 @@ mod bvh;
 #[cfg(feature = "bvh")]
 pub use bvh::{BvhError, BvhScene, MAX_COORDINATE};
 
-use glam::Vec3;
+use glam::{BVec4A, Vec3, Vec4};
 
 use crate::geom::MeshView;
 
@@ -297,6 +297,120 @@ impl PreparedRay {
         }
         let t = (eu * az + ev * bz + ew * cz) / det;
         self.accept(t as f32, (ev / det) as f32, (ew / det) as f32)
+    }
+}
+
+/// Up to four triangles with their coordinates in lanes, for
+/// [`PreparedRay::intersect_lanes`]: `corners[corner][axis]` holds that
+/// coordinate of each lane's triangle. Lanes beyond a block's triangle count
+/// repeat one of its triangles, so they hold ordinary numbers.
+#[derive(Clone, Copy, Debug)]
+#[cfg_attr(not(feature = "bvh"), allow(dead_code))]
+pub(crate) struct TriangleLanes {
+    pub(crate) corners: [[Vec4; 3]; 3],
+}
+
+#[cfg_attr(not(feature = "bvh"), allow(dead_code))]
+impl TriangleLanes {
+    /// Triangles `triangles[..]` (one to four) in lanes, the last repeated into
+    /// the lanes beyond them.
+    pub(crate) fn new(triangles: &[[Vec3; 3]]) -> Self {
+        let lane = |i: usize| triangles[i.min(triangles.len() - 1)];
+        TriangleLanes {
+            corners: core::array::from_fn(|corner| {
+                core::array::from_fn(|axis| {
+                    Vec4::from_array(core::array::from_fn(|i| lane(i)[corner][axis]))
+                })
+            }),
+        }
+    }
+
+    /// The corners of lane `lane`'s triangle.
+    #[inline(always)]
+    pub(crate) fn triangle(&self, lane: usize) -> [Vec3; 3] {
+        self.corners
+            .map(|[x, y, z]| Vec3::new(x[lane], y[lane], z[lane]))
+    }
+}
+
+/// What [`PreparedRay::intersect_lanes`] decided for four triangles.
+#[derive(Clone, Copy, Debug)]
+#[cfg_attr(not(feature = "bvh"), allow(dead_code))]
+pub(crate) struct LaneHits {
+    /// Bit `i` set when lane `i`'s triangle is hit at `t[i]` with barycentrics
+    /// `u[i]`, `v[i]`: exactly what [`PreparedRay::intersect`] returns for it.
+    pub(crate) hits: u32,
+    /// Bit `i` set when lane `i` left the common `f32` path (an edge function
+    /// exactly zero, a possible overflow or underflow): only
+    /// [`PreparedRay::intersect`] on that triangle decides it. Lanes in neither
+    /// mask are misses.
+    pub(crate) undecided: u32,
+    /// Ray parameter per lane (meaningful for hits only).
+    pub(crate) t: Vec4,
+    /// Barycentric weight of the second corner per lane.
+    pub(crate) u: Vec4,
+    /// Barycentric weight of the third corner per lane.
+    pub(crate) v: Vec4,
+}
+
+#[cfg_attr(not(feature = "bvh"), allow(dead_code))]
+impl PreparedRay {
+    /// [`Self::intersect`] on four triangles at once, in `Vec4` lanes (SSE on
+    /// x86-64, plain arrays elsewhere): each lane does the `f32` operations of the
+    /// common path of [`Self::intersect`], in the same order with the same
+    /// operands, so a lane it decides gets the same answer bit for bit; a lane
+    /// that would leave that path (to the `f64` edge functions or the wide test)
+    /// is reported undecided instead, for the caller to hand to
+    /// [`Self::intersect`]. Tested lane by lane against it.
+    #[inline(always)]
+    pub(crate) fn intersect_lanes(&self, lanes: &TriangleLanes) -> LaneHits {
+        let [kx, ky, kz] = self.axes;
+        let origin = self.origin.to_array();
+        let s = self.shear;
+        let (sx, sy, sz) = (Vec4::splat(s.x), Vec4::splat(s.y), Vec4::splat(s.z));
+        let relative =
+            |corner: usize, axis: usize| lanes.corners[corner][axis] - Vec4::splat(origin[axis]);
+        let sheared = |corner: usize| {
+            let depth = relative(corner, kz);
+            (
+                relative(corner, kx) - sx * depth,
+                relative(corner, ky) - sy * depth,
+                depth,
+            )
+        };
+        let (ax, ay, a_depth) = sheared(0);
+        let (bx, by, b_depth) = sheared(1);
+        let (cx, cy, c_depth) = sheared(2);
+        let reaches = |v: Vec4| v.abs().cmpge(Vec4::splat(WIDE_EXTENT));
+        let wide_enough =
+            reaches(ax) | reaches(ay) | reaches(bx) | reaches(by) | reaches(cx) | reaches(cy);
+        let eu = cx * by - cy * bx;
+        let ev = ax * cy - ay * cx;
+        let ew = bx * ay - by * ax;
+        let zero = Vec4::ZERO;
+        let some_zero = eu.cmpeq(zero) | ev.cmpeq(zero) | ew.cmpeq(zero);
+        let finite = eu.is_finite_mask() & ev.is_finite_mask() & ew.is_finite_mask();
+        let negative = eu.cmplt(zero) | ev.cmplt(zero) | ew.cmplt(zero);
+        let positive = eu.cmpgt(zero) | ev.cmpgt(zero) | ew.cmpgt(zero);
+        let inside = !(negative & positive);
+        let det = eu + ev + ew;
+        let crossed = inside & det.cmpne(zero);
+        let scaled_t = eu * (sz * a_depth) + ev * (sz * b_depth) + ew * (sz * c_depth);
+        let threshold = Vec4::splat(WIDE_DETERMINANT);
+        let imprecise = !scaled_t.is_finite_mask()
+            | det.abs().cmplt(threshold)
+            | scaled_t.abs().cmplt(threshold);
+        let undecided: BVec4A = !wide_enough | some_zero | !finite | (crossed & imprecise);
+        let inv_det = Vec4::ONE / det;
+        let t = scaled_t * inv_det;
+        let accepted = t.cmpgt(Vec4::splat(self.t_min)) & t.cmplt(Vec4::splat(self.t_max));
+        LaneHits {
+            hits: (crossed & accepted & !undecided).bitmask(),
+            undecided: undecided.bitmask(),
+            t,
+            u: ev * inv_det,
+            v: ew * inv_det,
+        }
     }
 }
 

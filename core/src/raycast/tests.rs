@@ -196,6 +196,122 @@ fn invalid_rays_hit_nothing() {
     }
 }
 
+/// Checks [`PreparedRay::intersect_lanes`] on `triangles` (1 to 4) against
+/// [`PreparedRay::intersect`] lane by lane: a decided lane must give the scalar
+/// answer bit for bit. Returns the number of undecided lanes.
+fn lanes_agree_with_scalar(ray: &Ray, triangles: &[[Vec3; 3]]) -> u32 {
+    let prepared = PreparedRay::new(ray).unwrap();
+    let decided = prepared.intersect_lanes(&TriangleLanes::new(triangles));
+    let mut undecided = 0;
+    for (lane, &[a, b, c]) in triangles.iter().enumerate() {
+        let scalar = prepared.intersect(a, b, c);
+        let bit = 1 << lane;
+        assert!(
+            decided.hits & decided.undecided & bit == 0,
+            "lane {lane} both hit and undecided"
+        );
+        if decided.undecided & bit != 0 {
+            undecided += 1;
+            continue;
+        }
+        let lanes = (decided.hits & bit != 0)
+            .then(|| [decided.t[lane], decided.u[lane], decided.v[lane]].map(f32::to_bits));
+        let scalar_bits = scalar.map(|h| [h.t, h.u, h.v].map(f32::to_bits));
+        assert_eq!(
+            lanes, scalar_bits,
+            "lane {lane}: {ray:?} {triangles:?}: lanes {decided:?}, scalar {scalar:?}"
+        );
+    }
+    undecided
+}
+
+#[test]
+fn four_lane_test_equals_the_scalar_test_lane_by_lane() {
+    let mut rng = SmallRng::seed_from_u64(12);
+    // Ordinary triangles and rays: almost every lane is decided in the lanes.
+    let (mut lanes, mut undecided, mut hits) = (0, 0, 0);
+    for _ in 0..50_000 {
+        let count = rng.random_range(1..=4);
+        let triangles: Vec<[Vec3; 3]> = (0..count).map(|_| random_triangle(&mut rng)).collect();
+        let ray = random_ray(&mut rng, 3.0);
+        undecided += lanes_agree_with_scalar(&ray, &triangles);
+        let prepared = PreparedRay::new(&ray).unwrap();
+        hits += triangles
+            .iter()
+            .filter(|[a, b, c]| prepared.intersect(*a, *b, *c).is_some())
+            .count();
+        lanes += count;
+    }
+    assert!(hits > 5_000, "too few hits to mean anything: {hits}");
+    assert!(
+        undecided * 1000 < lanes as u32,
+        "{undecided} of {lanes} ordinary lanes undecided"
+    );
+    // Rays through shared vertices and edges of a fan (edge functions exactly
+    // zero), triangles at the extreme scales of the wide path, degenerate ones
+    // (collinear corners, every corner on the ray's line), and interval ends at
+    // the hit itself: the lanes must defer or agree.
+    let mut special_undecided = 0;
+    let fan = |scale: f32| {
+        let centre = Vec3::new(0.0, 0.0, scale);
+        let rim = |k: u32| {
+            let angle = k as f32 * core::f32::consts::TAU / 4.0;
+            centre + scale * Vec3::new(libm::cosf(angle), libm::sinf(angle), 0.0)
+        };
+        (0..4)
+            .map(|k| [centre, rim(k), rim(k + 1)])
+            .collect::<Vec<_>>()
+    };
+    for scale in [1e-30f32, 1e-20, 1e-15, 1e-7, 1.0, 1e6, 3e12, 1e20, 1e30] {
+        let triangles = fan(scale);
+        let targets = [
+            triangles[0][0],
+            triangles[0][1],
+            triangles[1][1],
+            (triangles[0][0] + triangles[0][1]) * 0.5,
+            (triangles[1][1] + triangles[1][2]) * 0.5,
+            Vec3::new(0.3 * scale, 0.2 * scale, scale),
+        ];
+        for target in targets {
+            for origin in [Vec3::ZERO, Vec3::new(0.1, -0.2, -0.5) * scale] {
+                // Long directions (on the small scenes, where they stay finite)
+                // put the hit at a tiny t, so that `t · det` underflows even
+                // where `det` does not.
+                let lengths: &[f32] = if scale <= 1.0 { &[1.0, 1e12] } else { &[1.0] };
+                for &length in lengths {
+                    let hit_t = 1.0 / length;
+                    for t_max in [f32::INFINITY, hit_t, 2.0 * hit_t, 0.5 * hit_t] {
+                        let ray = Ray::new(origin, (target - origin) * length, t_max);
+                        special_undecided += lanes_agree_with_scalar(&ray, &triangles);
+                    }
+                }
+            }
+        }
+    }
+    let collinear = [
+        [Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
+        [Vec3::Z, Vec3::Z * 2.0, Vec3::Z * 3.0],
+        [Vec3::ONE, Vec3::ONE, Vec3::ONE],
+        [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+        ],
+    ];
+    for _ in 0..2_000 {
+        let ray = if rng.random_bool(0.5) {
+            Ray::new(Vec3::ZERO, Vec3::Z, f32::INFINITY)
+        } else {
+            random_ray(&mut rng, 2.0)
+        };
+        special_undecided += lanes_agree_with_scalar(&ray, &collinear);
+    }
+    assert!(
+        special_undecided > 100,
+        "the special cases never left the lanes ({special_undecided}): they test nothing"
+    );
+}
+
 /// A closed octahedron-subdivided sphere: rays from inside must always hit.
 fn closed_sphere(subdivisions: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
     let mut positions: Vec<[f32; 3]> = Vec::new();
