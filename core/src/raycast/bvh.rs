@@ -274,7 +274,7 @@ impl BvhScene {
     fn search_deep<const ANY_HIT: bool>(
         &self,
         traversal: &mut TraversalRay,
-        test: impl FnMut(usize, usize) -> Option<f32>,
+        test: impl FnMut(&LeafGroup) -> Option<f32>,
     ) -> bool {
         self.search::<ANY_HIT, false>(&mut alloc::vec![0u64; self.depth], traversal, test)
     }
@@ -313,6 +313,8 @@ struct NodePlanes {
     block_base: u32,
     /// [`CwBvhNode::imask`].
     imask: u32,
+    /// The child slots that are leaves with triangles ([`leaf_slots`]).
+    leaf_mask: u32,
     /// Per child slot that is a leaf, its block's offset from `block_base` in
     /// the low five bits and its triangle count in unary in the top three, the
     /// layout of [`CwBvhNode::child_meta`] (whose low bits are the offset of the
@@ -362,7 +364,8 @@ impl NodePlanes {
         });
         let mut leaves = [0u8; 8];
         let mut rank = 0;
-        let mut slots = leaf_slots(node);
+        let leaf_mask = leaf_slots(node);
+        let mut slots = leaf_mask;
         while slots != 0 {
             let slot = slots.trailing_zeros() as usize;
             slots &= slots - 1;
@@ -374,8 +377,18 @@ impl NodePlanes {
             child_base: node.child_base_idx,
             block_base,
             imask: u32::from(node.imask),
+            leaf_mask,
             leaves,
         }
+    }
+
+    /// The leaf in the lowest slot of `leaves` (not empty), which loses it.
+    #[inline(always)]
+    fn take_leaf(&self, leaves: &mut u32) -> Leaf {
+        let slot = leaves.trailing_zeros() as usize;
+        *leaves &= *leaves - 1;
+        let (block, count) = leaf_primitives(self.block_base, self.leaves[slot]);
+        Leaf { block, count }
     }
 }
 
@@ -743,8 +756,8 @@ impl BvhScene {
     /// so the lowest bit is the child nearest the ray's origin side, as in the
     /// CWBVH paper's ordering.
     ///
-    /// `test` is called with the block (in [`Self::blocks`]) and triangle count of
-    /// every entered leaf and returns the `t` of the nearest hit it accepted, if
+    /// `test` is called with every entered leaf (with `WIDE`, two at a time
+    /// where a node has two left) and returns the `t` of the nearest hit it accepted, if
     /// any. With `ANY_HIT` the search stops at the first hit and returns true;
     /// otherwise each hit shortens the box test and the search runs to the end
     /// (the closest-hit search), returning false.
@@ -757,7 +770,7 @@ impl BvhScene {
         &self,
         stack: &mut [u64],
         traversal: &mut TraversalRay,
-        mut test: impl FnMut(usize, usize) -> Option<f32>,
+        mut test: impl FnMut(&LeafGroup) -> Option<f32>,
     ) -> bool {
         let slab = traversal.slab_ray();
         let octant = (u32::from(traversal.negative[0]) << 2)
@@ -795,16 +808,13 @@ impl BvhScene {
                 }
                 ((*group >> 16) as u32 + (parent_imask & ((1 << slot) - 1)).count_ones()) as usize
             });
-            let mut leaves = entered & !imask;
+            // Empty slots are not leaves, so every slot left has triangles.
+            let mut leaves = entered & node.leaf_mask;
             while leaves != 0 {
-                let slot = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let (block, count) = leaf_primitives(node.block_base, node.leaves[slot]);
-                // An empty slot has no triangles (and no block).
-                if count == 0 {
-                    continue;
-                }
-                if let Some(t) = test(block, count) {
+                // Wide searches test two leaves per pass where there are two.
+                let first = node.take_leaf(&mut leaves);
+                let second = (WIDE && leaves != 0).then(|| node.take_leaf(&mut leaves));
+                if let Some(t) = test(&LeafGroup { first, second }) {
                     if ANY_HIT {
                         return true;
                     }
@@ -899,24 +909,116 @@ fn octant_order(mut mask: u32, octant: u32) -> u32 {
     mask
 }
 
-impl BvhScene {
-    /// The any-hit leaf test: `t` of a hit on one of the first `count` triangles
-    /// of block `block`. The lanes decide all but the rare triangles that leave
-    /// the common `f32` path, which the scalar test decides.
+/// A leaf of an entered node: its block in [`BvhScene::blocks`] and triangle
+/// count.
+#[derive(Clone, Copy, Debug)]
+struct Leaf {
+    block: usize,
+    count: usize,
+}
+
+/// The leaves one leaf test takes: one block in four lanes, or (with AVX) two
+/// in eight, lanes 4–7 the second block's.
+#[derive(Clone, Copy, Debug)]
+struct LeafGroup {
+    first: Leaf,
+    second: Option<Leaf>,
+}
+
+impl LeafGroup {
+    /// Lanes that hold triangles.
     #[inline(always)]
-    fn any_hit_leaf(&self, prepared: &PreparedRay, block: usize, count: usize) -> Option<f32> {
-        let lanes = &self.blocks[block];
-        let decided = prepared.intersect_lanes(lanes);
-        let present = (1u32 << count) - 1;
+    fn present(&self) -> u32 {
+        let lanes = |leaf: Leaf| (1u32 << leaf.count) - 1;
+        lanes(self.first) | self.second.map_or(0, |second| lanes(second) << 4)
+    }
+
+    /// The block and lane within it of lane `lane`.
+    #[inline(always)]
+    fn locate(&self, lane: usize) -> (usize, usize) {
+        match self.second {
+            Some(second) if lane >= 4 => (second.block, lane - 4),
+            _ => (self.first.block, lane),
+        }
+    }
+}
+
+/// The lane test's answers for one [`LeafGroup`] in one layout: decided hits,
+/// lanes for the scalar test, and a decided hit's values.
+struct Decided {
+    hits: u32,
+    undecided: u32,
+    t: [f32; 8],
+    u: [f32; 8],
+    v: [f32; 8],
+}
+
+impl BvhScene {
+    /// The lane test of `group`: its one block in four `Vec4` lanes or, in a
+    /// wide search, its two in one AVX pass. The two give the same answer per
+    /// lane.
+    #[inline(always)]
+    fn decide<const WIDE: bool>(&self, prepared: &PreparedRay, group: &LeafGroup) -> Decided {
+        let first = &self.blocks[group.first.block];
+        #[cfg(target_arch = "x86_64")]
+        if WIDE && let Some(second) = group.second {
+            let second = &self.blocks[second.block];
+            // SAFETY: wide searches are entered only from `occluded_avx` and
+            // `closest_hit_avx`, which run only where `BvhScene::wide` says
+            // run-time detection found AVX.
+            #[allow(unsafe_code)]
+            let d = unsafe {
+                simd::avx::intersect8(
+                    &prepared.sheared(),
+                    prepared.t_max(),
+                    &first.corners,
+                    &second.corners,
+                    super::WIDE_EXTENT,
+                    super::WIDE_DETERMINANT,
+                )
+            };
+            return Decided {
+                hits: d.hits,
+                undecided: d.undecided,
+                t: d.t,
+                u: d.u,
+                v: d.v,
+            };
+        }
+        let d = prepared.intersect_lanes(first);
+        let eight = |v: glam::Vec4| {
+            let [a, b, c, e] = v.to_array();
+            [a, b, c, e, 0.0, 0.0, 0.0, 0.0]
+        };
+        Decided {
+            hits: d.hits,
+            undecided: d.undecided,
+            t: eight(d.t),
+            u: eight(d.u),
+            v: eight(d.v),
+        }
+    }
+
+    /// The any-hit leaf test: `t` of a hit on a triangle of `group`. The lanes
+    /// decide all but the rare triangles that leave the common `f32` path,
+    /// which the scalar test decides.
+    #[inline(always)]
+    fn any_hit_leaf<const WIDE: bool>(
+        &self,
+        prepared: &PreparedRay,
+        group: &LeafGroup,
+    ) -> Option<f32> {
+        let decided = self.decide::<WIDE>(prepared, group);
+        let present = group.present();
         let hits = decided.hits & present;
         if hits != 0 {
             return Some(decided.t[hits.trailing_zeros() as usize]);
         }
         let mut undecided = decided.undecided & present;
         while undecided != 0 {
-            let lane = undecided.trailing_zeros() as usize;
+            let (block, lane) = group.locate(undecided.trailing_zeros() as usize);
             undecided &= undecided - 1;
-            let [a, b, c] = lanes.triangle(lane);
+            let [a, b, c] = self.blocks[block].triangle(lane);
             if let Some(hit) = prepared.intersect(a, b, c) {
                 return Some(hit.t);
             }
@@ -924,27 +1026,26 @@ impl BvhScene {
         None
     }
 
-    /// The closest-hit leaf test over the first `count` triangles of block
-    /// `block`, in lane order as the scalar loop would take them: each hit
-    /// nearer than the current end shortens `prepared` and becomes `best`;
-    /// returns the `t` of the last (nearest) one.
+    /// The closest-hit leaf test over the triangles of `group`, in lane order
+    /// as the scalar loop would take them: each hit nearer than the current end
+    /// shortens `prepared` and becomes `best`; returns the `t` of the last
+    /// (nearest) one.
     #[inline(always)]
-    fn closest_hit_leaf(
+    fn closest_hit_leaf<const WIDE: bool>(
         &self,
         prepared: &mut PreparedRay,
         best: &mut Option<Hit>,
-        block: usize,
-        count: usize,
+        group: &LeafGroup,
     ) -> Option<f32> {
-        let lanes = &self.blocks[block];
-        let decided = prepared.intersect_lanes(lanes);
-        let mut pending = (decided.hits | decided.undecided) & ((1u32 << count) - 1);
+        let decided = self.decide::<WIDE>(prepared, group);
+        let mut pending = (decided.hits | decided.undecided) & group.present();
         let mut nearest = None;
         while pending != 0 {
             let lane = pending.trailing_zeros() as usize;
             pending &= pending - 1;
+            let (block, block_lane) = group.locate(lane);
             let hit = if decided.undecided & (1 << lane) != 0 {
-                let [a, b, c] = lanes.triangle(lane);
+                let [a, b, c] = self.blocks[block].triangle(block_lane);
                 prepared.intersect(a, b, c)
             } else {
                 // Decided against the interval's end when the leaf began: an
@@ -960,7 +1061,7 @@ impl BvhScene {
                 prepared.set_t_max(hit.t);
                 *best = Some(Hit {
                     t: hit.t,
-                    triangle: self.block_triangles[block][lane],
+                    triangle: self.block_triangles[block][block_lane],
                     u: hit.u,
                     v: hit.v,
                 });
@@ -1000,12 +1101,12 @@ impl BvhScene {
         // Two closures over one inlined body: each has a single call site, so
         // the common path's leaf test is inlined into its traversal loop.
         if self.depth <= STACK_GROUPS {
-            self.search::<true, WIDE>(&mut [0u64; STACK_GROUPS], &mut traversal, |block, count| {
-                self.any_hit_leaf(&prepared, block, count)
+            self.search::<true, WIDE>(&mut [0u64; STACK_GROUPS], &mut traversal, |group| {
+                self.any_hit_leaf::<WIDE>(&prepared, group)
             })
         } else {
-            self.search_deep::<true>(&mut traversal, |block, count| {
-                self.any_hit_leaf(&prepared, block, count)
+            self.search_deep::<true>(&mut traversal, |group| {
+                self.any_hit_leaf::<false>(&prepared, group)
             })
         }
     }
@@ -1019,14 +1120,12 @@ impl BvhScene {
         let mut traversal = TraversalRay::new(ray);
         let mut best: Option<Hit> = None;
         if self.depth <= STACK_GROUPS {
-            self.search::<false, WIDE>(
-                &mut [0u64; STACK_GROUPS],
-                &mut traversal,
-                |block, count| self.closest_hit_leaf(&mut prepared, &mut best, block, count),
-            );
+            self.search::<false, WIDE>(&mut [0u64; STACK_GROUPS], &mut traversal, |group| {
+                self.closest_hit_leaf::<WIDE>(&mut prepared, &mut best, group)
+            });
         } else {
-            self.search_deep::<false>(&mut traversal, |block, count| {
-                self.closest_hit_leaf(&mut prepared, &mut best, block, count)
+            self.search_deep::<false>(&mut traversal, |group| {
+                self.closest_hit_leaf::<false>(&mut prepared, &mut best, group)
             });
         }
         best

@@ -156,6 +156,18 @@ impl PreparedRay {
         })
     }
 
+    /// The constants of the eight-lane triangle test ([`crate::simd::avx`]).
+    #[cfg(all(feature = "bvh", target_arch = "x86_64"))]
+    #[inline(always)]
+    pub(crate) fn sheared(&self) -> crate::simd::ShearedRay {
+        crate::simd::ShearedRay {
+            origin: self.origin.to_array(),
+            axes: self.axes,
+            shear: self.shear.to_array(),
+            t_min: self.t_min,
+        }
+    }
+
     /// Upper end of the ray interval.
     #[inline]
     pub fn t_max(&self) -> f32 {

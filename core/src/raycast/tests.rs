@@ -225,33 +225,18 @@ fn lanes_agree_with_scalar(ray: &Ray, triangles: &[[Vec3; 3]]) -> u32 {
     undecided
 }
 
-#[test]
-fn four_lane_test_equals_the_scalar_test_lane_by_lane() {
-    let mut rng = SmallRng::seed_from_u64(12);
-    // Ordinary triangles and rays: almost every lane is decided in the lanes.
-    let (mut lanes, mut undecided, mut hits) = (0, 0, 0);
-    for _ in 0..50_000 {
-        let count = rng.random_range(1..=4);
-        let triangles: Vec<[Vec3; 3]> = (0..count).map(|_| random_triangle(&mut rng)).collect();
-        let ray = random_ray(&mut rng, 3.0);
-        undecided += lanes_agree_with_scalar(&ray, &triangles);
-        let prepared = PreparedRay::new(&ray).unwrap();
-        hits += triangles
-            .iter()
-            .filter(|[a, b, c]| prepared.intersect(*a, *b, *c).is_some())
-            .count();
-        lanes += count;
-    }
-    assert!(hits > 5_000, "too few hits to mean anything: {hits}");
-    assert!(
-        undecided * 1000 < lanes as u32,
-        "{undecided} of {lanes} ordinary lanes undecided"
-    );
-    // Rays through shared vertices and edges of a fan (edge functions exactly
-    // zero), triangles at the extreme scales of the wide path, degenerate ones
-    // (collinear corners, every corner on the ray's line), and interval ends at
-    // the hit itself: the lanes must defer or agree.
-    let mut special_undecided = 0;
+/// `count` random triangles and a random ray: the ordinary lane-test case.
+fn ordinary_lane_case(rng: &mut SmallRng, count: usize) -> (Ray, Vec<[Vec3; 3]>) {
+    let triangles = (0..count).map(|_| random_triangle(rng)).collect();
+    (random_ray(rng, 3.0), triangles)
+}
+
+/// Rays through shared vertices and edges of a fan (edge functions exactly
+/// zero), triangles at the extreme scales of the wide path, degenerate ones
+/// (collinear corners, every corner on the ray's line), and interval ends at the
+/// hit itself: the cases where the lanes must defer or agree.
+fn special_lane_cases(rng: &mut SmallRng) -> Vec<(Ray, Vec<[Vec3; 3]>)> {
+    let mut cases = Vec::new();
     let fan = |scale: f32| {
         let centre = Vec3::new(0.0, 0.0, scale);
         let rim = |k: u32| {
@@ -282,13 +267,13 @@ fn four_lane_test_equals_the_scalar_test_lane_by_lane() {
                     let hit_t = 1.0 / length;
                     for t_max in [f32::INFINITY, hit_t, 2.0 * hit_t, 0.5 * hit_t] {
                         let ray = Ray::new(origin, (target - origin) * length, t_max);
-                        special_undecided += lanes_agree_with_scalar(&ray, &triangles);
+                        cases.push((ray, triangles.clone()));
                     }
                 }
             }
         }
     }
-    let collinear = [
+    let collinear = alloc::vec![
         [Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
         [Vec3::Z, Vec3::Z * 2.0, Vec3::Z * 3.0],
         [Vec3::ONE, Vec3::ONE, Vec3::ONE],
@@ -302,13 +287,108 @@ fn four_lane_test_equals_the_scalar_test_lane_by_lane() {
         let ray = if rng.random_bool(0.5) {
             Ray::new(Vec3::ZERO, Vec3::Z, f32::INFINITY)
         } else {
-            random_ray(&mut rng, 2.0)
+            random_ray(rng, 2.0)
         };
-        special_undecided += lanes_agree_with_scalar(&ray, &collinear);
+        cases.push((ray, collinear.clone()));
     }
+    cases
+}
+
+#[test]
+fn four_lane_test_equals_the_scalar_test_lane_by_lane() {
+    let mut rng = SmallRng::seed_from_u64(12);
+    // Ordinary triangles and rays: almost every lane is decided in the lanes.
+    let (mut lanes, mut undecided, mut hits) = (0, 0, 0);
+    for _ in 0..50_000 {
+        let count = rng.random_range(1..=4);
+        let (ray, triangles) = ordinary_lane_case(&mut rng, count);
+        undecided += lanes_agree_with_scalar(&ray, &triangles);
+        let prepared = PreparedRay::new(&ray).unwrap();
+        hits += triangles
+            .iter()
+            .filter(|[a, b, c]| prepared.intersect(*a, *b, *c).is_some())
+            .count();
+        lanes += count;
+    }
+    assert!(hits > 5_000, "too few hits to mean anything: {hits}");
+    assert!(
+        undecided * 1000 < lanes as u32,
+        "{undecided} of {lanes} ordinary lanes undecided"
+    );
+    let special_undecided: u32 = special_lane_cases(&mut rng)
+        .iter()
+        .map(|(ray, triangles)| lanes_agree_with_scalar(ray, triangles))
+        .sum();
     assert!(
         special_undecided > 100,
         "the special cases never left the lanes ({special_undecided}): they test nothing"
+    );
+}
+
+/// The eight-lane AVX triangle test on two blocks gives, lane by lane and bit
+/// for bit, what the four-lane test gives on each block (which is checked
+/// against the scalar test above): the twin of the leaf test wide searches take.
+#[cfg(all(feature = "bvh", target_arch = "x86_64"))]
+#[test]
+fn eight_lane_test_equals_the_four_lane_test_on_each_block() {
+    if !crate::simd::avx_available() {
+        std::println!("this processor has no AVX: the eight-lane test is never used here");
+        return;
+    }
+    let check = |ray: &Ray, low: &[[Vec3; 3]], high: &[[Vec3; 3]]| {
+        let prepared = PreparedRay::new(ray).unwrap();
+        let (low, high) = (TriangleLanes::new(low), TriangleLanes::new(high));
+        // SAFETY: AVX was detected above.
+        #[allow(unsafe_code)]
+        let eight = unsafe {
+            crate::simd::avx::intersect8(
+                &prepared.sheared(),
+                prepared.t_max(),
+                &low.corners,
+                &high.corners,
+                WIDE_EXTENT,
+                WIDE_DETERMINANT,
+            )
+        };
+        for (half, lanes) in [low, high].iter().enumerate() {
+            let four = prepared.intersect_lanes(lanes);
+            let bits = |mask: u32| (mask >> (4 * half)) & 0xf;
+            assert_eq!(bits(eight.hits), four.hits, "{ray:?} half {half}");
+            assert_eq!(bits(eight.undecided), four.undecided, "{ray:?} half {half}");
+            for lane in 0..4 {
+                if four.hits & (1 << lane) != 0 {
+                    let of_four = [four.t[lane], four.u[lane], four.v[lane]];
+                    let i = 4 * half + lane;
+                    let of_eight = [eight.t[i], eight.u[i], eight.v[i]];
+                    assert_eq!(
+                        of_eight.map(f32::to_bits),
+                        of_four.map(f32::to_bits),
+                        "{ray:?} lane {i}"
+                    );
+                }
+            }
+        }
+        (eight.hits.count_ones(), eight.undecided.count_ones())
+    };
+    let mut rng = SmallRng::seed_from_u64(13);
+    let mut hits = 0;
+    for _ in 0..30_000 {
+        let counts = [rng.random_range(1..=4), rng.random_range(1..=4)];
+        let (ray, low) = ordinary_lane_case(&mut rng, counts[0]);
+        let (_, high) = ordinary_lane_case(&mut rng, counts[1]);
+        hits += check(&ray, &low, &high).0;
+    }
+    assert!(hits > 3_000, "too few hits to mean anything: {hits}");
+    // Every special case in either half, beside ordinary triangles.
+    let mut undecided = 0;
+    for (ray, special) in special_lane_cases(&mut rng) {
+        let (_, ordinary) = ordinary_lane_case(&mut rng, 4);
+        undecided += check(&ray, &special, &ordinary).1;
+        undecided += check(&ray, &ordinary, &special).1;
+    }
+    assert!(
+        undecided > 200,
+        "the special cases never left the lanes ({undecided})"
     );
 }
 

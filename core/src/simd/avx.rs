@@ -3,11 +3,15 @@
 #![allow(unsafe_code)]
 
 use core::arch::x86_64::{
-    __m256, _CMP_LE_OQ, _mm256_add_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_loadu_ps,
-    _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_sub_ps,
+    __m256, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm_loadu_ps,
+    _mm256_add_ps, _mm256_and_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_div_ps, _mm256_loadu_ps,
+    _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps, _mm256_set_m128,
+    _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
 };
 
-use super::{Planes8, SlabRay};
+use glam::Vec4;
+
+use super::{LaneHits8, Planes8, ShearedRay, SlabRay};
 
 #[inline(always)]
 fn load(eight: &[f32; 8]) -> __m256 {
@@ -50,4 +54,141 @@ pub(crate) fn entered8(planes: &Planes8, ray: &SlabRay, t_max: f32) -> u32 {
     );
     let far = _mm256_min_ps(_mm256_add_ps(far, pad), _mm256_set1_ps(t_max));
     _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32
+}
+
+/// The watertight triangle test on two blocks of four triangles at once, lanes
+/// 0–3 from `low` and 4–7 from `high` (`[corner][axis]` coordinates in lanes):
+/// per lane the `f32` operations, comparisons and masks of the four-lane
+/// `raycast::PreparedRay::intersect_lanes`, in the same order with the same
+/// operands (comparison predicates chosen to match SSE's ordered ones, and the
+/// unordered `!=` of `Vec4::cmpne`), so every lane's answer equals that of the
+/// four-lane test on its block bit for bit (tested in `raycast/tests.rs`).
+/// `wide_extent` and `wide_determinant` are the thresholds below which the
+/// scalar test leaves its common path; `t_max` the interval's end now.
+#[target_feature(enable = "avx")]
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn intersect8(
+    ray: &ShearedRay,
+    t_max: f32,
+    low: &[[Vec4; 3]; 3],
+    high: &[[Vec4; 3]; 3],
+    wide_extent: f32,
+    wide_determinant: f32,
+) -> LaneHits8 {
+    let [kx, ky, kz] = ray.axes;
+    let both = |corner: usize, axis: usize| {
+        let (l, h): (&[f32; 4], &[f32; 4]) =
+            (low[corner][axis].as_ref(), high[corner][axis].as_ref());
+        // SAFETY: `l` and `h` are four readable, contiguous `f32` each.
+        unsafe { _mm256_set_m128(_mm_loadu_ps(h.as_ptr()), _mm_loadu_ps(l.as_ptr())) }
+    };
+    let splat = |x: f32| _mm256_set1_ps(x);
+    let sign = splat(-0.0);
+    let abs = |v: __m256| _mm256_andnot_ps(sign, v);
+    let all = _mm256_cmp_ps::<_CMP_EQ_OQ>(_mm256_setzero_ps(), _mm256_setzero_ps());
+    let not = |m: __m256| _mm256_andnot_ps(m, all);
+    let (sx, sy, sz) = (
+        splat(ray.shear[0]),
+        splat(ray.shear[1]),
+        splat(ray.shear[2]),
+    );
+    let relative =
+        |corner: usize, axis: usize| _mm256_sub_ps(both(corner, axis), splat(ray.origin[axis]));
+    let sheared = |corner: usize| {
+        let depth = relative(corner, kz);
+        (
+            _mm256_sub_ps(relative(corner, kx), _mm256_mul_ps(sx, depth)),
+            _mm256_sub_ps(relative(corner, ky), _mm256_mul_ps(sy, depth)),
+            depth,
+        )
+    };
+    let (ax, ay, a_depth) = sheared(0);
+    let (bx, by, b_depth) = sheared(1);
+    let (cx, cy, c_depth) = sheared(2);
+    let extent = splat(wide_extent);
+    let reaches = |v: __m256| _mm256_cmp_ps::<_CMP_GE_OQ>(abs(v), extent);
+    let wide_enough = _mm256_or_ps(
+        _mm256_or_ps(
+            _mm256_or_ps(_mm256_or_ps(reaches(ax), reaches(ay)), reaches(bx)),
+            reaches(by),
+        ),
+        _mm256_or_ps(reaches(cx), reaches(cy)),
+    );
+    let edge = |p: __m256, q: __m256, r: __m256, s: __m256| {
+        _mm256_sub_ps(_mm256_mul_ps(p, q), _mm256_mul_ps(r, s))
+    };
+    let eu = edge(cx, by, cy, bx);
+    let ev = edge(ax, cy, ay, cx);
+    let ew = edge(bx, ay, by, ax);
+    let zero = _mm256_setzero_ps();
+    let some_zero = _mm256_or_ps(
+        _mm256_or_ps(
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(eu, zero),
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(ev, zero),
+        ),
+        _mm256_cmp_ps::<_CMP_EQ_OQ>(ew, zero),
+    );
+    let infinity = splat(f32::INFINITY);
+    let finite_mask = |v: __m256| _mm256_cmp_ps::<_CMP_LT_OQ>(abs(v), infinity);
+    let finite = _mm256_and_ps(
+        _mm256_and_ps(finite_mask(eu), finite_mask(ev)),
+        finite_mask(ew),
+    );
+    let negative = _mm256_or_ps(
+        _mm256_or_ps(
+            _mm256_cmp_ps::<_CMP_LT_OQ>(eu, zero),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(ev, zero),
+        ),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(ew, zero),
+    );
+    let positive = _mm256_or_ps(
+        _mm256_or_ps(
+            _mm256_cmp_ps::<_CMP_GT_OQ>(eu, zero),
+            _mm256_cmp_ps::<_CMP_GT_OQ>(ev, zero),
+        ),
+        _mm256_cmp_ps::<_CMP_GT_OQ>(ew, zero),
+    );
+    let inside = not(_mm256_and_ps(negative, positive));
+    let det = _mm256_add_ps(_mm256_add_ps(eu, ev), ew);
+    let crossed = _mm256_and_ps(inside, _mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero));
+    let scaled_t = _mm256_add_ps(
+        _mm256_add_ps(
+            _mm256_mul_ps(eu, _mm256_mul_ps(sz, a_depth)),
+            _mm256_mul_ps(ev, _mm256_mul_ps(sz, b_depth)),
+        ),
+        _mm256_mul_ps(ew, _mm256_mul_ps(sz, c_depth)),
+    );
+    let threshold = splat(wide_determinant);
+    let imprecise = _mm256_or_ps(
+        _mm256_or_ps(
+            not(finite_mask(scaled_t)),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(abs(det), threshold),
+        ),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(abs(scaled_t), threshold),
+    );
+    let undecided = _mm256_or_ps(
+        _mm256_or_ps(_mm256_or_ps(not(wide_enough), some_zero), not(finite)),
+        _mm256_and_ps(crossed, imprecise),
+    );
+    let inv_det = _mm256_div_ps(splat(1.0), det);
+    let t = _mm256_mul_ps(scaled_t, inv_det);
+    let accepted = _mm256_and_ps(
+        _mm256_cmp_ps::<_CMP_GT_OQ>(t, splat(ray.t_min)),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(t, splat(t_max)),
+    );
+    let hits = _mm256_and_ps(_mm256_and_ps(crossed, accepted), not(undecided));
+    let store = |v: __m256| {
+        let mut lanes = [0.0f32; 8];
+        // SAFETY: `lanes` is eight writable, contiguous `f32`.
+        unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), v) };
+        lanes
+    };
+    LaneHits8 {
+        hits: _mm256_movemask_ps(hits) as u32,
+        undecided: _mm256_movemask_ps(undecided) as u32,
+        t: store(t),
+        u: store(_mm256_mul_ps(ev, inv_det)),
+        v: store(_mm256_mul_ps(ew, inv_det)),
+    }
 }

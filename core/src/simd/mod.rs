@@ -42,3 +42,35 @@ pub(crate) fn avx_available() -> bool {
         false
     }
 }
+
+/// Per-ray constants of the watertight triangle test in lanes: the ray after
+/// the axis permutation and shear of `raycast::PreparedRay` (whose fields these
+/// are).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ShearedRay {
+    /// Ray origin per (unpermuted) axis.
+    pub origin: [f32; 3],
+    /// The permuted axes `[kx, ky, kz]`.
+    pub axes: [usize; 3],
+    /// `(d[kx] / d[kz], d[ky] / d[kz], 1 / d[kz])`.
+    pub shear: [f32; 3],
+    /// Lower end of the ray interval.
+    pub t_min: f32,
+}
+
+/// What an eight-lane triangle test decided, lane `i` the triangle in lane `i`
+/// of the first block (`i < 4`) or lane `i - 4` of the second: the layout of
+/// `raycast::LaneHits` over eight lanes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LaneHits8 {
+    /// Lanes hit at `t[i]` with barycentrics `u[i]`, `v[i]`.
+    pub hits: u32,
+    /// Lanes only the scalar test decides.
+    pub undecided: u32,
+    /// Ray parameter per lane.
+    pub t: [f32; 8],
+    /// Barycentric weight of the second corner per lane.
+    pub u: [f32; 8],
+    /// Barycentric weight of the third corner per lane.
+    pub v: [f32; 8],
+}
