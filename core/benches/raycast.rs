@@ -181,19 +181,19 @@ fn bunny_surface_occluded(bencher: divan::Bencher<'_, '_>) {
     bunny_surface_occluded_with(bencher, true);
 }
 
-/// The same rays with the portable four-lane box test instead of AVX's eight
-/// lanes (the same answers).
+/// The same rays on the portable path, four lanes at a time, instead of AVX's
+/// eight (the same answers).
 #[divan::bench]
 fn bunny_surface_occluded_four_lanes(bencher: divan::Bencher<'_, '_>) {
     bunny_surface_occluded_with(bencher, false);
 }
 
-/// Occlusion of the bunny's surface rays, with or without the eight-lane box
-/// test (`BvhScene::with_wide_box_test`).
+/// Occlusion of the bunny's surface rays, with or without the AVX kernels
+/// (`BvhScene::with_avx`: eight child boxes, two leaves per pass).
 fn bunny_surface_occluded_with(bencher: divan::Bencher<'_, '_>, wide: bool) {
     let (positions, indices) = bunny();
     let mesh = MeshView::new(&positions, &indices).unwrap();
-    let scene = BvhScene::new(&mesh).unwrap().with_wide_box_test(wide);
+    let scene = BvhScene::new(&mesh).unwrap().with_avx(wide);
     let rays = surface_rays(&mesh, SURFACE_RAYS);
     bencher
         .counter(divan::counter::ItemsCount::new(SURFACE_RAYS))

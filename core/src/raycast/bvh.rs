@@ -5,8 +5,10 @@
 //! Triangles are copied into one block per BVH leaf at build time, coordinates
 //! in lanes ([`TriangleLanes`]), so a leaf's (up to three) triangles are tested
 //! in one pass of four lanes ([`PreparedRay::intersect_lanes`], the scalar
-//! watertight test's operations lane by lane); each keeps its original index for
-//! hits.
+//! watertight test's operations lane by lane, the rare lane that would leave
+//! its common path handed to the scalar test), and where the processor has AVX
+//! two leaves of a node in one pass of eight (`simd::avx::intersect8`, the same
+//! operations); each keeps its original index for hits.
 //!
 //! obvhs's own box test is tuned for rendering, not exact answers: it ignores boxes
 //! that end before t = 1e-4, clamps 1/d to ±8.4e6 (with the wrong sign for -0.0),
@@ -26,8 +28,9 @@
 //! build: on the call stack up to 32 levels, on the heap beyond (degenerate
 //! trees; obvhs's own `traverse!`, whose 32-entry stack overwrites on overflow,
 //! serves only as a test reference, with the same box test in the affine form on
-//! the compressed node). Exactness then rests on the
-//! watertight triangle test alone, shared with [`super::BruteForceCaster`], so the two agree bit for bit.
+//! the compressed node). Exactness then rests on the watertight triangle test
+//! alone, shared with [`super::BruteForceCaster`] (in lanes here, each lane its
+//! exact operations), so the two agree bit for bit.
 
 use alloc::collections::TryReserveError;
 
@@ -76,9 +79,10 @@ pub struct BvhScene {
     /// Nodes on the longest root-to-leaf path: a bound on the entries
     /// [`BvhScene::search`]'s stack ever holds.
     depth: usize,
-    /// Whether queries test a node's eight child boxes in one AVX pass
-    /// ([`simd::avx`]) instead of two four-lane halves: the same bits, decided
-    /// once per scene by run-time detection.
+    /// Whether queries use the AVX kernels of [`simd::avx`] (a node's eight
+    /// child boxes in one pass, two leaves' triangles in one pass) instead of
+    /// four lanes at a time: the same bits, decided once per scene by run-time
+    /// detection.
     wide: bool,
 }
 
@@ -279,18 +283,19 @@ impl BvhScene {
         self.search::<ANY_HIT, false>(&mut alloc::vec![0u64; self.depth], traversal, test)
     }
 
-    /// The same scene with the eight-lane AVX box test on (where the processor
-    /// has AVX, the default) or off (two four-lane halves, the portable path).
-    /// Every answer is the same either way; this is for benchmarks and tests
-    /// that compare the two.
-    pub fn with_wide_box_test(mut self, wide: bool) -> Self {
-        self.wide = wide && simd::avx_available();
+    /// The same scene with the AVX kernels on (where the processor has AVX, the
+    /// default: a node's eight child boxes in one pass, two of its leaves'
+    /// triangles in one eight-lane pass) or off (four lanes at a time, the
+    /// portable path). Every answer is the same either way; this is for
+    /// benchmarks and tests that compare the two.
+    pub fn with_avx(mut self, avx: bool) -> Self {
+        self.wide = avx && simd::avx_available();
         self
     }
 
-    /// Whether queries use the eight-lane AVX box test.
+    /// Whether queries use the AVX kernels.
     #[cfg(test)]
-    pub(super) fn wide_box_test(&self) -> bool {
+    pub(super) fn uses_avx(&self) -> bool {
         self.wide
     }
 }
@@ -763,8 +768,9 @@ impl BvhScene {
     /// (the closest-hit search), returning false.
     ///
     /// With `WIDE` the child boxes of ordinary rays are tested in one pass of
-    /// eight AVX lanes (callers enter such searches only where AVX runs), else in
-    /// two four-lane halves; the two give the same bits.
+    /// eight AVX lanes and a node's leaves two at a time in eight triangle lanes
+    /// (callers enter such searches only where AVX runs), else four lanes at a
+    /// time; the two give the same bits.
     #[inline(always)]
     fn search<const ANY_HIT: bool, const WIDE: bool>(
         &self,

@@ -487,9 +487,9 @@ mod bvh_against_brute_force {
         assert_eq!(bvh.triangle_count(), mesh.triangle_count());
         // The portable four-lane box test (the only one off x86-64 or without
         // AVX) against the same reference.
-        let narrow = bvh.clone().with_wide_box_test(false);
-        assert_eq!(bvh.wide_box_test(), crate::simd::avx_available());
-        assert!(!narrow.wide_box_test());
+        let narrow = bvh.clone().with_avx(false);
+        assert_eq!(bvh.uses_avx(), crate::simd::avx_available());
+        assert!(!narrow.uses_avx());
         // Queries take our own traversal loop; check obvhs's `traverse!` path too
         // (whose 32-entry stack holds these trees).
         assert!(bvh.depth() <= 32);
