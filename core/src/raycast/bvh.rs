@@ -107,7 +107,8 @@ pub enum BvhError {
         /// The vertex.
         vertex: u32,
     },
-    /// The per-triangle arrays could not be reserved.
+    /// The per-triangle arrays (the builder's input, the leaf blocks) could not
+    /// be reserved.
     OutOfMemory(TryReserveError),
 }
 
@@ -129,7 +130,9 @@ impl BvhScene {
     /// Builds the hierarchy over every triangle of `mesh` (which may be empty).
     ///
     /// Fails when a vertex used by a triangle is beyond ±[`MAX_COORDINATE`], or when
-    /// the per-triangle arrays (the bulk of the scene's memory) cannot be reserved;
+    /// the per-triangle arrays (the builder's input; the leaf blocks, 160 bytes
+    /// per leaf of up to three triangles: the bulk of the scene's memory) cannot
+    /// be reserved;
     /// the builder's own temporary allocations, of the same order, abort on
     /// exhaustion like any Rust allocation.
     pub fn new(mesh: &MeshView<'_>) -> Result<Self, BvhError> {
@@ -179,7 +182,7 @@ impl BvhScene {
             params.search_depth_threshold,
         );
         ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
-        let bvh = bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false);
+        let mut bvh = bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false);
         drop(bvh2);
         drop(triangles);
         let depth = depth(&bvh.nodes);
@@ -217,15 +220,21 @@ impl BvhScene {
                 block_triangles.push(core::array::from_fn(|lane| leaf[lane.min(count - 1)]));
             }
         }
+        #[cfg(test)]
+        let corners = bvh
+            .primitive_indices
+            .iter()
+            .map(|&t| mesh.triangle(t as usize))
+            .collect();
+        #[cfg(test)]
+        let original = bvh.primitive_indices.clone();
+        // The blocks hold the triangles and their indices now.
+        bvh.primitive_indices = Vec::new();
         Ok(BvhScene {
             #[cfg(test)]
-            corners: bvh
-                .primitive_indices
-                .iter()
-                .map(|&t| mesh.triangle(t as usize))
-                .collect(),
+            corners,
             #[cfg(test)]
-            original: bvh.primitive_indices.clone(),
+            original,
             bvh,
             blocks,
             block_triangles,
@@ -306,9 +315,9 @@ impl BvhScene {
 /// instead of once per visit saves 48 byte to float conversions and the per-node setup of the affine test per node visited,
 /// for 192 bytes per node (the compressed node is 80).
 ///
-/// It also carries the node's links (child and primitive bases, inner mask, leaf
-/// metadata), so that the search of ordinary rays reads one record per node
-/// instead of this and the compressed node.
+/// It also carries the node's links (child base, inner mask, its leaves' blocks
+/// and triangle counts), so that the search of ordinary rays reads one record
+/// per node instead of this and the compressed node.
 #[derive(Clone, Copy, Debug)]
 struct NodePlanes {
     planes: Planes8,
@@ -915,6 +924,20 @@ fn octant_order(mut mask: u32, octant: u32) -> u32 {
     mask
 }
 
+#[cfg(test)]
+std::thread_local! {
+    /// Lanes this thread's queries handed to the scalar test: tests check that
+    /// the cases they aim at exactly-zero edge functions reach that path.
+    pub(super) static SCALAR_LANES: core::cell::Cell<usize> = const { core::cell::Cell::new(0) };
+}
+
+/// Counts one lane decided by the scalar test (tests only).
+#[inline(always)]
+fn count_scalar_lane() {
+    #[cfg(test)]
+    SCALAR_LANES.with(|lanes| lanes.set(lanes.get() + 1));
+}
+
 /// A leaf of an entered node: its block in [`BvhScene::blocks`] and triangle
 /// count.
 #[derive(Clone, Copy, Debug)]
@@ -967,7 +990,7 @@ impl BvhScene {
     fn decide<const WIDE: bool>(&self, prepared: &PreparedRay, group: &LeafGroup) -> Decided {
         let first = &self.blocks[group.first.block];
         #[cfg(target_arch = "x86_64")]
-        if WIDE && let Some(second) = group.second {
+        if let (true, Some(second)) = (WIDE, group.second) {
             let second = &self.blocks[second.block];
             // SAFETY: wide searches are entered only from `occluded_avx` and
             // `closest_hit_avx`, which run only where `BvhScene::wide` says
@@ -1024,6 +1047,7 @@ impl BvhScene {
         while undecided != 0 {
             let (block, lane) = group.locate(undecided.trailing_zeros() as usize);
             undecided &= undecided - 1;
+            count_scalar_lane();
             let [a, b, c] = self.blocks[block].triangle(lane);
             if let Some(hit) = prepared.intersect(a, b, c) {
                 return Some(hit.t);
@@ -1051,6 +1075,7 @@ impl BvhScene {
             pending &= pending - 1;
             let (block, block_lane) = group.locate(lane);
             let hit = if decided.undecided & (1 << lane) != 0 {
+                count_scalar_lane();
                 let [a, b, c] = self.blocks[block].triangle(block_lane);
                 prepared.intersect(a, b, c)
             } else {
@@ -1079,16 +1104,16 @@ impl BvhScene {
 }
 
 impl BvhScene {
-    /// [`RayCaster::occluded`] compiled with AVX, testing eight child boxes at a
-    /// time.
+    /// [`RayCaster::occluded`] compiled with AVX, testing eight child boxes and
+    /// two leaves at a time.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     fn occluded_avx(&self, ray: &Ray) -> bool {
         self.occluded_with::<true>(ray)
     }
 
-    /// [`RayCaster::closest_hit`] compiled with AVX, testing eight child boxes at
-    /// a time.
+    /// [`RayCaster::closest_hit`] compiled with AVX, testing eight child boxes
+    /// and two leaves at a time.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     fn closest_hit_avx(&self, ray: &Ray) -> Option<Hit> {

@@ -367,8 +367,8 @@ pub(crate) struct LaneHits {
 
 #[cfg_attr(not(feature = "bvh"), allow(dead_code))]
 impl PreparedRay {
-    /// [`Self::intersect`] on four triangles at once, in `Vec4` lanes (SSE on
-    /// x86-64, plain arrays elsewhere): each lane does the `f32` operations of the
+    /// [`Self::intersect`] on four triangles at once, in glam's `Vec4` lanes
+    /// (SSE on x86-64, NEON on aarch64, plain arrays elsewhere): each lane does the `f32` operations of the
     /// common path of [`Self::intersect`], in the same order with the same
     /// operands, so a lane it decides gets the same answer bit for bit; a lane
     /// that would leave that path (to the `f64` edge functions or the wide test)

@@ -629,6 +629,46 @@ mod bvh_against_brute_force {
         assert!(hits > 5000, "too few hits to mean anything: {hits}");
     }
 
+    /// Rays aimed exactly at the vertices and edge midpoints of a closed mesh
+    /// (edge functions exactly zero, so the leaf lanes hand those triangles to
+    /// the scalar test next to lanes they decide) are never lost through the
+    /// hierarchy either, on both paths, and find brute force's closest hit.
+    #[test]
+    fn closed_mesh_has_no_pinholes_through_the_bvh() {
+        let (positions, indices) = closed_sphere(6);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let brute = BruteForceCaster::new(mesh);
+        let scenes = [
+            BvhScene::new(&mesh).unwrap(),
+            BvhScene::new(&mesh).unwrap().with_avx(false),
+        ];
+        let mut targets: Vec<Vec3> = positions.iter().map(|&p| Vec3::from(p)).collect();
+        for t in 0..mesh.triangle_count() {
+            let [a, b, c] = mesh.triangle(t);
+            targets.extend([(a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5]);
+        }
+        super::bvh::SCALAR_LANES.with(|lanes| lanes.set(0));
+        for target in &targets {
+            for origin in [Vec3::ZERO, Vec3::new(0.1, -0.2, 0.05)] {
+                let ray = Ray::new(origin, *target - origin, f32::INFINITY);
+                let expected = brute.closest_hit(&ray).expect("brute force: pinhole");
+                for scene in &scenes {
+                    assert!(scene.occluded(&ray), "pinhole at {target:?}");
+                    let got = scene.closest_hit(&ray).expect("pinhole");
+                    assert_eq!(got.t, expected.t, "{ray:?}");
+                    if got.triangle == expected.triangle {
+                        assert_eq!((got.u, got.v), (expected.u, expected.v), "{ray:?}");
+                    }
+                }
+            }
+        }
+        let scalar = super::bvh::SCALAR_LANES.with(|lanes| lanes.get());
+        assert!(
+            scalar > targets.len(),
+            "only {scalar} lanes went to the scalar test: the rays missed the exact edges"
+        );
+    }
+
     #[test]
     fn empty_scene_hits_nothing() {
         let mesh = MeshView::new(&[], &[]).unwrap();
