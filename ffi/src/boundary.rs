@@ -75,10 +75,10 @@ pub(crate) fn with_handle<H: Poisonable>(
         poison = Some(handle.poison_flag());
         call(handle)
     });
-    if result == ANTUMBRA_RESULT_PANIC {
-        if let Some(flag) = poison {
-            flag.store(true, Ordering::Release);
-        }
+    if result == ANTUMBRA_RESULT_PANIC
+        && let Some(flag) = poison
+    {
+        flag.store(true, Ordering::Release);
     }
     result
 }

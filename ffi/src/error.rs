@@ -62,10 +62,10 @@ pub(crate) fn clear_last_error() {
     // `try_with`: during thread teardown the slot may be gone; there is nothing to
     // clear then, and `with` would abort the process.
     let _ = LAST_ERROR.try_with(|last| {
-        if let Ok(mut last) = last.try_borrow_mut() {
-            if !last.as_bytes().is_empty() {
-                *last = CString::default();
-            }
+        if let Ok(mut last) = last.try_borrow_mut()
+            && !last.as_bytes().is_empty()
+        {
+            *last = CString::default();
         }
     });
 }

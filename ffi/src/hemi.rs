@@ -439,10 +439,10 @@ pub unsafe extern "C" fn antumbra_hemi_rasterize(
         rasterize_batch(&mesh, &receivers, &settings, out);
         Ok(())
     });
-    if result == ANTUMBRA_RESULT_PANIC {
-        if let Some(flag) = poison {
-            flag.store(true, Ordering::Release);
-        }
+    if result == ANTUMBRA_RESULT_PANIC
+        && let Some(flag) = poison
+    {
+        flag.store(true, Ordering::Release);
     }
     result
 }

@@ -860,10 +860,13 @@ impl Workspace {
             Some(c) => c.update(input.mesh),
             None => ClusteredMesh::unclustered(input.mesh),
         };
-        let far = input.far.map(|far| match far_clusters {
-            Some(c) => c.update(far),
-            None => ClusteredMesh::unclustered(far),
-        });
+        // A match, not `Option::map`: Rust 1.88, the declared minimum, does not
+        // accept the closure's borrow of `far_clusters`.
+        let far = match (input.far, far_clusters) {
+            (Some(far), Some(c)) => Some(c.update(far)),
+            (Some(far), None) => Some(ClusteredMesh::unclustered(far)),
+            (None, _) => None,
+        };
         let scene = HemiScene {
             mesh,
             far,
@@ -1577,11 +1580,11 @@ fn one_shot(
         poison = config.user_table();
         body(&config)
     });
-    if result == ANTUMBRA_RESULT_PANIC {
-        if let Some(table) = poison {
-            // SAFETY: the table is alive for the call by the caller's contract.
-            unsafe { table.poison() };
-        }
+    if result == ANTUMBRA_RESULT_PANIC
+        && let Some(table) = poison
+    {
+        // SAFETY: the table is alive for the call by the caller's contract.
+        unsafe { table.poison() };
     }
     result
 }

@@ -34,7 +34,7 @@ fn check_raw<T>(pointer: *const T, len: usize, argument: impl Display) -> Result
         ));
     }
     let align = core::mem::align_of::<T>();
-    if (pointer as usize) % align != 0 {
+    if !(pointer as usize).is_multiple_of(align) {
         return Err(Error::invalid(format!(
             "{argument} ({pointer:p}) is not aligned to {align} bytes"
         )));

@@ -536,7 +536,7 @@ fn transfer_equals_core_bit_for_bit_in_every_mode() {
                 .into_iter()
                 .enumerate()
             {
-                let with_far = (bands + method + k as u32) % 2 == 0;
+                let with_far = (bands + method + k as u32).is_multiple_of(2);
                 let options = options_with(|o| {
                     o.bands = bands;
                     o.method = method;

@@ -139,7 +139,7 @@ impl<'a> MeshView<'a> {
                 available: position_bytes.len(),
             });
         }
-        if indices.len() % 3 != 0 {
+        if !indices.len().is_multiple_of(3) {
             return Err(MeshError::IndicesNotTriangles { len: indices.len() });
         }
         if let Some((at, &index)) = indices

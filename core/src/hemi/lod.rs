@@ -242,7 +242,7 @@ const CHUNK: usize = 32;
 const CHUNK_VERTICES: usize = 3 * CHUNK;
 
 // The projection writes four vertices at a time.
-const _: () = assert!(CHUNK_VERTICES % 4 == 0);
+const _: () = assert!(CHUNK_VERTICES.is_multiple_of(4));
 
 /// A run of at most [`CHUNK`] triangles of one cluster with its vertex list.
 #[derive(Clone, Copy, Debug)]

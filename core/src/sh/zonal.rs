@@ -61,7 +61,7 @@ pub const fn clamped_cosine_factor(l: usize) -> f64 {
 /// `s → ∞`, `A_l → 1` (a delta function).
 pub fn phong_factor(l: usize, exponent: f64) -> f64 {
     let s = exponent;
-    let mut a = if l % 2 == 0 {
+    let mut a = if l.is_multiple_of(2) {
         1.0
     } else {
         (s + 1.0) / (s + 2.0)

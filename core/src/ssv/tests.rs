@@ -769,7 +769,7 @@ fn hemicube_lists_every_relevant_edge() {
                         continue;
                     }
                     wedge_points += 1;
-                    if wedge_points % 4 == 0 {
+                    if wedge_points.is_multiple_of(4) {
                         near.push(p.as_vec3());
                     }
                     let mut found = false;

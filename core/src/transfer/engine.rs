@@ -111,10 +111,10 @@ fn validate_options(options: &BakeOptions<'_>) -> Result<(), BakeError> {
     if !(options.ray_offset.is_finite() && options.ray_offset >= 0.0) {
         return Err(BakeError::RayOffset(options.ray_offset));
     }
-    if let Measurement::Mrt { grid, .. } = options.measurement {
-        if !(2..=MAX_GRID).contains(&grid) {
-            return Err(BakeError::Grid(grid));
-        }
+    if let Measurement::Mrt { grid, .. } = options.measurement
+        && !(2..=MAX_GRID).contains(&grid)
+    {
+        return Err(BakeError::Grid(grid));
     }
     Ok(())
 }
