@@ -49,7 +49,7 @@ use obvhs::{
 
 use super::{Hit, PreparedRay, Ray, RayCaster, TriangleHit, TriangleLanes};
 use crate::geom::MeshView;
-use crate::simd::{self, Planes8, SlabRay};
+use crate::simd::{self, LaneHits8, Planes8, SlabRay};
 
 /// A bounding volume hierarchy over a copy of a mesh's triangles.
 ///
@@ -972,22 +972,12 @@ impl LeafGroup {
     }
 }
 
-/// The lane test's answers for one [`LeafGroup`] in one layout: decided hits,
-/// lanes for the scalar test, and a decided hit's values.
-struct Decided {
-    hits: u32,
-    undecided: u32,
-    t: [f32; 8],
-    u: [f32; 8],
-    v: [f32; 8],
-}
-
 impl BvhScene {
-    /// The lane test of `group`: its one block in four `Vec4` lanes or, in a
-    /// wide search, its two in one AVX pass. The two give the same answer per
-    /// lane.
+    /// The lane test of `group`, in the eight-lane layout either way: its one
+    /// block in four `Vec4` lanes or, in a wide search, its two in one AVX pass.
+    /// The two give the same answer per lane.
     #[inline(always)]
-    fn decide<const WIDE: bool>(&self, prepared: &PreparedRay, group: &LeafGroup) -> Decided {
+    fn decide<const WIDE: bool>(&self, prepared: &PreparedRay, group: &LeafGroup) -> LaneHits8 {
         let first = &self.blocks[group.first.block];
         #[cfg(target_arch = "x86_64")]
         if let (true, Some(second)) = (WIDE, group.second) {
@@ -996,7 +986,7 @@ impl BvhScene {
             // `closest_hit_avx`, which run only where `BvhScene::wide` says
             // run-time detection found AVX.
             #[allow(unsafe_code)]
-            let d = unsafe {
+            return unsafe {
                 simd::avx::intersect8(
                     &prepared.sheared(),
                     prepared.t_max(),
@@ -1006,20 +996,13 @@ impl BvhScene {
                     super::WIDE_DETERMINANT,
                 )
             };
-            return Decided {
-                hits: d.hits,
-                undecided: d.undecided,
-                t: d.t,
-                u: d.u,
-                v: d.v,
-            };
         }
         let d = prepared.intersect_lanes(first);
         let eight = |v: glam::Vec4| {
             let [a, b, c, e] = v.to_array();
             [a, b, c, e, 0.0, 0.0, 0.0, 0.0]
         };
-        Decided {
+        LaneHits8 {
             hits: d.hits,
             undecided: d.undecided,
             t: eight(d.t),
