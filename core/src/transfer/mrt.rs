@@ -166,15 +166,16 @@ pub struct MrtTap {
 
 /// The square coordinates `(a, b) ∈ [-1, 1]²` of a local direction with `z ≥ 0`
 /// (below the horizon, `z` is taken as 0); any length (the map is
-/// scale-invariant). `None` for a zero or non-finite vector, or one whose
-/// `|x| + |y| + z` overflows.
+/// scale-invariant). `None` for a zero or non-finite vector, one whose
+/// `|x| + |y| + z` overflows, or one so short that it is below the smallest
+/// normal `f32` (its reciprocal would overflow and the coordinates be NaN).
 #[inline]
 pub fn hemi_oct_encode(local: Vec3) -> Option<(f32, f32)> {
     // Only instructions on the hot path: `abs`, `max` and `clamp` are core's
     // intrinsics (no libm call), and one division instead of two.
     let z = local.z.max(0.0);
     let sum = local.x.abs() + local.y.abs() + z;
-    if !(sum > 0.0 && sum.is_finite()) {
+    if !(sum >= f32::MIN_POSITIVE && sum.is_finite()) {
         return None;
     }
     let inv = 1.0 / sum;
@@ -200,8 +201,8 @@ pub fn node_direction(grid: u32, i: u32, j: u32) -> Vec3 {
 
 /// The hat functions of a `grid × grid` basis (`grid ≥ 2`) at the local direction
 /// `local` (any length); `None` when `local.z ≤ 0` (a viewer behind the surface),
-/// the vector is not finite, or `grid` is outside `2..=65,535` (node indices must
-/// fit `u32`).
+/// the vector is not finite or too short for [`hemi_oct_encode`], or `grid` is
+/// outside `2..=65,535` (node indices must fit `u32`).
 #[inline]
 pub fn mrt_tap(grid: u32, local: Vec3) -> Option<MrtTap> {
     if !(2..=0xFFFF).contains(&grid) || local.z.is_nan() || local.z <= 0.0 {
@@ -311,6 +312,35 @@ pub(crate) fn brdf_matrix(brdf: &dyn Brdf, grid: u32, coeffs: usize) -> Vec<f32>
 mod tests {
     use super::*;
     use crate::sh::ZonalKernel;
+
+    #[test]
+    fn taps_of_every_finite_view_are_finite_or_none() {
+        // A view shorter than the smallest normal float once gave NaN weights
+        // (1/|v| overflowed to infinity, and 0 · ∞ is NaN), so shading returned
+        // NaN radiance; it is now `None` (no view), like a zero vector.
+        let tiny = [1e-45, 1e-40, f32::MIN_POSITIVE / 2.0];
+        for &z in &tiny {
+            for xy in [0.0, 1e-45, -1e-45] {
+                assert_eq!(mrt_tap(8, Vec3::new(xy, -xy, z)), None, "z {z:e}");
+            }
+        }
+        let mut rng = crate::rng::SplitMix64::new(5);
+        for _ in 0..20_000 {
+            let bits = |r: &mut crate::rng::SplitMix64| f32::from_bits(r.next_u64() as u32);
+            let v = Vec3::new(bits(&mut rng), bits(&mut rng), bits(&mut rng).abs());
+            if let Some(tap) = mrt_tap(8, v) {
+                let sum: f32 = tap.weights.iter().sum();
+                assert!(
+                    tap.weights.iter().all(|w| (0.0..=1.0).contains(w)) && (sum - 1.0).abs() < 1e-5,
+                    "{v:?}: {tap:?}"
+                );
+            }
+        }
+        // The smallest normal length still has a direction: the pole.
+        let pole = mrt_tap(3, Vec3::new(0.0, 0.0, f32::MIN_POSITIVE)).unwrap();
+        assert_eq!(pole.weights, [1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(pole.nodes[0], 4);
+    }
 
     #[test]
     fn hemi_oct_round_trips_and_nodes_cover_the_hemisphere() {
