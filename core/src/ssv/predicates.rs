@@ -71,16 +71,16 @@ pub(crate) fn orient3d_exact(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3])
     let (bx, by, bz) = (diff(b, 0), diff(b, 1), diff(b, 2));
     let (cx, cy, cz) = (diff(c, 0), diff(c, 1), diff(c, 2));
     // det = ax (by cz - bz cy) + ay (bz cx - bx cz) + az (bx cy - by cx)
-    let mut total = Expansion::new();
+    let mut total = Expansion::<TOTAL>::new();
     for (x, (p, q), (r, s)) in [
         (ax, (by, cz), (bz, cy)),
         (ay, (bz, cx), (bx, cz)),
         (az, (bx, cy), (by, cx)),
     ] {
-        let mut minor = Expansion::product(&p, &q);
-        let other = Expansion::product(&r, &s);
+        let mut minor = Expansion::<MINOR>::product(&p, &q);
+        let other = Expansion::<PRODUCT>::product(&r, &s);
         minor.subtract(&other);
-        let term = minor.times(&x);
+        let term = minor.times::<TERM>(&x);
         total.add(&term);
     }
     total.sign()
@@ -119,21 +119,29 @@ fn two_product(a: f64, b: f64) -> (f64, f64) {
     (x, al * bl - e)
 }
 
-/// Capacity of an expansion: the determinant's largest intermediate has
-/// 3 × (2 × 16 + 2 × 16) = 192 components before zero elimination.
-const CAPACITY: usize = 256;
+// Capacities of the determinant's stages, each the most components its inputs
+// can produce (GROW-EXPANSION adds at most one component per value grown in,
+// SCALE-EXPANSION two per component): a product of two two-term differences
+// 2 × 2 × 2 = 8; a minor, a product less another, 16; a minor times a
+// difference 2 × 2 × 16 = 64; the sum of three such terms 192. Sized per stage
+// so that an exact call zeroes about 1.9 KiB of stack, not 10 × 2 KiB.
+const PRODUCT: usize = 8;
+const MINOR: usize = 2 * PRODUCT;
+const TERM: usize = 2 * 2 * MINOR;
+const TOTAL: usize = 3 * TERM;
 
-/// A non-overlapping expansion, components in increasing magnitude, no zeros.
-struct Expansion {
+/// A non-overlapping expansion of at most `C` components, in increasing
+/// magnitude, no zeros.
+struct Expansion<const C: usize> {
     len: usize,
-    terms: [f64; CAPACITY],
+    terms: [f64; C],
 }
 
-impl Expansion {
+impl<const C: usize> Expansion<C> {
     fn new() -> Self {
         Expansion {
             len: 0,
-            terms: [0.0; CAPACITY],
+            terms: [0.0; C],
         }
     }
 
@@ -160,20 +168,20 @@ impl Expansion {
         self.len = out;
     }
 
-    fn add(&mut self, other: &Expansion) {
+    fn add<const D: usize>(&mut self, other: &Expansion<D>) {
         for &t in other.terms() {
             self.grow(t);
         }
     }
 
-    fn subtract(&mut self, other: &Expansion) {
+    fn subtract<const D: usize>(&mut self, other: &Expansion<D>) {
         for &t in other.terms() {
             self.grow(-t);
         }
     }
 
-    /// `self * b` (SCALE-EXPANSION), accumulated into a fresh expansion.
-    fn scaled(terms: &[f64], b: f64, out: &mut Expansion) {
+    /// `self * b` (SCALE-EXPANSION), accumulated into `out`.
+    fn scaled(terms: &[f64], b: f64, out: &mut Self) {
         for &t in terms {
             let (x, y) = two_product(t, b);
             out.grow(y);
@@ -181,18 +189,18 @@ impl Expansion {
         }
     }
 
-    fn product(p: &[f64; 2], q: &[f64; 2]) -> Expansion {
-        let mut out = Expansion::new();
+    fn product(p: &[f64; 2], q: &[f64; 2]) -> Self {
+        let mut out = Self::new();
         for &b in q {
             Self::scaled(p, b, &mut out);
         }
         out
     }
 
-    fn times(&self, q: &[f64; 2]) -> Expansion {
-        let mut out = Expansion::new();
+    fn times<const D: usize>(&self, q: &[f64; 2]) -> Expansion<D> {
+        let mut out = Expansion::<D>::new();
         for &b in q {
-            Self::scaled(self.terms(), b, &mut out);
+            Expansion::<D>::scaled(self.terms(), b, &mut out);
         }
         out
     }
