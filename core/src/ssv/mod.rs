@@ -66,9 +66,10 @@
 //!
 //! ## Structures ([`Structure`])
 //!
-//! All four give the same bits on non-degenerate inputs (the first three share
-//! every exact test and differ only in conservative culling, so they also agree
-//! in every tie the culling cannot reach; tests check them bit for bit):
+//! The first three give the same bits (they share every exact test and differ
+//! only in conservative culling, so they also agree in every tie the culling
+//! cannot reach), and so does the fourth away from segments that graze a
+//! silhouette edge within `f32` rounding; tests check them bit for bit:
 //!
 //! - [`Structure::Hierarchy`] (default): the 2006 structure, an octree over the
 //!   receivers' space whose nodes keep the edges whose wedge and silhouette region
@@ -83,12 +84,27 @@
 //!   is a silhouette, may reach); a query tests its cell's list.
 //! - [`Structure::BruteForce`]: every potential silhouette edge, the obviously
 //!   right twin of the two above.
-//! - [`Structure::RayTrace`]: `N` shadow rays through the caster.
+//! - [`Structure::RayTrace`]: `N` shadow rays through the caster, the answer
+//!   an `f32` ray tracer gives (it can differ from the exact oracle where a
+//!   segment passes within `f32` rounding of a silhouette edge, as Embree's
+//!   rays can).
 //!
 //! The reference ray goes through the caster's `occluded`; an occlusion is then
 //! confirmed hit by hit with the exact segment test, so a receiver exactly on a
 //! surface is not shadowed by that surface through `f32` rounding (the same holds
-//! for [`Structure::RayTrace`]'s rays).
+//! for [`Structure::RayTrace`]'s rays). An `f32` ray is only as exact as its
+//! rounding: near an edge that is a silhouette from the receiver it can miss
+//! a surface the segment grazes, or cross a boundary edge the segment passes
+//! just inside. Near any other edge the two triangles lie on either side of
+//! the segment's plane and the watertight test cannot slip between them. So
+//! the reference sample is chosen among the minimum's samples as one whose
+//! segment keeps more than [`NEAR_ANGLE`] (seen from the receiver, fifty
+//! times the ray's rounding) from every silhouette edge the sweep met and
+//! lies as deep inside the light (so that every edge near its segment is a
+//! candidate of the structure); a hit the exact test refutes away from the
+//! receiver's own plane, or no such sample among the first few, makes the
+//! decision exact instead, over every triangle whose box meets the segment
+//! (rare: linear in the triangles).
 //!
 //! Measured (`cargo bench -p antumbra-core --features bvh --bench ssv`, one
 //! thread of a shared, loaded 2-core VM, N = 256, medians of 5 interleaved
@@ -121,6 +137,7 @@ mod tests;
 
 use alloc::boxed::Box;
 use alloc::vec::Vec;
+use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicUsize, Ordering};
 use glam::{DVec3, Vec3};
 
@@ -162,7 +179,9 @@ pub enum Structure {
     Hemicube = 1,
     /// Every potential silhouette edge (the reference).
     BruteForce = 2,
-    /// `N` shadow rays through the caster (the other reference).
+    /// `N` shadow rays through the caster (the other reference; `f32` rays,
+    /// which can differ from the exact oracle where a segment passes within
+    /// rounding of a silhouette edge).
     RayTrace = 3,
 }
 
@@ -413,6 +432,9 @@ pub struct SoftShadows {
     /// Sample coordinates in angular order (`order`), widened to `f64` once
     /// (exact), structure of arrays for the per-sample loop.
     soa: [Vec<f64>; 3],
+    /// How far inside the light's polygon each sample lies, in its plane
+    /// (negative outside; angular order).
+    insets: Vec<f64>,
     /// Componentwise bounds of the samples (exact `f64` of `f32`).
     sample_lo: DVec3,
     sample_hi: DVec3,
@@ -554,6 +576,17 @@ impl SoftShadows {
             .map(|k| angles.partition_point(|&t| t < k as f64 / ANGLE_SCALE) as u32)
             .collect();
         let order: Vec<u32> = keyed.iter().map(|k| k.1).chain(central).collect();
+        let insets = order
+            .iter()
+            .map(|&o| {
+                inset(
+                    &light_uv,
+                    samples[o as usize].as_dvec3() - plane_point,
+                    u_axis,
+                    v_axis,
+                )
+            })
+            .collect();
         let soa = [0, 1, 2].map(|axis| {
             order
                 .iter()
@@ -570,6 +603,7 @@ impl SoftShadows {
         let near_planes = near_light.iter().map(AxisPlane::of).collect();
         let band_planes = band.iter().map(AxisPlane::of).collect();
         let mut this = SoftShadows {
+            insets,
             soa,
             near_sides,
             band_sides,
@@ -766,7 +800,8 @@ impl SoftShadows {
         if self.structure == Structure::RayTrace {
             for (i, &s) in self.samples.iter().enumerate() {
                 info.rays += 1;
-                if !self.reference_blocked(p, s) && !self.near_blocked(p, s) {
+                let blocked = self.reference_blocked(p, s, false).unwrap_or(true);
+                if !blocked && !self.near_blocked(p, s) {
                     bits[i / 64] |= 1 << (i % 64);
                     info.visible += 1;
                 }
@@ -775,13 +810,11 @@ impl SoftShadows {
         }
         let mut counters = [0i32; MAX_SAMPLES];
         let counters = &mut counters[..n];
-        self.sweep(p, counters, &mut info);
-        // The least counter, then its first sample (the same sample as a
-        // first-minimum scan): two simple passes the compiler vectorises.
+        let mut silhouettes = Silhouettes::new();
+        self.sweep(p, counters, &mut info, &mut silhouettes);
         let min = counters.iter().copied().min().expect("at least one sample");
-        let min_index = counters.iter().position(|&r| r == min).unwrap_or(0);
         info.rays = 1;
-        if self.reference_blocked(p, self.samples[self.order[min_index] as usize]) {
+        if self.minimum_blocked(p, counters, min, &silhouettes) {
             return Ok(info);
         }
         // Counters are in angular order; bits in the caller's order. Then the
@@ -806,18 +839,28 @@ impl SoftShadows {
     /// The relative depth complexity `R(s)` of every sample, in angular order
     /// (`counters[k]` belongs to sample `order[k]`), from the structure's
     /// candidates (every potential edge for [`Structure::RayTrace`]).
-    fn sweep(&self, p: Vec3, counters: &mut [i32], info: &mut QueryInfo) {
-        self.sweep_with(Kernel::new(self, p), counters, info);
+    /// Also records the silhouette edges the sweep meets in `silhouettes`.
+    fn sweep(
+        &self,
+        p: Vec3,
+        counters: &mut [i32],
+        info: &mut QueryInfo,
+        silhouettes: &mut Silhouettes,
+    ) {
+        self.sweep_with(Kernel::new(self, p, silhouettes), counters, info);
     }
 
     fn sweep_with(&self, mut kernel: Kernel<'_>, counters: &mut [i32], info: &mut QueryInfo) {
-        let p = kernel.p;
-        let mut visit = |e: u32| {
+        self.for_each_candidate(kernel.p, |e: u32| {
             info.candidates += 1;
             if kernel.add_edge(self, e, counters) {
                 info.silhouettes += 1;
             }
-        };
+        });
+    }
+
+    /// The structure's candidate edges for receiver `p`.
+    fn for_each_candidate(&self, p: Vec3, mut visit: impl FnMut(u32)) {
         match (&self.hierarchy, &self.hemicube) {
             (Some(h), _) => {
                 h.for_each_candidate(&self.graph, &self.shape, p.as_dvec3(), &mut visit)
@@ -825,6 +868,17 @@ impl SoftShadows {
             (_, Some(c)) => c.for_each_candidate(p.as_dvec3(), &mut visit),
             _ => self.potential.iter().for_each(|&e| visit(e)),
         }
+    }
+
+    /// The silhouette weight of edge `e` at `p` (exact signs, as the sweep
+    /// takes them).
+    fn silhouette_weight(&self, p: Vec3, e: u32) -> i32 {
+        let edge = &self.graph.edges[e as usize];
+        let [a, b] = [edge.a, edge.b].map(|v| self.graph.positions[v as usize]);
+        let thirds = self.graph.third_of(edge).iter();
+        thirds
+            .map(|&v| orient3d(a, b, self.graph.positions[v as usize], p))
+            .sum()
     }
 
     /// The depth complexity of every sample relative to the least:
@@ -858,7 +912,8 @@ impl SoftShadows {
         } else {
             let mut counters = [0i32; MAX_SAMPLES];
             let counters = &mut counters[..n];
-            self.sweep(p, counters, &mut QueryInfo::default());
+            let mut silhouettes = Silhouettes::new();
+            self.sweep(p, counters, &mut QueryInfo::default(), &mut silhouettes);
             for (k, &r) in counters.iter().enumerate() {
                 let i = self.order[k] as usize;
                 out[i] = r + count(&self.near_light, self.samples[i]);
@@ -949,30 +1004,136 @@ impl SoftShadows {
         (sum * f64::from(self.light.area()) / self.samples.len() as f64) as f32
     }
 
+    /// Whether the samples of least relative depth complexity `min` (in
+    /// `counters`, angular order) are blocked: exactly when the segment to any
+    /// one of them meets a triangle (they share the depth complexity).
+    ///
+    /// An `f32` ray decides it when the segment keeps clear of every
+    /// silhouette edge the sweep met ([`Self::reference_sample`]): then the
+    /// ray, within a few units of `f32` rounding of the segment, meets the
+    /// surfaces the segment meets. Near an edge that is not a silhouette from
+    /// `p` the two triangles are on either side of the segment's plane and
+    /// the watertight test cannot slip between them; near a silhouette edge
+    /// it can (the segment grazing a surface that the ray misses, or a
+    /// boundary edge). Without such a sample among the first tries, or when a
+    /// hit away from the receiver's own plane is refuted, the decision is
+    /// exact ([`Self::exactly_blocked`]).
+    fn minimum_blocked(
+        &self,
+        p: Vec3,
+        counters: &[i32],
+        min: i32,
+        silhouettes: &Silhouettes,
+    ) -> bool {
+        let candidates = counters
+            .iter()
+            .enumerate()
+            .filter(|&(_, &r)| r == min)
+            .map(|(k, _)| k);
+        let first =
+            self.samples[self.order[counters.iter().position(|&r| r == min).unwrap_or(0)] as usize];
+        match self.reference_sample(p, candidates, silhouettes) {
+            Some(s) => self
+                .reference_blocked(p, s, true)
+                .unwrap_or_else(|| self.exactly_blocked(p, s)),
+            None => self.exactly_blocked(p, first),
+        }
+    }
+
+    /// The first of the first [`REFERENCE_TRIES`] `candidates` (angular
+    /// indices) whose segment from `p` stays more than [`NEAR_ANGLE`] (seen
+    /// from `p`) from every silhouette edge at `p`: the recorded ones, or
+    /// when the record overflowed the structure's candidates again. The sample
+    /// must also lie that far inside the light (projected from `p`), so that
+    /// an edge near its segment overlaps the light and is a candidate of every
+    /// structure (their culling keeps every edge whose projection overlaps
+    /// the light). `None` if no candidate qualifies.
+    fn reference_sample(
+        &self,
+        p: Vec3,
+        candidates: impl Iterator<Item = usize>,
+        silhouettes: &Silhouettes,
+    ) -> Option<Vec3> {
+        let pw = p.as_dvec3();
+        // Height of p over the light's plane: a direction off by an angle α
+        // meets the plane α |s'|² / h from s.
+        let height = (self.plane_point - pw).dot(self.plane_normal).abs();
+        let near = |sw: DVec3, e: u32| {
+            let edge = &self.graph.edges[e as usize];
+            let [a, b] = [edge.a, edge.b].map(|v| self.graph.positions[v as usize].as_dvec3() - pw);
+            direction_near_edge(sw, a, b)
+        };
+        let chosen = candidates.take(REFERENCE_TRIES).find(|&k| {
+            let s = self.samples[self.order[k] as usize];
+            let sw = s.as_dvec3() - pw;
+            let deep_inside = self.insets[k] > 4.0 * NEAR_ANGLE * sw.length_squared() / height;
+            if !deep_inside {
+                return false;
+            }
+            if silhouettes.overflow {
+                // Every silhouette again, from the structure's candidates:
+                // the cheap test of the direction first.
+                let mut clear = true;
+                self.for_each_candidate(p, |e| {
+                    clear &= !(near(sw, e) && self.silhouette_weight(p, e) != 0);
+                });
+                return clear;
+            }
+            // The f32 unit normals are within 1e-7 of the exact ones: the
+            // prefilter's bound allows for it.
+            let bound = (NEAR_ANGLE + 1e-6) * sw.length();
+            silhouettes
+                .recorded()
+                .all(|(e, n)| n.as_dvec3().dot(sw).abs() > bound || !near(sw, e))
+        });
+        chosen.map(|k| self.samples[self.order[k] as usize])
+    }
+
     /// The reference ray over the open segment `p → s`, through the caster.
     ///
-    /// The `f32` watertight test does not miss a triangle the segment crosses,
-    /// but it may report one the segment only touches at `p` (a receiver on a
-    /// surface: the triangle's plane holds `p` and rounding puts the hit at
-    /// `t ≈ 1e-17`). So an occlusion is confirmed: the nearest hit is re-checked
-    /// with the exact segment test, and if refuted the search goes on beyond it.
-    fn reference_blocked(&self, p: Vec3, s: Vec3) -> bool {
+    /// The `f32` watertight test may report a triangle the segment only touches
+    /// at `p` (a receiver on a surface: the triangle's plane holds `p` and
+    /// rounding puts the hit at `t ≈ 1e-17`). So an occlusion is confirmed: the
+    /// nearest hit is re-checked with the exact segment test, and if refuted
+    /// the search goes on beyond it. With `certified`, a refuted hit whose
+    /// plane does not hold `p` returns `None` instead: the ray then passes
+    /// within rounding of that triangle's edge, where it may also have skipped
+    /// the neighbour the segment does cross.
+    fn reference_blocked(&self, p: Vec3, s: Vec3, certified: bool) -> Option<bool> {
         let mut ray = Ray::new(p, s - p, 1.0);
         if !self.caster.occluded(&ray) {
-            return false;
+            return Some(false);
         }
         for _ in 0..MAX_REFUTED_HITS {
             let Some((t, triangle)) = self.caster.closest_hit(&ray) else {
-                return false;
+                return Some(false);
             };
             let [a, b, c] =
                 self.graph.triangles[triangle].map(|v| self.graph.positions[v as usize]);
             if segment_meets_triangle(p, s, a, b, c) || t <= ray.t_min || t.is_nan() {
-                return true;
+                return Some(true);
+            }
+            if certified && orient3d(a, b, c, p) != 0 {
+                return None;
             }
             ray.t_min = t;
         }
-        true
+        Some(true)
+    }
+
+    /// Whether the open segment `p → s` meets an occluder triangle, exactly
+    /// ([`segment_meets_triangle`] on every triangle whose box meets the
+    /// segment's): linear in the triangles, for the rare references
+    /// [`Self::minimum_blocked`] cannot leave to a ray.
+    #[cold]
+    #[inline(never)]
+    fn exactly_blocked(&self, p: Vec3, s: Vec3) -> bool {
+        let (lo, hi) = (p.min(s), p.max(s));
+        self.graph.triangles.iter().any(|t| {
+            let [a, b, c] = t.map(|v| self.graph.positions[v as usize]);
+            let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
+            tlo.cmple(hi).all() && thi.cmpge(lo).all() && segment_meets_triangle(p, s, a, b, c)
+        })
     }
 
     /// Clears in `bits` every sample `s` for which one of `triangles` meets the
@@ -1111,6 +1272,9 @@ struct Kernel<'a> {
     cp: DVec3,
     /// Light vertices relative to the receiver (quick rejection).
     lights: [DVec3; MAX_LIGHT_VERTICES],
+    /// Their lengths, scaled by `2 NEAR_ANGLE`: how far (seen from p) the
+    /// plane of a recorded silhouette may pass beside the light.
+    light_near: [f64; MAX_LIGHT_VERTICES],
     light_count: usize,
     /// The receiver's side of the light plane as a direction: the sweep happens
     /// in front of p along it.
@@ -1128,6 +1292,73 @@ struct Kernel<'a> {
     slow: bool,
     /// Tests only: samples the fast pass left unsure so far.
     unsure: u32,
+    /// Where the silhouette edges met are recorded (for the choice of the
+    /// reference sample).
+    silhouettes: &'a mut Silhouettes,
+}
+
+/// Most silhouette edges a query records for [`SoftShadows::reference_sample`];
+/// past this every reference decision is exact ([`SoftShadows::exactly_blocked`]).
+const RECORDED_SILHOUETTES: usize = 512;
+
+/// Angle (as a sine) within which a reference segment counts as near a
+/// silhouette edge, as seen from the receiver. The `f32` ray departs from the
+/// exact segment by a few units of `f32` rounding in angle (the rounded
+/// direction, the corners moved to the origin and sheared, the edge functions'
+/// own rounding: about `20 ε₃₂ ≈ 1.2e-6` in all), so beyond this the ray crosses
+/// each silhouette edge on the same side as the segment, with a factor of fifty
+/// to spare.
+const NEAR_ANGLE: f64 = 1.0 / 16384.0;
+
+/// Reference candidates tried before a query decides its reference exactly.
+const REFERENCE_TRIES: usize = 8;
+
+/// The silhouette edges of one receiver whose plane through it comes within
+/// [`NEAR_ANGLE`] of the light (the edges near which an `f32` ray can cross
+/// differently from the exact segment), each with that plane's unit normal.
+///
+/// The slots are left uninitialised until recorded: a query makes one of
+/// these 8 KiB records, and writing it whole would cost as much as the bunny's
+/// reference ray.
+struct Silhouettes {
+    /// Edge and unit `a' × b'` (rounded to `f32`: the test that reads it
+    /// allows for that); the first `len` are written.
+    slots: [MaybeUninit<(u32, [f32; 3])>; RECORDED_SILHOUETTES],
+    len: usize,
+    /// More edges were met than fit.
+    overflow: bool,
+}
+
+impl Silhouettes {
+    fn new() -> Self {
+        Silhouettes {
+            slots: [const { MaybeUninit::uninit() }; RECORDED_SILHOUETTES],
+            len: 0,
+            overflow: false,
+        }
+    }
+
+    fn record(&mut self, edge: u32, unit_normal: DVec3) {
+        match self.slots.get_mut(self.len) {
+            Some(slot) => {
+                slot.write((edge, unit_normal.as_vec3().to_array()));
+                self.len += 1;
+            }
+            None => self.overflow = true,
+        }
+    }
+
+    /// The recorded edges and normals.
+    fn recorded(&self) -> impl Iterator<Item = (u32, Vec3)> + '_ {
+        self.slots[..self.len].iter().map(|slot| {
+            #[allow(unsafe_code)]
+            // SAFETY: `record` writes slot `len` before it increments `len`,
+            // and nothing else changes either, so every slot below `len` holds
+            // a written value (a plain `Copy` tuple).
+            let (edge, normal) = unsafe { slot.assume_init() };
+            (edge, Vec3::from_array(normal))
+        })
+    }
 }
 
 #[inline]
@@ -1136,7 +1367,7 @@ fn wide(v: Vec3) -> [f64; 3] {
 }
 
 impl<'a> Kernel<'a> {
-    fn new(ss: &'a SoftShadows, p: Vec3) -> Self {
+    fn new(ss: &'a SoftShadows, p: Vec3, silhouettes: &'a mut Silhouettes) -> Self {
         let pw = p.as_dvec3();
         // Rounding is monotone, so the largest |fl(s - p)| over the samples is
         // reached at the samples' componentwise bounds: the same value as the
@@ -1151,6 +1382,7 @@ impl<'a> Kernel<'a> {
             smax,
             cp: ss.centroid.as_dvec3() - pw,
             lights: [DVec3::ZERO; MAX_LIGHT_VERTICES],
+            light_near: [0.0; MAX_LIGHT_VERTICES],
             light_count: ss.shape.vertices.len(),
             toward: ss.plane_normal * (ss.plane_point - pw).dot(ss.plane_normal).signum(),
             hc: 0.0,
@@ -1158,6 +1390,7 @@ impl<'a> Kernel<'a> {
             shift_margin: None,
             slow: false,
             unsure: 0,
+            silhouettes,
         };
         k.hc = k.cp.dot(k.toward);
         k.cp_length = k.cp.length();
@@ -1172,6 +1405,7 @@ impl<'a> Kernel<'a> {
         }
         for (i, v) in ss.shape.vertices.iter().enumerate() {
             k.lights[i] = *v - pw;
+            k.light_near[i] = 2.0 * NEAR_ANGLE * k.lights[i].length();
         }
         k
     }
@@ -1215,14 +1449,25 @@ impl<'a> Kernel<'a> {
             (aw.z * bw.x).abs() + (aw.x * bw.z).abs(),
             (aw.x * bw.y).abs() + (aw.y * bw.x).abs(),
         );
-        // The plane (p, a, b) must cut the light (grown by its tolerance).
-        let reach = nrm.length() * ss.shape.tolerance * 2.0;
+        let nrm_length = nrm.length();
+        // The plane (p, a, b) must cut the light (grown by its tolerance) for
+        // the edge to change a counter, and come within [`NEAR_ANGLE`] of it
+        // (seen from p) for a reference segment to pass near the edge.
+        let reach = nrm_length * ss.shape.tolerance * 2.0;
         let (mut above, mut below) = (false, false);
-        for l in &self.lights[..self.light_count] {
+        let (mut near_above, mut near_below) = (false, false);
+        let lights = self.lights[..self.light_count].iter();
+        for (l, near) in lights.zip(&self.light_near) {
             let d = nrm.dot(*l);
             let err = ORIENT_BOUND * nperm.dot(l.abs()) + reach;
             above |= d > -err;
             below |= d < err;
+            let near = err + near * nrm_length;
+            near_above |= d > -near;
+            near_below |= d < near;
+        }
+        if near_above && near_below {
+            self.silhouettes.record(e, nrm / nrm_length);
         }
         if !(above && below) {
             return true;
@@ -1553,6 +1798,54 @@ impl EdgePlanes {
         let reject = (sg < -err_n) | (og < -err_o) | (a_pos & b_pos) | (a_neg & b_neg);
         (hit, reject)
     }
+}
+
+/// How far the point `d` (relative to the light's centroid) lies inside the
+/// convex polygon `uv` (the light's vertices in the plane's `(u, v)`
+/// coordinates), measured in the plane: the least distance to an edge's line,
+/// negative outside.
+fn inset(uv: &[(f64, f64)], d: DVec3, u_axis: DVec3, v_axis: DVec3) -> f64 {
+    let (x, y) = (d.dot(u_axis), d.dot(v_axis));
+    let area: f64 = (0..uv.len())
+        .map(|i| {
+            let ((x0, y0), (x1, y1)) = (uv[i], uv[(i + 1) % uv.len()]);
+            x0 * y1 - x1 * y0
+        })
+        .sum();
+    let orientation = if area < 0.0 { -1.0 } else { 1.0 };
+    (0..uv.len())
+        .map(|i| {
+            let ((x0, y0), (x1, y1)) = (uv[i], uv[(i + 1) % uv.len()]);
+            let (ex, ey) = (x1 - x0, y1 - y0);
+            orientation * (ex * (y - y0) - ey * (x - x0)) / libm::hypot(ex, ey)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Whether the direction `s` (from the receiver) is within [`NEAR_ANGLE`] of
+/// the edge from `a` to `b` (relative to the receiver) as seen from the
+/// receiver: within that angle of the plane through the receiver and the edge,
+/// and, in that plane, within that angle of the arc of directions from `a` to
+/// `b` (a superset of the directions within that angle of the edge's points).
+/// An edge seen end-on (its plane undefined) is near a direction near either
+/// endpoint. `f64` from `f32` coordinates: far more precise than the angle.
+fn direction_near_edge(s: DVec3, a: DVec3, b: DVec3) -> bool {
+    let n = a.cross(b);
+    let (ls, la, lb, ln) = (s.length(), a.length(), b.length(), n.length());
+    let near_endpoint =
+        |e: DVec3, le: f64| e.cross(s).length() <= NEAR_ANGLE * le * ls && e.dot(s) > 0.0;
+    if ln <= 1e-9 * la * lb {
+        return near_endpoint(a, la) || near_endpoint(b, lb);
+    }
+    if n.dot(s).abs() > NEAR_ANGLE * ln * ls {
+        return false;
+    }
+    // In the plane, `a → b` turns counter-clockwise about `n` through less
+    // than a half turn: `s` is inside the arc when it is on the inner side of
+    // both ends, allowing the angle.
+    let inside_a = a.cross(s).dot(n) >= -NEAR_ANGLE * la * ls * ln;
+    let inside_b = s.cross(b).dot(n) >= -NEAR_ANGLE * ls * lb * ln;
+    (inside_a && inside_b) || near_endpoint(a, la) || near_endpoint(b, lb)
 }
 
 /// A cheap angle substitute, monotone in the angle of `(x, y)` about the origin,

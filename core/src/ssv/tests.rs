@@ -800,7 +800,8 @@ fn hemicube_lists_every_relevant_edge() {
                 in_list.fill(false);
                 cube.for_each_candidate(p.as_dvec3(), |c| in_list[c as usize] = true);
                 listed += in_list.iter().filter(|&&x| x).count();
-                let mut kernel = Kernel::new(&ss, p);
+                let mut silhouettes = Silhouettes::new();
+                let mut kernel = Kernel::new(&ss, p, &mut silhouettes);
                 let mut counters = vec![0i32; samples.len()];
                 for &e in &ss.potential {
                     if !in_list[e as usize] {
@@ -871,12 +872,14 @@ fn branch_free_sample_pass_equals_the_per_sample_test() {
     for p in receivers {
         let (mut fast, mut slow) = (vec![0i32; n], vec![0i32; n]);
         let mut info = QueryInfo::default();
-        let mut k = Kernel::new(&ss, p);
+        let mut silhouettes = Silhouettes::new();
+        let mut k = Kernel::new(&ss, p, &mut silhouettes);
         for &e in &ss.potential {
             k.add_edge(&ss, e, &mut fast);
         }
         unsure += k.unsure;
-        let mut k = Kernel::new(&ss, p);
+        let mut silhouettes = Silhouettes::new();
+        let mut k = Kernel::new(&ss, p, &mut silhouettes);
         k.slow = true;
         ss.sweep_with(k, &mut slow, &mut info);
         assert_eq!(fast, slow, "receiver {p:?}");
@@ -1058,5 +1061,117 @@ proptest! {
         for &t in &angles[exact_last..last] {
             prop_assert_eq!(bucket(t), bucket(hi));
         }
+    }
+}
+
+/// Segments that pass within `f32` rounding of an edge (and through no edge or
+/// vertex exactly): the reference ray is an `f32` ray, which near a silhouette
+/// edge can miss a triangle the segment crosses (or the reverse), so the
+/// reference sample must be one whose segment keeps clear of the silhouettes,
+/// or the decision exact. Lone triangles (every edge a boundary, so a
+/// silhouette) and a closed box grazed along its edges, one sample each (the
+/// reference decides the whole answer), and 16 samples with one of them grazing.
+#[test]
+fn segments_grazing_an_edge_match_the_exact_oracle() {
+    let light = quad_light(Vec3::new(0.0, 0.0, 2.0), 1.0);
+    let mut rng = SplitMix64::new(77);
+    let mut uniform = |lo: f32, hi: f32| lo + (hi - lo) * rng.next_f32();
+    let (mut cases, mut ray_wrong) = (0, 0);
+    for case in 0..600 {
+        let closed = case % 3 == 2;
+        let mut soup = Soup::default();
+        let tri = if closed {
+            let c = cube(
+                Vec3::new(uniform(-0.3, 0.3), uniform(-0.3, 0.3), 1.2),
+                uniform(0.1, 0.3),
+            );
+            soup.append(&c);
+            c.triangles()[(uniform(0.0, 11.99)) as usize]
+        } else {
+            let t = [0, 1, 2]
+                .map(|_| Vec3::new(uniform(-0.6, 0.6), uniform(-0.6, 0.6), uniform(1.0, 1.5)));
+            soup.push(t);
+            t
+        };
+        let p = Vec3::new(uniform(-0.5, 0.5), uniform(-0.5, 0.5), uniform(-0.5, 0.0));
+        // A point on an edge, nudged by about one f32 unit, seen from p and
+        // carried to the light's plane.
+        let e = (uniform(0.0, 2.99)) as usize;
+        let (a, b) = (tri[e], tri[(e + 1) % 3]);
+        let on_edge = a + (b - a) * uniform(0.05, 0.95);
+        let nudge = Vec3::new(uniform(-1.0, 1.0), uniform(-1.0, 1.0), uniform(-1.0, 1.0)) * 3e-7;
+        let x = on_edge + nudge;
+        let s = p + (x - p) * ((2.0 - p.z) / (x.z - p.z));
+        let s = Vec3::new(s.x, s.y, 2.0);
+        if s.x.abs() >= 1.0 || s.y.abs() >= 1.0 {
+            continue;
+        }
+        let tris = soup.triangles();
+        // Non-degenerate: the segment passes exactly through no edge or vertex.
+        let exactly_on_an_edge = tris.iter().any(|&[a, b, c]| {
+            [(a, b), (b, c), (c, a)]
+                .iter()
+                .any(|&(u, v)| orient3d(p, s, u, v) == 0)
+        });
+        if exactly_on_an_edge {
+            continue;
+        }
+        let mut samples = vec![s];
+        if case % 2 == 1 {
+            samples.extend(light.samples(15, SamplePattern::Jittered, case));
+        }
+        let expected = oracle(&tris, p, &samples);
+        for structure in [
+            Structure::Hierarchy,
+            Structure::Hemicube,
+            Structure::BruteForce,
+        ] {
+            let ss = build(&soup, &light, &samples, structure);
+            let mut bits = vec![0u64; ss.words_per_receiver()];
+            ss.query(p, &mut bits).unwrap();
+            assert_eq!(
+                bits, expected,
+                "case {case}, {structure:?}: p {p:?}, s {s:?}"
+            );
+        }
+        // How often the plain f32 ray gets the grazing sample wrong: the
+        // test reaches the cases it is about.
+        let rays = build(&soup, &light, &[s], Structure::RayTrace);
+        let mut bits = [0u64];
+        rays.query(p, &mut bits).unwrap();
+        ray_wrong += usize::from(bits[0] != oracle(&tris, p, &[s])[0]);
+        cases += 1;
+    }
+    assert!(cases > 300, "{cases} cases");
+    assert!(
+        ray_wrong >= 5,
+        "the f32 ray was wrong in only {ray_wrong} of {cases} cases"
+    );
+}
+
+/// The reproducer of the grazing bug: a lone triangle whose edge passes within
+/// rounding of the segment, blocked exactly and missed by the `f32` ray.
+#[test]
+fn a_segment_just_inside_a_boundary_edge_is_blocked() {
+    let p = Vec3::new(0.15151036, 0.2620139, -0.17061268);
+    let s = Vec3::new(-0.034059882, -0.21629325, 2.0);
+    let (a, b, c) = (
+        Vec3::new(-0.15460931, -0.11188279, 1.3279531),
+        Vec3::new(0.3832815, 0.018400433, 1.336507),
+        Vec3::new(0.65337294, 0.7792056, 1.3009845),
+    );
+    assert!(orient3d(p, s, a, b) != 0 && orient3d(p, s, b, c) != 0 && orient3d(p, s, c, a) != 0);
+    assert!(segment_meets_triangle(p, s, a, b, c));
+    let mut soup = Soup::default();
+    soup.push([a, b, c]);
+    let light = quad_light(Vec3::new(0.0, 0.0, 2.0), 1.0);
+    for structure in [
+        Structure::Hierarchy,
+        Structure::Hemicube,
+        Structure::BruteForce,
+    ] {
+        let ss = build(&soup, &light, &[s], structure);
+        let mut bits = [0u64];
+        assert_eq!(ss.query(p, &mut bits).unwrap(), 0, "{structure:?}");
     }
 }
