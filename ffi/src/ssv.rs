@@ -754,7 +754,13 @@ pub unsafe extern "C" fn antumbra_ssv_generate_samples(
         // SAFETY: caller contract: valid for `3 * sample_count` floats, no overlap.
         let out = unsafe { raw::slice_mut(samples, 3 * sample_count, "samples") }?;
         let generated = light.samples(sample_count, pattern, seed);
-        debug_assert_eq!(generated.len(), sample_count);
+        if generated.len() != sample_count {
+            // Not expected (core apportions every sample); never a partly written buffer.
+            return Err(Error::invalid(format!(
+                "light_vertices: the light gave {} samples for sample_count {sample_count}",
+                generated.len()
+            )));
+        }
         for (slot, s) in out.chunks_exact_mut(3).zip(&generated) {
             slot.copy_from_slice(&s.to_array());
         }
@@ -769,6 +775,30 @@ mod tests {
     const QUAD: [f32; 12] = [
         -0.5, -0.5, 2.0, 0.5, -0.5, 2.0, 0.5, 0.5, 2.0, -0.5, 0.5, 2.0,
     ];
+
+    /// A thin light (accepted, within the coordinate range) once made core
+    /// return 2 of 16 samples: a debug build panicked, a release build would
+    /// have returned OK with most of the buffer unwritten.
+    #[test]
+    fn generate_samples_of_a_thin_light_writes_every_sample() {
+        let thin: [f32; 12] = [
+            0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1e-24, 0.0, 0.0, 1e-24, 0.0,
+        ];
+        let mut samples = vec![f32::NAN; 3 * 16];
+        // SAFETY: 4 vertices and 16 samples' worth of floats.
+        let r = unsafe {
+            antumbra_ssv_generate_samples(
+                thin.as_ptr(),
+                4,
+                16,
+                ANTUMBRA_SSV_SAMPLES_STRATIFIED,
+                1,
+                samples.as_mut_ptr(),
+            )
+        };
+        assert_eq!(r, ANTUMBRA_RESULT_OK);
+        assert!(samples.iter().all(|x| x.is_finite()), "{samples:?}");
+    }
 
     /// The C defaults are written out for the header's docs; they must be core's.
     #[test]

@@ -223,25 +223,35 @@ impl LightPolygon {
     pub fn samples(&self, count: usize, pattern: SamplePattern, seed: u64) -> Vec<Vec3> {
         let mut rng = SplitMix64::new(seed);
         let v = &self.vertices;
+        // Areas in f64: in f32 the squared length of a thin or tiny light's
+        // cross products underflows to zero (the polygon was accepted in f64).
         let fan: Vec<(Vec3, Vec3, Vec3, f64)> = (1..v.len() - 1)
             .map(|i| {
-                let area = f64::from((v[i] - v[0]).cross(v[i + 1] - v[0]).length());
-                (v[0], v[i], v[i + 1], area)
+                let (a, b, c) = (v[0].as_dvec3(), v[i].as_dvec3(), v[i + 1].as_dvec3());
+                (v[0], v[i], v[i + 1], (b - a).cross(c - a).length())
             })
             .collect();
         let total: f64 = fan.iter().map(|t| t.3).sum();
+        // Equal shares if even f64 cannot weigh the triangles.
+        let weight = |area: f64| {
+            if total > 0.0 && total.is_finite() {
+                area / total
+            } else {
+                1.0 / fan.len() as f64
+            }
+        };
         // Largest-remainder apportionment of `count` among the fan triangles.
         let mut shares: Vec<(usize, f64)> = fan
             .iter()
             .map(|t| {
-                let exact = count as f64 * t.3 / total;
+                let exact = count as f64 * weight(t.3);
                 (exact as usize, exact - libm::floor(exact))
             })
             .collect();
         let assigned: usize = shares.iter().map(|s| s.0).sum();
         let mut order: Vec<usize> = (0..shares.len()).collect();
         order.sort_by(|&i, &j| shares[j].1.total_cmp(&shares[i].1).then(i.cmp(&j)));
-        for &i in order.iter().take(count - assigned) {
+        for &i in order.iter().cycle().take(count.saturating_sub(assigned)) {
             shares[i].0 += 1;
         }
         let mut out = Vec::with_capacity(count);
@@ -291,6 +301,36 @@ pub use crate::rng::SplitMix64;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn thin_and_tiny_lights_get_every_sample() {
+        // Accepted in f64, but in f32 their fan triangles' squared cross
+        // products underflow: every share came out NaN and each triangle got
+        // one sample, two of sixteen.
+        let thin = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1e-24, 0.0),
+            Vec3::new(0.0, 1e-24, 0.0),
+        ];
+        let h = 1e-12;
+        let tiny = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(h, 0.0, 0.0),
+            Vec3::new(h, h, 0.0),
+            Vec3::new(0.0, h, 0.0),
+        ];
+        for polygon in [thin, tiny] {
+            let light = LightPolygon::new(&polygon).expect("a valid light");
+            for pattern in [SamplePattern::Stratified, SamplePattern::Jittered] {
+                for count in [1, 16, 257] {
+                    let samples = light.samples(count, pattern, 1);
+                    assert_eq!(samples.len(), count, "{polygon:?} {pattern:?}");
+                    light.validate_samples(&samples).unwrap();
+                }
+            }
+        }
+    }
 
     fn quad() -> LightPolygon {
         LightPolygon::new(&[

@@ -989,6 +989,7 @@ impl SoftShadows {
     /// receiver's unit normal `n` and the light's normal `n_L` (two-sided light).
     pub fn irradiance(&self, p: Vec3, normal: Vec3, bits: &[u64]) -> f32 {
         let light_normal = self.light.normal();
+        let mut any_visible = false;
         let mut sum = 0.0f64;
         for (i, &s) in self.samples.iter().enumerate() {
             if bits.get(i / 64).is_some_and(|w| w >> (i % 64) & 1 == 1) {
@@ -998,8 +999,14 @@ impl SoftShadows {
                     let cos_p = normal.as_dvec3().dot(d).max(0.0);
                     let cos_l = light_normal.as_dvec3().dot(d).abs();
                     sum += cos_p * cos_l / (r2 * r2);
+                    any_visible = true;
                 }
             }
+        }
+        if !any_visible || sum == 0.0 {
+            // No light arrives (and a light whose area overflows f32 would
+            // make it 0 · ∞).
+            return 0.0;
         }
         (sum * f64::from(self.light.area()) / self.samples.len() as f64) as f32
     }

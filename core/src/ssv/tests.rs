@@ -1175,3 +1175,27 @@ fn a_segment_just_inside_a_boundary_edge_is_blocked() {
         assert_eq!(ss.query(p, &mut bits).unwrap(), 0, "{structure:?}");
     }
 }
+
+/// A light whose area overflows `f32` gave NaN irradiance (0 · ∞) at a receiver
+/// that sees none of its samples.
+#[test]
+fn irradiance_of_an_unlit_receiver_is_zero_for_any_light() {
+    let h = 2e19f32;
+    let light = LightPolygon::new(&[
+        Vec3::new(-h, -h, 10.0),
+        Vec3::new(h, -h, 10.0),
+        Vec3::new(h, h, 10.0),
+        Vec3::new(-h, h, 10.0),
+    ])
+    .unwrap();
+    assert!(light.area().is_infinite());
+    let soup = Soup::default();
+    let ss = build(
+        &soup,
+        &light,
+        &[Vec3::new(0.0, 0.0, 10.0)],
+        Structure::Hierarchy,
+    );
+    assert_eq!(ss.irradiance(Vec3::ZERO, Vec3::Z, &[0]), 0.0);
+    assert!(ss.irradiance(Vec3::ZERO, Vec3::Z, &[1]) > 0.0);
+}
