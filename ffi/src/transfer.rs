@@ -480,7 +480,7 @@ fn bake_error(error: BakeError) -> Error {
         BakeError::RayOffset(_) => "options->ray_offset",
         BakeError::Grid(_) => "options->grid",
         BakeError::NormalCount { .. } | BakeError::Normal { .. } => "normals",
-        BakeError::TooManyVertices(_) => "mesh->vertex_count",
+        BakeError::TooManyVertices(_) | BakeError::NoVertices => "mesh->vertex_count",
         BakeError::BrdfNotFinite => "options->brdf_params",
     };
     Error::invalid(format!("{field}: {error}"))

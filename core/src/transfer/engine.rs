@@ -81,6 +81,9 @@ fn validate(
     if mesh.vertex_count() > u32::MAX as usize {
         return Err(BakeError::TooManyVertices(mesh.vertex_count()));
     }
+    if mesh.vertex_count() == 0 {
+        return Err(BakeError::NoVertices);
+    }
     for (index, n) in normals.iter().enumerate() {
         if !unit_normal(*n) {
             return Err(BakeError::Normal { index });

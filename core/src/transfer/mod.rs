@@ -325,6 +325,8 @@ pub enum BakeError {
     },
     /// More vertices than a file can address.
     TooManyVertices(usize),
+    /// The mesh has no vertex (nothing to bake; a bake file holds at least one).
+    NoVertices,
     /// The MRT BRDF's kernel gave a non-finite value, so its node matrix is not
     /// finite.
     BrdfNotFinite,
@@ -346,6 +348,7 @@ impl fmt::Display for BakeError {
                 write!(f, "normals[{index}] is not a finite unit vector")
             }
             BakeError::TooManyVertices(n) => write!(f, "{n} vertices is more than 2^32 - 1"),
+            BakeError::NoVertices => f.write_str("the mesh has no vertices"),
             BakeError::BrdfNotFinite => f.write_str("brdf.kernel returned a non-finite value"),
         }
     }

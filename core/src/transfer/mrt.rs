@@ -165,10 +165,8 @@ pub struct MrtTap {
 }
 
 /// The square coordinates `(a, b) ∈ [-1, 1]²` of a local direction with `z ≥ 0`
-/// (below the horizon, `z` is taken as 0); any length (the map is
-/// scale-invariant). `None` for a zero or non-finite vector, one whose
-/// `|x| + |y| + z` overflows, or one so short that it is below the smallest
-/// normal `f32` (its reciprocal would overflow and the coordinates be NaN).
+/// (below the horizon, `z` is taken as 0); any finite length (the map is
+/// scale-invariant). `None` for a zero or non-finite vector.
 #[inline]
 pub fn hemi_oct_encode(local: Vec3) -> Option<(f32, f32)> {
     // Only instructions on the hot path: `abs`, `max` and `clamp` are core's
@@ -176,11 +174,32 @@ pub fn hemi_oct_encode(local: Vec3) -> Option<(f32, f32)> {
     let z = local.z.max(0.0);
     let sum = local.x.abs() + local.y.abs() + z;
     if !(sum >= f32::MIN_POSITIVE && sum.is_finite()) {
-        return None;
+        return hemi_oct_encode_wide(local);
     }
     let inv = 1.0 / sum;
     let (px, py) = (local.x * inv, local.y * inv);
     Some(((px + py).clamp(-1.0, 1.0), (px - py).clamp(-1.0, 1.0)))
+}
+
+/// [`hemi_oct_encode`] of a vector whose `|x| + |y| + z` overflows `f32` or
+/// falls below its normal range (where `1 / sum` overflows and the coordinates
+/// would be NaN): the same map in `f64`, where neither happens.
+#[cold]
+#[inline(never)]
+fn hemi_oct_encode_wide(local: Vec3) -> Option<(f32, f32)> {
+    if !local.is_finite() {
+        return None;
+    }
+    let d = local.as_dvec3();
+    let sum = d.x.abs() + d.y.abs() + d.z.max(0.0);
+    if sum <= 0.0 {
+        return None;
+    }
+    let (px, py) = (d.x / sum, d.y / sum);
+    Some((
+        (px + py).clamp(-1.0, 1.0) as f32,
+        (px - py).clamp(-1.0, 1.0) as f32,
+    ))
 }
 
 /// The unit local direction of square coordinates `(a, b) ∈ [-1, 1]²`.
@@ -201,8 +220,8 @@ pub fn node_direction(grid: u32, i: u32, j: u32) -> Vec3 {
 
 /// The hat functions of a `grid × grid` basis (`grid ≥ 2`) at the local direction
 /// `local` (any length); `None` when `local.z ≤ 0` (a viewer behind the surface),
-/// the vector is not finite or too short for [`hemi_oct_encode`], or `grid` is
-/// outside `2..=65,535` (node indices must fit `u32`).
+/// the vector is not finite, or `grid` is outside `2..=65,535` (node indices
+/// must fit `u32`).
 #[inline]
 pub fn mrt_tap(grid: u32, local: Vec3) -> Option<MrtTap> {
     if !(2..=0xFFFF).contains(&grid) || local.z.is_nan() || local.z <= 0.0 {
@@ -314,16 +333,33 @@ mod tests {
     use crate::sh::ZonalKernel;
 
     #[test]
-    fn taps_of_every_finite_view_are_finite_or_none() {
-        // A view shorter than the smallest normal float once gave NaN weights
-        // (1/|v| overflowed to infinity, and 0 · ∞ is NaN), so shading returned
-        // NaN radiance; it is now `None` (no view), like a zero vector.
-        let tiny = [1e-45, 1e-40, f32::MIN_POSITIVE / 2.0];
-        for &z in &tiny {
-            for xy in [0.0, 1e-45, -1e-45] {
-                assert_eq!(mrt_tap(8, Vec3::new(xy, -xy, z)), None, "z {z:e}");
+    fn taps_are_scale_invariant_and_finite_for_every_finite_view() {
+        // A view whose |x| + |y| + z overflows f32 gave no tap (zero radiance),
+        // and one shorter than the smallest normal float NaN weights (1/|v|
+        // overflowed, and 0 · ∞ is NaN): both now take the f64 map.
+        let unit = mrt_tap(8, Vec3::new(1.0, 0.25, 1.0)).unwrap();
+        // Powers of two, so the direction is exact (2^-147 · 0.25 is the
+        // smallest subnormal); 2^127 overflows the sum.
+        for k in [127, 100, -100, -130, -147] {
+            // 2^k from its bits (powi goes through 2^-k, which overflows).
+            let two_k = if k >= -126 {
+                f32::from_bits(((k + 127) as u32) << 23)
+            } else {
+                f32::from_bits(1 << (k + 149))
+            };
+            let v = Vec3::new(1.0, 0.25, 1.0) * two_k;
+            let tap = mrt_tap(8, v).unwrap();
+            assert_eq!(tap.nodes, unit.nodes, "2^{k}");
+            for (w, u) in tap.weights.iter().zip(unit.weights) {
+                assert!((w - u).abs() <= 1e-6, "2^{k}: {tap:?} vs {unit:?}");
             }
         }
+        assert_eq!(
+            mrt_tap(8, Vec3::new(3e38, 0.0, 3e38)),
+            mrt_tap(8, Vec3::new(1.0, 0.0, 1.0))
+        );
+        let pole = mrt_tap(3, Vec3::new(0.0, 0.0, 1e-45)).unwrap();
+        assert_eq!((pole.nodes[0], pole.weights), (4, [1.0, 0.0, 0.0, 0.0]));
         let mut rng = crate::rng::SplitMix64::new(5);
         for _ in 0..20_000 {
             let bits = |r: &mut crate::rng::SplitMix64| f32::from_bits(r.next_u64() as u32);
@@ -334,12 +370,10 @@ mod tests {
                     tap.weights.iter().all(|w| (0.0..=1.0).contains(w)) && (sum - 1.0).abs() < 1e-5,
                     "{v:?}: {tap:?}"
                 );
+            } else {
+                assert!(!v.is_finite() || v.z == 0.0, "{v:?} has no tap");
             }
         }
-        // The smallest normal length still has a direction: the pole.
-        let pole = mrt_tap(3, Vec3::new(0.0, 0.0, f32::MIN_POSITIVE)).unwrap();
-        assert_eq!(pole.weights, [1.0, 0.0, 0.0, 0.0]);
-        assert_eq!(pole.nodes[0], 4);
     }
 
     #[test]

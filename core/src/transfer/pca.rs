@@ -173,10 +173,12 @@ impl Pca {
 }
 
 /// Orthonormalises the rows of `q` (`k × d`) in place by modified Gram–Schmidt run
-/// twice; rows that vanish relative to `scale` become zero.
-fn orthonormalize(q: &mut [f64], d: usize, scale: f64) {
+/// twice; rows that are numerically dependent on the earlier ones become zero.
+fn orthonormalize(q: &mut [f64], d: usize) {
     let k = q.len() / d;
+    let norm = |v: &[f64]| libm::sqrt(v.iter().map(|x| x * x).sum::<f64>());
     for a in 0..k {
+        let before = norm(&q[a * d..(a + 1) * d]);
         for _ in 0..2 {
             for b in 0..a {
                 let (head, tail) = q.split_at_mut(a * d);
@@ -189,14 +191,23 @@ fn orthonormalize(q: &mut [f64], d: usize, scale: f64) {
             }
         }
         let qa = &mut q[a * d..(a + 1) * d];
-        let norm = libm::sqrt(qa.iter().map(|x| x * x).sum::<f64>());
-        if norm > 1e-9 * scale && norm > 0.0 {
-            qa.iter_mut().for_each(|x| *x /= norm);
+        let after = norm(qa);
+        // A column is dependent on the earlier ones when projecting them out
+        // leaves only rounding of its own size: judged against the column
+        // itself, not the data's overall scale, so that a real direction of
+        // tiny variance (a rank the data does have) is kept.
+        if after > DEPENDENT * before && after > 0.0 {
+            qa.iter_mut().for_each(|x| *x /= after);
         } else {
             qa.iter_mut().for_each(|x| *x = 0.0);
         }
     }
 }
+
+/// What is left of a column after two Gram–Schmidt passes, relative to its
+/// norm before, below which it is numerically dependent on the earlier columns
+/// (far above the `f64` rounding of those passes, about `1e-16 · √d`).
+const DEPENDENT: f64 = 1e-10;
 
 /// Eigen-decomposition of a symmetric `k × k` matrix by cyclic Jacobi rotations:
 /// returns eigenvalues and the eigenvectors as columns of a `k × k` matrix.
@@ -265,7 +276,6 @@ pub(crate) fn compute(
         .chunks_exact(d)
         .flat_map(|b| b.iter().zip(&mean).map(|(x, m)| f64::from(*x) - m))
         .collect();
-    let scale = libm::sqrt(centred.iter().map(|x| x * x).sum::<f64>()).max(1e-300);
     let project = |q: &[f64]| -> Vec<f64> {
         // Y = X Qᵀ, vertices × k.
         let mut y = vec![0.0f64; vertices * k];
@@ -284,7 +294,7 @@ pub(crate) fn compute(
     let mut q: Vec<f64> = (0..k * d)
         .map(|_| f64::from(rng.next_f32()) * 2.0 - 1.0)
         .collect();
-    orthonormalize(&mut q, d, 1.0);
+    orthonormalize(&mut q, d);
     for _ in 0..PCA_ITERATIONS {
         let y = project(&q);
         // Z = Xᵀ Y, as k rows of d.
@@ -300,7 +310,7 @@ pub(crate) fn compute(
                 }
             }
         }
-        orthonormalize(&mut z, d, scale * scale);
+        orthonormalize(&mut z, d);
         q = z;
     }
     // Rayleigh–Ritz: order the subspace by variance.
@@ -329,7 +339,7 @@ pub(crate) fn compute(
         }
     }
     // Rotations of zero rows leave tiny values: clean up to exact zeros / unit rows.
-    orthonormalize(&mut basis, d, 1.0);
+    orthonormalize(&mut basis, d);
     let weights_f64 = project(&basis);
     (
         mean.iter().map(|&m| m as f32).collect(),

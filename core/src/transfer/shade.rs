@@ -461,6 +461,18 @@ pub fn shade_mrt_pca(
     pca_at_tap(&weights[..components], frame_terms, stride, tap)
 }
 
+/// `v` normalised, or zero for a zero or non-finite `v`; a finite vector whose
+/// squared length leaves `f32`'s range is normalised in `f64` (glam's
+/// `normalize_or_zero` gives zero there).
+#[inline]
+fn unit_or_zero(v: Vec3) -> Vec3 {
+    let unit = v.normalize_or_zero();
+    if unit != Vec3::ZERO || v == Vec3::ZERO || !v.is_finite() {
+        return unit;
+    }
+    v.as_dvec3().normalize_or_zero().as_vec3()
+}
+
 /// Surface parameters applied at run time.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
@@ -766,7 +778,7 @@ impl TransferSet {
                 for_each_vertex(out, |v| {
                     let normal = self.frames[v].normal;
                     let block = &data[v * len..(v + 1) * len];
-                    let to_eye = view_vector(v).normalize_or_zero();
+                    let to_eye = unit_or_zero(view_vector(v));
                     specular * shade_glossy_sh(block, &lobe, &planar, normal, to_eye)
                 });
             }

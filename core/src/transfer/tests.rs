@@ -1166,3 +1166,102 @@ mod kernel_inputs {
         }
     }
 }
+
+/// A hand-made MRT file (bands 1, grid 2: four values per vertex).
+fn mrt_file(blocks: &[[f32; 4]]) -> Vec<u8> {
+    let v = blocks.len() as u32;
+    let mut payload = Vec::new();
+    let mut put = |x: f32| payload.extend_from_slice(&x.to_le_bytes());
+    for _ in 0..v {
+        [0.0, 0.0, 0.0].into_iter().for_each(&mut put);
+    }
+    for _ in 0..v {
+        [0.0, 0.0, 1.0].into_iter().for_each(&mut put);
+    }
+    for b in blocks {
+        b.iter().copied().for_each(&mut put);
+    }
+    let mut h = Vec::new();
+    h.extend_from_slice(b"ANTXFER\0");
+    for f in [1u32, 3, 1, 2, 0, v, 1, 0, 0.5f32.to_bits(), 0, 0, 0] {
+        h.extend_from_slice(&f.to_le_bytes());
+    }
+    h.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    h.extend_from_slice(&crate::transfer::format::crc32(&payload).to_le_bytes());
+    let hc = crate::transfer::format::crc32(&h);
+    h.extend_from_slice(&hc.to_le_bytes());
+    h.extend_from_slice(&payload);
+    h
+}
+
+#[test]
+fn pca_with_every_component_keeps_a_direction_of_tiny_variance() {
+    // Rank 2 with variances 1e6 : 1e-4 (a ratio below the old cut of 1e-9 of
+    // the total): K = min(D, V) must reproduce the dense set.
+    let set = TransferSet::from_bytes(&mrt_file(&[
+        [1000.0, 0.0, 0.0, 0.0],
+        [0.0, 0.0, 0.0, 0.0],
+        [0.0, 0.01, 0.0, 0.0],
+    ]))
+    .unwrap();
+    let pca = set.compress(3).unwrap();
+    let lighting = [[1.0f32; 3]];
+    let dirs = [[0.0f32, 0.0, 1.0]; 3];
+    let (mut dense, mut comp) = ([[0.0f32; 3]; 3], [[0.0f32; 3]; 3]);
+    let material = Material::default();
+    set.shade(
+        &lighting,
+        View::Directions(&dirs),
+        &material,
+        None,
+        &mut dense,
+    )
+    .unwrap();
+    pca.shade(
+        &lighting,
+        View::Directions(&dirs),
+        &material,
+        None,
+        &mut comp,
+    )
+    .unwrap();
+    for v in 0..3 {
+        assert!(
+            (dense[v][0] - comp[v][0]).abs() <= 1e-4 * dense[v][0].abs().max(1e-3),
+            "vertex {v}: dense {:?} pca {:?}",
+            dense[v],
+            comp[v]
+        );
+    }
+}
+
+#[test]
+fn an_empty_mesh_is_refused_by_the_bake() {
+    // A bake file holds at least one vertex: the bake says so instead of
+    // writing a set that cannot be loaded back.
+    let positions: [[f32; 3]; 0] = [];
+    let mesh = MeshView::new(&positions, &[]).unwrap();
+    let caster = BruteForceCaster::new(mesh);
+    let result = bake(&mesh, &[], &caster, &options(Measurement::Diffuse, 2, 8));
+    assert_eq!(result.err(), Some(BakeError::NoVertices));
+}
+
+#[test]
+fn shading_does_not_depend_on_the_view_vectors_length() {
+    // The map is scale-invariant, but a direction of (3e38, 0, 3e38) shaded to
+    // zero (|x| + |y| + z overflowed f32) where (1, 0, 1) did not.
+    let set = TransferSet::from_bytes(&mrt_file(&[[1.0, 2.0, 3.0, 4.0]])).unwrap();
+    let lighting = [[1.0f32; 3]];
+    let material = Material::default();
+    let shade = |d: [f32; 3]| {
+        let mut out = [[0.0f32; 3]; 1];
+        set.shade(&lighting, View::Directions(&[d]), &material, None, &mut out)
+            .unwrap();
+        Vec3::from_array(out[0])
+    };
+    let unit = shade([1.0, 0.0, 1.0]);
+    assert!(unit.x > 0.0);
+    for d in [[3e38, 0.0, 3e38], [1e-40, 0.0, 1e-40], [1e30, 0.0, 1e30]] {
+        assert!((shade(d) - unit).length() <= 1e-5 * unit.length(), "{d:?}");
+    }
+}
