@@ -173,8 +173,8 @@ const _: () = {
     assert_send_sync::<antumbra_ssv>();
 };
 
-/// Writes the default options: the hierarchy, 64 edges per leaf, depth 12,
-/// hemicube resolution 32, on the calling thread, the automatic root box.
+/// Writes the default options: the hierarchy, 32 edges per leaf, depth 12,
+/// hemicube resolution 64, on the calling thread, the automatic root box.
 ///
 /// @param options the options to fill; every field is written.
 ///
