@@ -122,8 +122,9 @@
 //! gave identical bits on every bench scene.
 //!
 //! Queries allocate nothing: per-sample counters live on the stack (at most
-//! [`MAX_SAMPLES`] samples, 4 KiB of stack per query); the samples are read
-//! from an `f64` structure of arrays made at creation.
+//! [`MAX_SAMPLES`] samples, 4 KiB of stack per query), beside the record of
+//! silhouette edges for the reference sample (16 KiB, left uninitialised); the
+//! samples are read from an `f64` structure of arrays made at creation.
 
 mod edges;
 mod hemicube;
@@ -1306,7 +1307,7 @@ struct Kernel<'a> {
 
 /// Most silhouette edges a query records for [`SoftShadows::reference_sample`];
 /// past this every reference decision is exact ([`SoftShadows::exactly_blocked`]).
-const RECORDED_SILHOUETTES: usize = 512;
+const RECORDED_SILHOUETTES: usize = 1024;
 
 /// Angle (as a sine) within which a reference segment counts as near a
 /// silhouette edge, as seen from the receiver. The `f32` ray departs from the
@@ -1325,8 +1326,8 @@ const REFERENCE_TRIES: usize = 8;
 /// differently from the exact segment), each with that plane's unit normal.
 ///
 /// The slots are left uninitialised until recorded: a query makes one of
-/// these 8 KiB records, and writing it whole would cost as much as the bunny's
-/// reference ray.
+/// these 16 KiB records on its stack, and writing it whole would cost more than
+/// the bunny's reference ray.
 struct Silhouettes {
     /// Edge and unit `a' × b'` (rounded to `f32`: the test that reads it
     /// allows for that); the first `len` are written.
