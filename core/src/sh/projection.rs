@@ -24,6 +24,7 @@ use core::f64::consts::PI;
 use glam::{Mat3, Vec2, Vec3};
 
 use super::{MAX_BANDS, Sh, ShError, ShRgb, ShRotation, eval_basis};
+use crate::geom::normalize_exponent;
 use crate::rng::{splitmix64, unit_f64};
 
 /// How the pixels of an equirectangular image map to directions.
@@ -71,8 +72,12 @@ impl EquirectMapping {
     /// made perpendicular to `up`; neither needs unit length. `None` if either is
     /// zero or not finite, or they are parallel.
     pub fn new(up: Vec3, center: Vec3) -> Option<Self> {
-        let up = up.try_normalize()?;
-        let center = (center - center.dot(up) * up).try_normalize()?;
+        // Each vector is scaled by a power of two before it is normalised (exact),
+        // so that no length of any size, 1e-30 or 1e30, overflows or underflows
+        // when squared: `try_normalize` alone refused such axes.
+        let up = normalize_exponent(up).try_normalize()?;
+        let center = normalize_exponent(center);
+        let center = normalize_exponent(center - center.dot(up) * up).try_normalize()?;
         Some(EquirectMapping {
             up,
             center,
@@ -403,6 +408,34 @@ mod tests {
         assert_eq!(EquirectMapping::new(Vec3::Y, Vec3::Y * 3.0), None);
         assert_eq!(EquirectMapping::new(Vec3::ZERO, Vec3::X), None);
         assert_eq!(EquirectMapping::new(Vec3::NAN, Vec3::X), None);
+    }
+
+    #[test]
+    fn mappings_accept_axes_of_any_finite_length() {
+        // try_normalize refused axes whose squared length overflows or
+        // underflows (1e20 squares to infinity, 1e-30 to zero).
+        for s in [1e20f32, 3e38, 1e-30, 1e-40] {
+            let z_up = EquirectMapping::new(Vec3::new(0.0, 0.0, s), Vec3::new(s, 0.0, 0.5 * s));
+            assert_eq!(
+                z_up,
+                EquirectMapping::new(Vec3::Z, Vec3::new(1.0, 0.0, 0.5)),
+                "{s}"
+            );
+            assert_eq!(
+                EquirectMapping::new(Vec3::Y * s, Vec3::X),
+                Some(EquirectMapping::Y_UP),
+                "{s}"
+            );
+            assert_eq!(
+                EquirectMapping::new(Vec3::Y, Vec3::X * s),
+                Some(EquirectMapping::Y_UP),
+                "{s}"
+            );
+        }
+        assert!(EquirectMapping::new(Vec3::Y, Vec3::new(1e20, 0.0, 0.0)).is_some());
+        assert!(EquirectMapping::new(Vec3::new(0.0, 1e-30, 0.0), Vec3::X).is_some());
+        assert_eq!(EquirectMapping::new(Vec3::INFINITY, Vec3::X), None);
+        assert_eq!(EquirectMapping::new(Vec3::Y, Vec3::Y * 1e30), None);
     }
 
     #[test]
