@@ -72,8 +72,11 @@ const UVW: [[f32; 3]; ROTATION_ENTRIES] = {
 /// matrix and applied to any number of coefficient vectors.
 ///
 /// Rotates the function: for `g = rotation.apply(&f)`, `g(ω) = f(R⁻¹ω)` (a lobe along
-/// `d` ends up along `R d`). `R` must be orthogonal (a rotation, or a rotation times
-/// -1); anything else gives meaningless but finite-in-finite-out numbers.
+/// `d` ends up along `R d`). `R` must be orthogonal, or orthogonal up to rounding
+/// (a rotation, or a rotation times -1): the recurrence assumes it, and band `l`'s
+/// matrix of any other `R` is meaningless and grows like `|R|^l`, so a large `R`
+/// overflows to infinities and NaN in the higher bands (`|R| ≈ 1e6` does in band
+/// `l = 7` in `f32`). Nothing is checked: normalise the columns first when unsure.
 /// The matrices live in a fixed array sized for [`MAX_BANDS`] (680 floats); only the
 /// first `Sh::<N>::BANDS` bands are computed.
 ///
