@@ -193,6 +193,23 @@ impl<const N: usize> ShRotation<N> {
         Sh { coeffs: out }
     }
 
+    /// [`ShRotation::apply`] in `f64` on `f64` coefficients (the matrices
+    /// widened), for sums that may exceed the `f32` range before the rotation
+    /// brings them back, and so that projections round once, at the end.
+    pub(crate) fn apply_f64(&self, coeffs: &[f64; N]) -> [f64; N] {
+        let mut out = [0.0f64; N];
+        for l in 0..Sh::<N>::BANDS {
+            let size = 2 * l + 1;
+            let matrix = &self.matrices[band_offset(l)..band_offset(l) + size * size];
+            let input = &coeffs[l * l..l * l + size];
+            let output = &mut out[l * l..l * l + size];
+            for (row, o) in matrix.chunks_exact(size).zip(output) {
+                *o = row.iter().zip(input).map(|(&a, b)| f64::from(a) * b).sum();
+            }
+        }
+        out
+    }
+
     /// The rotated coefficients of each channel of `sh`.
     #[inline]
     pub fn apply_rgb(&self, sh: &ShRgb<N>) -> ShRgb<N> {
