@@ -658,11 +658,10 @@ fn scene_loop(
     cull: bool,
     cone_mask: impl ConeMask,
 ) -> (HemiMask, TriangleCounts) {
-    let mut acc = Accumulator {
-        receiver,
-        mask: HemiMask::EMPTY,
-        counts: TriangleCounts::default(),
-    };
+    // One scale for both meshes (see Receiver::scaled_frame).
+    let far_bounds = scene.far.as_ref().map(|far| far.mesh.bounds());
+    let bounds = core::iter::once(scene.mesh.mesh.bounds()).chain(far_bounds);
+    let mut acc = Accumulator::new(receiver, bounds);
     let pass = Pass {
         position,
         r2: scene.near_radius * scene.near_radius,
@@ -697,7 +696,8 @@ fn mesh_loop<M: ConeMask>(
         }
         return;
     };
-    let (n, o) = (acc.receiver.frame.normal, acc.receiver.origin);
+    // The scaled normal: the same expression as the triangles' horizon test.
+    let (n, o) = (acc.frame.normal, acc.receiver.origin);
     for (c, bounds) in clusters.bounds.iter().enumerate() {
         if bounds.below_plane(n, o) {
             continue;
@@ -743,7 +743,7 @@ fn chunk_loop<M: ConeMask>(
     projected: &mut Projected,
 ) {
     let vertices = &clusters.chunk_vertices[chunk.vertices.0 as usize..chunk.vertices.1 as usize];
-    let all_in_range = project_chunk(view, vertices, acc.receiver, pass, select, projected);
+    let all_in_range = project_chunk(view, vertices, acc, pass, select, projected);
     // The triangles taken and above the horizon: classified four at a time
     // below. Without branches on the data (the horizon test is a coin flip
     // for the triangles of a cluster crossing it): every triangle is written
@@ -832,18 +832,14 @@ fn batched_loop(
     cull: bool,
     cone_mask: impl ConeMask,
 ) -> (HemiMask, TriangleCounts) {
-    let mut acc = Accumulator {
-        receiver,
-        mask: HemiMask::EMPTY,
-        counts: TriangleCounts::default(),
-    };
+    let mut acc = Accumulator::new(receiver, [mesh.bounds()]);
     let pass = Pass {
         position: receiver.origin,
         r2: f32::INFINITY,
         cull,
         cone_mask,
     };
-    let (o, frame) = (receiver.origin, &receiver.frame);
+    let (o, frame) = (receiver.origin, acc.frame);
     let in_range = |p: Vec3| (1e-18..=1e18).contains(&(p.x * p.x + p.y * p.y + p.z * p.z));
     let mut batch = [[Vec4::ZERO; 3]; CHUNK];
     let mut batched = 0;
@@ -976,8 +972,9 @@ fn classify_batch<M: ConeMask>(
     }
 }
 
-/// Moves the chunk's `vertices` into the receiver's frame, four at a time
-/// (lane by lane the expressions of [`Receiver::to_local`] on `p - o` and of
+/// Moves the chunk's `vertices` into the receiver's scaled frame, four at a
+/// time (lane by lane the expressions of [`Frame::to_local`](crate::Frame::to_local)
+/// on `p - o` in [`Receiver::scaled_frame`], as [`Accumulator::add`] does, and of
 /// [`Pass::near`]), into `projected`; returns whether every one's squared
 /// length `(x² + y²) + z²` is in `[1e-18, 1e18]`, the range in which
 /// [`classify_four`] applies.
@@ -985,12 +982,12 @@ fn classify_batch<M: ConeMask>(
 fn project_chunk<M: ConeMask>(
     view: &MeshView<'_>,
     vertices: &[u32],
-    receiver: &Receiver,
+    acc: &Accumulator<'_>,
     pass: &Pass<M>,
     select: Select,
     projected: &mut Projected,
 ) -> bool {
-    let (o, frame) = (receiver.origin, &receiver.frame);
+    let (o, frame) = (acc.receiver.origin, &acc.frame);
     let splat = |v: Vec3| (Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z));
     let (tx, ty, tz) = splat(frame.tangent);
     let (bx, by, bz) = splat(frame.bitangent);
