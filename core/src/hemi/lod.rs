@@ -832,14 +832,20 @@ fn batched_loop(
     cull: bool,
     cone_mask: impl ConeMask,
 ) -> (HemiMask, TriangleCounts) {
-    let mut acc = Accumulator::new(receiver, [mesh.bounds()]);
+    let frame = receiver.scaled_frame([mesh.bounds()]);
+    let mut acc = Accumulator {
+        receiver,
+        frame,
+        mask: HemiMask::EMPTY,
+        counts: TriangleCounts::default(),
+    };
     let pass = Pass {
         position: receiver.origin,
         r2: f32::INFINITY,
         cull,
         cone_mask,
     };
-    let (o, frame) = (receiver.origin, acc.frame);
+    let o = receiver.origin;
     let in_range = |p: Vec3| (1e-18..=1e18).contains(&(p.x * p.x + p.y * p.y + p.z * p.z));
     let mut batch = [[Vec4::ZERO; 3]; CHUNK];
     let mut batched = 0;
