@@ -1558,8 +1558,10 @@ antumbra_result antumbra_scene_intersect(const struct antumbra_scene *scene,
  *        overlap `rgb`.
  * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (rgb, coefficients); INVALID_ARGUMENT
  *         (bands out of range, zero width or height, stride below the row size
- *         or not a multiple of 4, misaligned array, size overflow); NON_FINITE (a
- *         NaN or infinite texel, named by column and row); OUT_OF_MEMORY (a
+ *         or not a multiple of 4, misaligned array, size overflow, or texels so
+ *         bright that a coefficient exceeds the float range, about 3.4e38: the
+ *         message names the brightest texel of the channel by column and row);
+ *         NON_FINITE (a NaN or infinite texel, named by column and row); OUT_OF_MEMORY (a
  *         strided map is first copied into a packed temporary of
  *         `12 * width * height` bytes, which could not be allocated); PANIC.
  *

@@ -64,8 +64,10 @@ fn check_bands(bands: u32) -> Result<usize, Error> {
 ///        overlap `rgb`.
 /// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (rgb, coefficients); INVALID_ARGUMENT
 ///         (bands out of range, zero width or height, stride below the row size
-///         or not a multiple of 4, misaligned array, size overflow); NON_FINITE (a
-///         NaN or infinite texel, named by column and row); OUT_OF_MEMORY (a
+///         or not a multiple of 4, misaligned array, size overflow, or texels so
+///         bright that a coefficient exceeds the float range, about 3.4e38: the
+///         message names the brightest texel of the channel by column and row);
+///         NON_FINITE (a NaN or infinite texel, named by column and row); OUT_OF_MEMORY (a
 ///         strided map is first copied into a packed temporary of
 ///         `12 * width * height` bytes, which could not be allocated); PANIC.
 ///
@@ -162,7 +164,12 @@ pub unsafe extern "C" fn antumbra_sh_project_equirect(
         };
         let (r, green_blue) = out.split_at_mut(count);
         let (g, b) = green_blue.split_at_mut(count);
-        project(pixels, w, h, bands, [r, g, b]).map_err(|e| Error::invalid(e.to_string()))
+        project(pixels, w, h, bands, [r, g, b]).map_err(|e| match e {
+            // The texels are the argument at fault; the others cannot happen
+            // here (checked above).
+            sh::ShError::CoefficientOverflow { .. } => Error::invalid(format!("rgb: {e}")),
+            _ => Error::invalid(e.to_string()),
+        })
     })
 }
 

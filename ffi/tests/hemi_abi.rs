@@ -898,6 +898,8 @@ fn bad_sh_inputs_are_rejected_with_their_codes() {
     let rgb = map_of(w, h, |_| [1.0; 3]);
     let mut nan = rgb.clone();
     nan[3 * (2 * w as usize + 5) + 1] = f32::NAN;
+    // Finite, but c_0 = 1e38 · 4π · 0.282 exceeds the float range (it was NaN).
+    let bright = [1e38f32; 3];
     let mut misaligned = vec![0.0f32; rgb.len() + 1];
     misaligned[..rgb.len()].copy_from_slice(&rgb);
     let misaligned_rgb = misaligned
@@ -996,6 +998,16 @@ fn bad_sh_inputs_are_rejected_with_their_codes() {
             3,
             ANTUMBRA_RESULT_NON_FINITE,
             "rgb: texel (column 5, row 2) is (1, NaN, 1)",
+        ),
+        (
+            bright.as_ptr(),
+            1,
+            1,
+            0,
+            3,
+            ANTUMBRA_RESULT_INVALID_ARGUMENT,
+            "rgb: coefficient 0 of channel 0 exceeds the float range: the texels are too \
+             bright (the brightest of that channel is at column 0, row 0)",
         ),
     ];
     for (pixels, width, height, stride, bands, code, needle) in cases {

@@ -108,6 +108,9 @@ pub struct MeshView<'a> {
     stride: usize,
     vertex_count: usize,
     indices: &'a [u32],
+    /// Smallest and largest coordinates of every vertex, found while the
+    /// positions are checked.
+    bounds: (Vec3, Vec3),
 }
 
 impl<'a> MeshView<'a> {
@@ -153,15 +156,23 @@ impl<'a> MeshView<'a> {
                 vertex_count,
             });
         }
-        let view = MeshView {
+        let mut view = MeshView {
             position_bytes,
             stride,
             vertex_count,
             indices,
+            bounds: (Vec3::INFINITY, Vec3::NEG_INFINITY),
         };
-        if let Some(vertex) = (0..vertex_count).find(|&v| !view.position(v).is_finite()) {
-            return Err(MeshError::NonFinitePosition { vertex });
+        let (mut min, mut max) = view.bounds;
+        for vertex in 0..vertex_count {
+            let p = view.position(vertex);
+            if !p.is_finite() {
+                return Err(MeshError::NonFinitePosition { vertex });
+            }
+            min = min.min(p);
+            max = max.max(p);
         }
+        view.bounds = (min, max);
         Ok(view)
     }
 
@@ -169,6 +180,14 @@ impl<'a> MeshView<'a> {
     #[inline]
     pub fn vertex_count(&self) -> usize {
         self.vertex_count
+    }
+
+    /// The smallest and the largest coordinates over every vertex (referenced by
+    /// a triangle or not): the corners of the mesh's axis-aligned bounding box.
+    /// `(+inf, -inf)` for a mesh without vertices.
+    #[inline]
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.bounds
     }
 
     /// Number of triangles.

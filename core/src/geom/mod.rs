@@ -7,3 +7,44 @@ mod mesh;
 
 pub use frame::Frame;
 pub use mesh::{MeshError, MeshView, POSITION_BYTES};
+
+use glam::Vec3;
+
+/// `m` scaled by a power of two so that its largest component lies in `[1, 2)`;
+/// zero and non-finite `m` unchanged.
+///
+/// Scaling by a power of two is exact, so any sign or ratio computed from the
+/// scaled vector is the one computed from `m` wherever computing it on `m`
+/// neither overflows nor underflows, and `-m` scales to exactly `-(scaled m)`.
+/// Uses: the hemisphere rasterizer's half-space predicate keeps normals from tiny
+/// or huge triangles (cross products of 1e-20 or 1e19 coordinates) out of the
+/// subnormal and infinite ranges, where its rounding would be too coarse to be
+/// solved per row; vectors are normalised through it where their squared length
+/// could overflow or underflow (the result is `m.normalize()`'s, bit for bit,
+/// wherever no square in that under- or overflows).
+#[inline]
+pub(crate) fn normalize_exponent(m: Vec3) -> Vec3 {
+    let max = m.x.abs().max(m.y.abs()).max(m.z.abs());
+    if !(max > 0.0 && max.is_finite()) {
+        return m;
+    }
+    // Lift subnormals into the normal range first (exact: scaling up by 2^64).
+    let (m, max) = if max < f32::MIN_POSITIVE {
+        (m * TWO_POW_64, max * TWO_POW_64)
+    } else {
+        (m, max)
+    };
+    // max = 1.f * 2^e; multiply by 2^-e in two halves so neither factor leaves
+    // the normal range (e can be 127).
+    let e = ((max.to_bits() >> 23) & 0xff) as i32 - 127;
+    let half = e / 2;
+    m * pow2(-half) * pow2(half - e)
+}
+
+const TWO_POW_64: f32 = 18_446_744_073_709_551_616.0;
+
+/// `2^k` for `|k| <= 126`.
+#[inline(always)]
+fn pow2(k: i32) -> f32 {
+    f32::from_bits(((127 + k) as u32) << 23)
+}

@@ -37,41 +37,7 @@ use super::mask::{
     CELL_COORD, CELL_Z, GRID, HemiMask, ROW_FIRST, ROW_LAST, ROW_RADIUS, ROW_RADIUS_SQ,
 };
 
-/// `m` scaled by a power of two so that its largest component lies in `[1, 2)`;
-/// zero and non-finite `m` unchanged.
-///
-/// Scaling by a power of two is exact, so the predicate gives the same answer on
-/// the scaled normal as on `m` wherever evaluating it on `m` neither overflows nor
-/// underflows, and `-m` scales to exactly `-(scaled m)`. Every mask evaluates the
-/// predicate on the scaled normal, which keeps normals from tiny or huge triangles
-/// (cross products of 1e-20 or 1e19 coordinates) out of the subnormal and infinite
-/// ranges, where the predicate's rounding would be too coarse to be solved per row.
-#[inline]
-pub(crate) fn normalize_exponent(m: Vec3) -> Vec3 {
-    let max = m.x.abs().max(m.y.abs()).max(m.z.abs());
-    if !(max > 0.0 && max.is_finite()) {
-        return m;
-    }
-    // Lift subnormals into the normal range first (exact: scaling up by 2^64).
-    let (m, max) = if max < f32::MIN_POSITIVE {
-        (m * TWO_POW_64, max * TWO_POW_64)
-    } else {
-        (m, max)
-    };
-    // max = 1.f * 2^e; multiply by 2^-e in two halves so neither factor leaves
-    // the normal range (e can be 127).
-    let e = ((max.to_bits() >> 23) & 0xff) as i32 - 127;
-    let half = e / 2;
-    m * pow2(-half) * pow2(half - e)
-}
-
-const TWO_POW_64: f32 = 18_446_744_073_709_551_616.0;
-
-/// `2^k` for `|k| <= 126`.
-#[inline(always)]
-fn pow2(k: i32) -> f32 {
-    f32::from_bits(((127 + k) as u32) << 23)
-}
+pub(crate) use crate::geom::normalize_exponent;
 
 /// The closed half-space predicate `m·d >= 0` at valid cell `(i, j)`, with the one
 /// fixed evaluation order every mask of this module uses. Callers pass normals

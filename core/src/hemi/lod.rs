@@ -92,6 +92,7 @@ use super::transfer::{TransferMethod, TransferRotation, shade_diffuse};
 use super::triangle::classify_four;
 use super::{Accumulator, Culled, Quality, Receiver, TriangleCone, TriangleCounts, table_raster};
 use crate::geom::MeshView;
+use crate::geom::normalize_exponent;
 use crate::sh::{Sh, ShRgb};
 
 /// Why a batch call rejected its arguments (nothing was written).
@@ -134,7 +135,10 @@ impl core::error::Error for BatchError {}
 
 /// Area-weighted vertex normals: per vertex, the sum of the unnormalised geometric
 /// normals `(b - a) × (c - a)` of its triangles, normalised; zero where the sum is
-/// zero or not finite (such vertices are skipped by the batch functions).
+/// zero or not finite (such vertices are skipped by the batch functions). The sum is
+/// computed in `f32`: it overflows for edges beyond about `1e19` and is zero for
+/// edges below about `1e-22` (their cross products underflow); anything between
+/// normalises, whatever its size.
 ///
 /// `out` must hold one normal per vertex.
 pub fn vertex_normals(mesh: &MeshView<'_>, out: &mut [Vec3]) -> Result<(), BatchError> {
@@ -154,7 +158,10 @@ pub fn vertex_normals(mesh: &MeshView<'_>, out: &mut [Vec3]) -> Result<(), Batch
         out[k as usize] += n;
     }
     for n in out.iter_mut() {
-        *n = n.normalize_or_zero();
+        // Scaled by a power of two first (exact), so that squaring the sum's
+        // components overflows or underflows for no finite non-zero sum (edges
+        // above about 4e9 or below 1e-12 did).
+        *n = normalize_exponent(*n).normalize_or_zero();
     }
     Ok(())
 }
@@ -651,11 +658,10 @@ fn scene_loop(
     cull: bool,
     cone_mask: impl ConeMask,
 ) -> (HemiMask, TriangleCounts) {
-    let mut acc = Accumulator {
-        receiver,
-        mask: HemiMask::EMPTY,
-        counts: TriangleCounts::default(),
-    };
+    // One scale for both meshes (see Receiver::scaled_frame).
+    let far_bounds = scene.far.as_ref().map(|far| far.mesh.bounds());
+    let bounds = core::iter::once(scene.mesh.mesh.bounds()).chain(far_bounds);
+    let mut acc = Accumulator::new(receiver, bounds);
     let pass = Pass {
         position,
         r2: scene.near_radius * scene.near_radius,
@@ -690,7 +696,8 @@ fn mesh_loop<M: ConeMask>(
         }
         return;
     };
-    let (n, o) = (acc.receiver.frame.normal, acc.receiver.origin);
+    // The scaled normal: the same expression as the triangles' horizon test.
+    let (n, o) = (acc.frame.normal, acc.receiver.origin);
     for (c, bounds) in clusters.bounds.iter().enumerate() {
         if bounds.below_plane(n, o) {
             continue;
@@ -736,7 +743,7 @@ fn chunk_loop<M: ConeMask>(
     projected: &mut Projected,
 ) {
     let vertices = &clusters.chunk_vertices[chunk.vertices.0 as usize..chunk.vertices.1 as usize];
-    let all_in_range = project_chunk(view, vertices, acc.receiver, pass, select, projected);
+    let all_in_range = project_chunk(view, vertices, acc, pass, select, projected);
     // The triangles taken and above the horizon: classified four at a time
     // below. Without branches on the data (the horizon test is a coin flip
     // for the triangles of a cluster crossing it): every triangle is written
@@ -825,8 +832,10 @@ fn batched_loop(
     cull: bool,
     cone_mask: impl ConeMask,
 ) -> (HemiMask, TriangleCounts) {
+    let frame = receiver.scaled_frame([mesh.bounds()]);
     let mut acc = Accumulator {
         receiver,
+        frame,
         mask: HemiMask::EMPTY,
         counts: TriangleCounts::default(),
     };
@@ -836,7 +845,7 @@ fn batched_loop(
         cull,
         cone_mask,
     };
-    let (o, frame) = (receiver.origin, &receiver.frame);
+    let o = receiver.origin;
     let in_range = |p: Vec3| (1e-18..=1e18).contains(&(p.x * p.x + p.y * p.y + p.z * p.z));
     let mut batch = [[Vec4::ZERO; 3]; CHUNK];
     let mut batched = 0;
@@ -969,8 +978,9 @@ fn classify_batch<M: ConeMask>(
     }
 }
 
-/// Moves the chunk's `vertices` into the receiver's frame, four at a time
-/// (lane by lane the expressions of [`Receiver::to_local`] on `p - o` and of
+/// Moves the chunk's `vertices` into the receiver's scaled frame, four at a
+/// time (lane by lane the expressions of [`Frame::to_local`](crate::Frame::to_local)
+/// on `p - o` in [`Receiver::scaled_frame`], as [`Accumulator::add`] does, and of
 /// [`Pass::near`]), into `projected`; returns whether every one's squared
 /// length `(x² + y²) + z²` is in `[1e-18, 1e18]`, the range in which
 /// [`classify_four`] applies.
@@ -978,12 +988,12 @@ fn classify_batch<M: ConeMask>(
 fn project_chunk<M: ConeMask>(
     view: &MeshView<'_>,
     vertices: &[u32],
-    receiver: &Receiver,
+    acc: &Accumulator<'_>,
     pass: &Pass<M>,
     select: Select,
     projected: &mut Projected,
 ) -> bool {
-    let (o, frame) = (receiver.origin, &receiver.frame);
+    let (o, frame) = (acc.receiver.origin, &acc.frame);
     let splat = |v: Vec3| (Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z));
     let (tx, ty, tz) = splat(frame.tangent);
     let (bx, by, bz) = splat(frame.bitangent);
@@ -1160,7 +1170,9 @@ pub fn shade_vertex<const N: usize>(
     let diffuse = shade_diffuse(&transfer, lighting, material.albedo);
     let glossy = match material.lobe {
         Some(lobe) if material.specular != Vec3::ZERO => {
-            let to_eye = (material.eye - position).normalize_or_zero();
+            // Scaled first (exact), so that a far eye (beyond about 1e19) does
+            // not overflow the squared length into a zero direction.
+            let to_eye = normalize_exponent(material.eye - position).normalize_or_zero();
             let mirror = frame.to_local(mirror_direction(normal, to_eye));
             let g = glossy_transfer(method.table(), &mask, lobe, mirror);
             shade_glossy(&rotation.to_world(&g), lighting, material.specular)
@@ -1669,6 +1681,65 @@ mod tests {
             let p = mesh.position(v);
             assert!((n.length() - 1.0).abs() < 1e-5);
             assert!(n.dot(p.normalize()) > 0.0, "vertex {v}");
+        }
+    }
+
+    #[test]
+    fn vertex_normals_of_huge_and_tiny_triangles_are_unit() {
+        // The summed normal's squared length overflowed (1e10 edges: 1e40) or
+        // underflowed (1e-13 edges: 1e-52) into a zero normal.
+        let indices = [0u32, 1, 2];
+        for scale in [1e10f32, 1e18, 1e-13, 1e-19] {
+            let positions = [[0.0, 0.0, 0.0], [scale, 0.0, 0.0], [0.0, scale, 0.0]];
+            let mesh = MeshView::new(&positions, &indices).unwrap();
+            let mut normals = [Vec3::ZERO; 3];
+            vertex_normals(&mesh, &mut normals).unwrap();
+            assert_eq!(normals, [Vec3::Z; 3], "edges of {scale}");
+        }
+        // Still zero where the sum is zero (a flat fan cancels).
+        let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let mesh = MeshView::new(&positions, &[0, 1, 2, 0, 2, 1]).unwrap();
+        let mut normals = [Vec3::ONE; 3];
+        vertex_normals(&mesh, &mut normals).unwrap();
+        assert_eq!(normals, [Vec3::ZERO; 3]);
+    }
+
+    #[test]
+    fn a_far_eye_still_gets_the_glossy_term() {
+        // (eye - position).length_squared() overflowed for an eye 1e20 away, so
+        // the view direction was zero and the glossy term vanished.
+        let (positions, indices) = twisted_sphere(10, 16, 0.3);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let normals = normals_of(&mesh);
+        let scene = HemiScene::new(ClusteredMesh::unclustered(mesh));
+        let table = TransferTable::<9>::new();
+        let method = TransferMethod::Cells(&table);
+        let mut light = ShRgb::<9>::ZERO;
+        light.r[0] = 1.0;
+        light.g[2] = 0.5;
+        light.b[3] = -0.2;
+        let lobe = PhongLobe::new(10.0).unwrap();
+        let v = 20;
+        let (p, n) = (mesh.position(v), normals[v]);
+        let direction = (n + Vec3::new(0.1, 0.2, 0.0)).normalize();
+        let shade = |distance: f32| {
+            let material = Material {
+                albedo: Vec3::splat(0.5),
+                specular: Vec3::splat(0.3),
+                lobe: Some(&lobe),
+                eye: p + distance * direction,
+            };
+            let options = BatchOptions::default();
+            shade_vertex(&scene, p, n, &options, method, &light, &material).glossy
+        };
+        let near = shade(1e3);
+        assert_ne!(near, Vec3::ZERO);
+        for distance in [1e20f32, 1e30] {
+            let far = shade(distance);
+            assert!(
+                (far - near).abs().max_element() < 1e-4 * near.abs().max_element(),
+                "{distance}: {far} vs {near}"
+            );
         }
     }
 }

@@ -84,6 +84,25 @@
 //! grazing directions where it is concave, which is what rays from the offset
 //! point see. [`RasterOptions::skip_triangles`] removes chosen triangles (for
 //! instance the incident ones, or the near ones of a coarser LOD mesh) either way.
+//!
+//! ## Meshes of extreme size
+//!
+//! The cone of a triangle is decided from cross products and the triple product
+//! `(a×b)·c` of its local corners, which scale with the cube of the corners'
+//! distance: in `f32` they underflow to zero for corners about `1e-13` from the
+//! center of projection (the triangle was dropped as degenerate) and overflow
+//! beyond about `7e12`. So [`rasterize_receiver`] and the batch functions
+//! ([`scene_mask`] and the rest) move the corners into a frame scaled by one power
+//! of two per receiver ([`Receiver::scaled_frame`]): 1 when every vertex of the
+//! mesh (and far mesh) is within `[2^-16, 2^16]` of the center of projection in
+//! its largest coordinate, as the mesh's bounding box proves, and otherwise
+//! the power of two that brings that bound into `[1, 2)`. Multiplying by a power
+//! of two is exact, so every sign, comparison and cell is the unscaled one's
+//! wherever nothing under- or overflowed (and exactly the same for meshes of
+//! ordinary size, where the factor is 1); one factor for all triangles keeps the
+//! two triangles of a shared edge exactly opposite. The cost is a few operations
+//! per receiver. [`TriangleCone::new`] and [`rasterize_triangles_into`] take the
+//! corners as given (unscaled).
 
 mod half_space;
 mod lod;
@@ -191,12 +210,53 @@ impl Receiver {
         self.frame.to_local(point - self.origin)
     }
 
+    /// The frame the rasterizers move corners into for meshes with the given
+    /// bounding boxes ([`MeshView::bounds`]): [`Receiver::frame`] with every axis
+    /// multiplied by the same power of two `s`, so that `scaled.to_local(q - o)`
+    /// is `s * frame.to_local(q - o)` (exactly, wherever nothing under- or
+    /// overflows). `s` is 1 when the largest coordinate of `q - o` over the boxes
+    /// (an upper bound for every vertex in them) is within `[2^-16, 2^16]`, zero
+    /// or not finite, and otherwise brings it into `[1, 2)` (see the module docs).
+    /// Empty boxes (min above max) are ignored.
+    pub fn scaled_frame(&self, bounds: impl IntoIterator<Item = (Vec3, Vec3)>) -> Frame {
+        let o = self.origin;
+        let extent = bounds
+            .into_iter()
+            .filter(|(min, max)| min.cmple(*max).all())
+            .map(|(min, max)| (max - o).abs().max((min - o).abs()).max_element())
+            .fold(0.0f32, f32::max);
+        let s = corner_scale(extent);
+        let f = &self.frame;
+        Frame {
+            tangent: f.tangent * s,
+            bitangent: f.bitangent * s,
+            normal: f.normal * s,
+        }
+    }
+
     /// The ray from the center of projection along valid cell `(i, j)`'s world
     /// direction, over `(0, +inf)`; `None` for invalid cells.
     #[inline]
     pub fn cell_ray(&self, i: usize, j: usize) -> Option<Ray> {
         cell_direction(i, j).map(|d| Ray::new(self.origin, self.frame.to_world(d), f32::INFINITY))
     }
+}
+
+/// Extents (the largest local coordinate's bound) for which corners are not
+/// scaled: `[2^-16, 2^16]`. Within it the triple product of corners at the
+/// extent is between about `2^-48` and `2^50`, far from underflow and overflow,
+/// and meshes of ordinary size keep exactly their unscaled bits.
+const UNSCALED_EXTENT: core::ops::RangeInclusive<f32> = (1.0 / 65_536.0)..=65_536.0;
+
+/// The power of two [`Receiver::scaled_frame`] multiplies by for `extent`.
+#[inline]
+fn corner_scale(extent: f32) -> f32 {
+    if extent == 0.0 || !extent.is_finite() || UNSCALED_EXTENT.contains(&extent) {
+        return 1.0;
+    }
+    // extent = 1.f * 2^e (subnormals have e = -127); 2^-e for |e| <= 126.
+    let e = (((extent.to_bits() >> 23) & 0xff) as i32 - 127).clamp(-126, 126);
+    f32::from_bits(((127 - e) as u32) << 23)
 }
 
 /// What happened to the triangles of one rasterization.
@@ -285,7 +345,11 @@ pub(crate) fn rasterize_receiver_one_at_a_time(
 
 /// ORs the cones of world-space `triangles`, seen from `receiver`, into `mask`:
 /// the building block for callers that choose triangles themselves (LOD, spatial
-/// queries). Returns the counts; `skipped` is left 0.
+/// queries). Returns the counts; `skipped` is left 0. The corners are moved into
+/// the receiver's own frame, unscaled: the same cells as [`rasterize_receiver`]
+/// for meshes of ordinary size, but triangles whose triple product under- or
+/// overflows (corners within about `1e-13` or beyond `7e12` of the center) are
+/// culled as degenerate (see the module docs).
 pub fn rasterize_triangles_into<I: IntoIterator<Item = [Vec3; 3]>>(
     mask: &mut HemiMask,
     receiver: &Receiver,
@@ -293,10 +357,10 @@ pub fn rasterize_triangles_into<I: IntoIterator<Item = [Vec3; 3]>>(
     quality: Quality<'_>,
     cull_backfaces: bool,
 ) -> TriangleCounts {
+    // Unknown bounds: the receiver's own frame (no scaling).
     let mut acc = Accumulator {
-        receiver,
         mask: *mask,
-        counts: TriangleCounts::default(),
+        ..Accumulator::new(receiver, [])
     };
     match quality {
         Quality::Exact => {
@@ -323,11 +387,7 @@ fn rasterize_mesh(
     skip: &[u32],
     mut add: impl FnMut(Vec3, Vec3, Vec3, &mut Accumulator<'_>),
 ) -> (HemiMask, TriangleCounts) {
-    let mut acc = Accumulator {
-        receiver,
-        mask: HemiMask::EMPTY,
-        counts: TriangleCounts::default(),
-    };
+    let mut acc = Accumulator::new(receiver, [mesh.bounds()]);
     let mut skip = skip.iter().copied().peekable();
     // Indices and corners are read here, in the loop, rather than through an
     // iterator of corner arrays: returning [Vec3; 3] through a non-inlined
@@ -366,8 +426,24 @@ fn table_raster(
 /// A receiver's mask and counts while its triangles are added.
 struct Accumulator<'r> {
     receiver: &'r Receiver,
+    /// The frame corners are moved into: [`Receiver::scaled_frame`] for the
+    /// meshes of this pass (the receiver's own frame when they are unknown).
+    frame: Frame,
     mask: HemiMask,
     counts: TriangleCounts,
+}
+
+impl<'r> Accumulator<'r> {
+    /// Empty, for triangles of meshes with the given bounds.
+    #[inline]
+    fn new(receiver: &'r Receiver, bounds: impl IntoIterator<Item = (Vec3, Vec3)>) -> Self {
+        Accumulator {
+            receiver,
+            frame: receiver.scaled_frame(bounds),
+            mask: HemiMask::EMPTY,
+            counts: TriangleCounts::default(),
+        }
+    }
 }
 
 impl Accumulator<'_> {
@@ -383,7 +459,7 @@ impl Accumulator<'_> {
     ) {
         let o = self.receiver.origin;
         let (a, b, c) = (a - o, b - o, c - o);
-        let frame = &self.receiver.frame;
+        let frame = &self.frame;
         // The horizon test first, on the local z alone (the same expression
         // Frame::to_local uses), since it culls most triangles of a typical mesh.
         let n = frame.normal;

@@ -418,7 +418,10 @@ impl HalfSpaceTable {
     /// The normal (unnormalised, in the octant) whose exact mask entry `(k, l)`
     /// holds, for `k + l < resolution`; `None` outside the table.
     pub fn entry_normal(&self, k: usize, l: usize) -> Option<Vec3> {
-        (k + l < self.resolution).then(|| entry_normal(self.resolution, k, l))
+        // Checked: `k + l` wraps (or panics in debug builds) for huge indices.
+        k.checked_add(l)
+            .is_some_and(|sum| sum < self.resolution)
+            .then(|| entry_normal(self.resolution, k, l))
     }
 
     /// The normal of the entry that `m` reads, mapped back (mirrored and negated
@@ -751,6 +754,17 @@ mod tests {
         }
         assert_eq!(table.entry_normal(16, 0), None);
         assert_eq!(table.entry_normal(8, 8), None);
+    }
+
+    #[test]
+    fn entry_normal_is_none_when_the_indices_overflow() {
+        // `k + l` wrapped to 0 < resolution in release builds (a garbage normal)
+        // and panicked in debug builds.
+        let table = HalfSpaceTable::new(4);
+        assert_eq!(table.entry_normal(usize::MAX, 1), None);
+        assert_eq!(table.entry_normal(1, usize::MAX), None);
+        assert_eq!(table.entry_normal(usize::MAX, usize::MAX), None);
+        assert!(table.entry_normal(3, 0).is_some());
     }
 
     #[test]

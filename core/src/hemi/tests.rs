@@ -856,3 +856,107 @@ fn batched_receiver_loop_is_the_one_triangle_loop() {
     }
     assert!(checked > 300, "{checked}");
 }
+
+// --- meshes of extreme size ---
+
+/// A square of side 20 s at height s above the receiver at the origin: corners
+/// about 1e-19 away for s = 1e-20 made `(a×b)·c` underflow to zero, and the
+/// triangles were culled as degenerate while the rays still hit them (beyond
+/// about 7e12 it overflowed). The corners are now moved into a frame scaled
+/// by a power of two per receiver.
+#[test]
+fn meshes_of_extreme_size_rasterize_like_rays() {
+    let i = [0u32, 1, 2, 0, 2, 3];
+    for s in [1e-20f32, 1e-16, 1e-13, 1e13, 1e17] {
+        let p: Vec<[f32; 3]> = [
+            [-10.0, -10.0, 1.0],
+            [10.0, -10.0, 1.0],
+            [10.0, 10.0, 1.0],
+            [-10.0, 10.0, 1.0],
+        ]
+        .iter()
+        .map(|v| v.map(|c: f32| c * s))
+        .collect();
+        let mesh = MeshView::new(&p, &i).unwrap();
+        let rays =
+            rasterize_receiver_reference(&BruteForceCaster::new(mesh), Vec3::ZERO, Vec3::Z, 0.0);
+        assert_eq!(rays.count_occluded(), 804, "{s}");
+        let table = HalfSpaceTable::new(32);
+        for quality in [Quality::Exact, Quality::Table(&table)] {
+            let options = RasterOptions {
+                quality,
+                ..Default::default()
+            };
+            let (mask, counts) =
+                rasterize_receiver_with_counts(&mesh, Vec3::ZERO, Vec3::Z, &options);
+            assert_eq!(mask, rays, "{s}: {counts:?}");
+            assert_eq!(counts.rasterized, 2, "{s}: {counts:?}");
+            let scene = HemiScene::new(ClusteredMesh::unclustered(mesh));
+            let batch = BatchOptions {
+                quality,
+                ..Default::default()
+            };
+            assert_eq!(scene_mask(&scene, Vec3::ZERO, Vec3::Z, &batch), rays, "{s}");
+        }
+    }
+}
+
+/// Scaling a mesh, its receivers and their offset by a power of two changes no
+/// cell and no count, in every loop (one triangle at a time, batched, clustered
+/// and not, both qualities), from 2^-100 to 2^100: each receiver's corners are
+/// scaled back into the same range, exactly.
+#[test]
+fn power_of_two_scaled_meshes_keep_their_masks_in_every_loop() {
+    let (positions, indices) = bumpy_sphere(12, 20, 0.2);
+    let mesh = MeshView::new(&positions, &indices).unwrap();
+    let normals = vertex_normals(&positions, &indices);
+    let table = HalfSpaceTable::new(64);
+    let mut clusters = TriangleClusters::new(&mesh, 32);
+    for k in [-100, -66, -30, 30, 60, 100] {
+        let s = libm::exp2f(k as f32);
+        let scaled: Vec<[f32; 3]> = positions.iter().map(|p| p.map(|c| c * s)).collect();
+        let scaled_mesh = MeshView::new(&scaled, &indices).unwrap();
+        let clustered = HemiScene::new(clusters.update(scaled_mesh));
+        let plain = HemiScene::new(ClusteredMesh::unclustered(scaled_mesh));
+        for v in (0..mesh.vertex_count()).step_by(5) {
+            let (p, n) = (mesh.position(v), normals[v]);
+            if n.length_squared() < 0.5 {
+                continue;
+            }
+            for quality in [Quality::Exact, Quality::Table(&table)] {
+                for offset in [0.0, 0.01] {
+                    let options = RasterOptions {
+                        quality,
+                        normal_offset: offset,
+                        ..Default::default()
+                    };
+                    let expected = rasterize_receiver_with_counts(&mesh, p, n, &options);
+                    let options = RasterOptions {
+                        normal_offset: offset * s,
+                        ..options
+                    };
+                    let ps = p * s;
+                    let got = rasterize_receiver_with_counts(&scaled_mesh, ps, n, &options);
+                    assert_eq!(got, expected, "2^{k} vertex {v}");
+                    let one = rasterize_receiver_one_at_a_time(&scaled_mesh, ps, n, &options);
+                    assert_eq!(one, expected, "2^{k} vertex {v}");
+                    let batch = BatchOptions {
+                        quality,
+                        normal_offset: offset * s,
+                        ..Default::default()
+                    };
+                    assert_eq!(
+                        scene_mask(&plain, ps, n, &batch),
+                        expected.0,
+                        "2^{k} vertex {v}"
+                    );
+                    assert_eq!(
+                        scene_mask(&clustered, ps, n, &batch),
+                        expected.0,
+                        "2^{k} vertex {v}"
+                    );
+                }
+            }
+        }
+    }
+}

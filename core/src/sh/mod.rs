@@ -107,6 +107,19 @@ pub enum ShError {
         /// The length given.
         len: usize,
     },
+    /// Finite texels project to a coefficient beyond the `f32` range (about
+    /// `3.4e38`): the image is too bright to be represented, for instance texels
+    /// near `f32::MAX`.
+    CoefficientOverflow {
+        /// The channel (0 red, 1 green, 2 blue; 0 for a single-channel image).
+        channel: usize,
+        /// The coefficient, `l(l+1) + m`.
+        index: usize,
+        /// Column of the texel with the largest magnitude in that channel.
+        column: usize,
+        /// Row of that texel (from the top).
+        row: usize,
+    },
 }
 
 impl fmt::Display for ShError {
@@ -126,6 +139,17 @@ impl fmt::Display for ShError {
             ShError::CoefficientCount { len } => write!(
                 f,
                 "{len} coefficients is not a square count between 1 and {MAX_COEFFS}"
+            ),
+            ShError::CoefficientOverflow {
+                channel,
+                index,
+                column,
+                row,
+            } => write!(
+                f,
+                "coefficient {index} of channel {channel} exceeds the float range: the \
+                 texels are too bright (the brightest of that channel is at column \
+                 {column}, row {row})"
             ),
         }
     }

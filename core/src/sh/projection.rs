@@ -24,6 +24,7 @@ use core::f64::consts::PI;
 use glam::{Mat3, Vec2, Vec3};
 
 use super::{MAX_BANDS, Sh, ShError, ShRgb, ShRotation, eval_basis};
+use crate::geom::normalize_exponent;
 use crate::rng::{splitmix64, unit_f64};
 
 /// How the pixels of an equirectangular image map to directions.
@@ -71,8 +72,12 @@ impl EquirectMapping {
     /// made perpendicular to `up`; neither needs unit length. `None` if either is
     /// zero or not finite, or they are parallel.
     pub fn new(up: Vec3, center: Vec3) -> Option<Self> {
-        let up = up.try_normalize()?;
-        let center = (center - center.dot(up) * up).try_normalize()?;
+        // Each vector is scaled by a power of two before it is normalised (exact),
+        // so that no length of any size, 1e-30 or 1e30, overflows or underflows
+        // when squared: `try_normalize` alone refused such axes.
+        let up = normalize_exponent(up).try_normalize()?;
+        let center = normalize_exponent(center);
+        let center = normalize_exponent(center - center.dot(up) * up).try_normalize()?;
         Some(EquirectMapping {
             up,
             center,
@@ -161,7 +166,13 @@ fn row_cosines(row: usize, height: usize) -> (f64, f64) {
 /// direction each texel looks along. Each texel is weighted by its exact solid
 /// angle ([`equirect_texel_solid_angle`]) and evaluated at its centre (see the
 /// module docs for the error). Non-finite texels propagate into the result.
-/// Accumulates in `f64`; no allocation.
+/// Accumulates and rotates to world axes in `f64`, rounding to `f32` once at the
+/// end; no allocation.
+///
+/// Errors: [`ShError::EmptyImage`], [`ShError::ImageSizeMismatch`], and
+/// [`ShError::CoefficientOverflow`] when finite texels give a coefficient beyond
+/// the `f32` range (texels of about `1e37` and more can; the error names the
+/// brightest texel of the channel).
 ///
 /// ```
 /// use antumbra_core::sh::{EquirectMapping, Sh9, project_equirect};
@@ -182,12 +193,12 @@ where
     P: Copy + Into<[f32; 3]>,
 {
     check_image(pixels.len(), width, height)?;
-    let channels = project_rows::<N, 3>(width, height, mapping, |i| pixels[i].into());
+    let channels = project_rows::<N, 3>(width, height, mapping, |i| pixels[i].into())?;
     Ok(ShRgb::from_channels(channels))
 }
 
 /// [`project_equirect`] for a single-channel image (`width * height` values,
-/// row-major from the top row).
+/// row-major from the top row), with the same errors (channel 0).
 pub fn project_equirect_mono<const N: usize>(
     pixels: &[f32],
     width: usize,
@@ -195,7 +206,7 @@ pub fn project_equirect_mono<const N: usize>(
     mapping: &EquirectMapping,
 ) -> Result<Sh<N>, ShError> {
     check_image(pixels.len(), width, height)?;
-    let [sh] = project_rows::<N, 1>(width, height, mapping, |i| [pixels[i]]);
+    let [sh] = project_rows::<N, 1>(width, height, mapping, |i| [pixels[i]])?;
     Ok(sh)
 }
 
@@ -219,7 +230,7 @@ fn project_rows<const N: usize, const C: usize>(
     height: usize,
     mapping: &EquirectMapping,
     texel: impl Fn(usize) -> [f32; C],
-) -> [Sh<N>; C] {
+) -> Result<[Sh<N>; C], ShError> {
     let bands = Sh::<N>::BANDS;
     let mut local = [[0.0f64; N]; C];
     // In the map's frame the texel centre of column j has azimuth
@@ -270,12 +281,34 @@ fn project_rows<const N: usize, const C: usize>(
             }
         }
     }
+    // Rotated in f64 and rounded last: a local sum beyond the f32 range became
+    // infinite before the rotation, where inf * 0 gave NaN in every coefficient.
     let to_world = ShRotation::<N>::new(mapping.local_to_world());
-    local.map(|c| {
-        to_world.apply(&Sh {
-            coeffs: c.map(|x| x as f32),
-        })
-    })
+    let world = local.map(|c| to_world.apply_f64(&c));
+    for (channel, coeffs) in world.iter().enumerate() {
+        // Finite in f64 (finite texels) but not in f32: too bright. Non-finite
+        // sums come from non-finite texels and propagate, as documented.
+        if let Some(index) = coeffs
+            .iter()
+            .position(|&x| x.is_finite() && !(x as f32).is_finite())
+        {
+            let brightest = (0..width * height)
+                .max_by(|&i, &j| {
+                    let (a, b) = (texel(i)[channel].abs(), texel(j)[channel].abs());
+                    a.total_cmp(&b).then(j.cmp(&i))
+                })
+                .unwrap_or(0);
+            return Err(ShError::CoefficientOverflow {
+                channel,
+                index,
+                column: brightest % width,
+                row: brightest / width,
+            });
+        }
+    }
+    Ok(world.map(|c| Sh {
+        coeffs: c.map(|x| x as f32),
+    }))
 }
 
 #[inline]
@@ -403,6 +436,90 @@ mod tests {
         assert_eq!(EquirectMapping::new(Vec3::Y, Vec3::Y * 3.0), None);
         assert_eq!(EquirectMapping::new(Vec3::ZERO, Vec3::X), None);
         assert_eq!(EquirectMapping::new(Vec3::NAN, Vec3::X), None);
+    }
+
+    #[test]
+    fn bright_maps_rotate_in_f64_and_report_overflow() {
+        // One texel looking along (1, 1, 1)/√3: in the map's frame it looks along
+        // +x, where 6e37 projects beyond the f32 range in bands 1 and 2 (about
+        // 3.7e38 and 4.1e38), though no world coefficient does (at most 2.8e38).
+        // The sums were rounded to f32 (infinite) before the rotation to world
+        // axes, where inf * 0 gave NaN.
+        let mapping = EquirectMapping::new(Vec3::new(1.0, -1.0, 0.0), Vec3::ONE).unwrap();
+        let unit = project_equirect_mono::<9>(&[1.0], 1, 1, &mapping).unwrap();
+        let bright = project_equirect_mono::<9>(&[6e37], 1, 1, &mapping).unwrap();
+        for (i, (&b, &u)) in bright.coeffs.iter().zip(&unit.coeffs).enumerate() {
+            assert!(
+                (b - 6e37 * u).abs() <= 1e-6 * 6e37 * u.abs().max(1e-3),
+                "{i}: {b} vs {u}"
+            );
+        }
+        // A coefficient beyond the f32 range is an error naming the brightest
+        // texel, instead of NaN (1e38 projects to c_0 = 3.5e38).
+        assert_eq!(
+            project_equirect::<9, _>(&[[1e38f32; 3]], 1, 1, &EquirectMapping::Y_UP),
+            Err(ShError::CoefficientOverflow {
+                channel: 0,
+                index: 0,
+                column: 0,
+                row: 0
+            })
+        );
+        // Green: 3e38 in the two middle rows, -3.3e38 (the brightest) at
+        // column 5 of row 2.
+        let mut pixels = vec![[1.0f32, 2.0, 3.0]; 8 * 4];
+        for pixel in &mut pixels[8..3 * 8] {
+            pixel[1] = 3e38;
+        }
+        pixels[2 * 8 + 5][1] = -3.3e38;
+        let error = project_equirect::<4, _>(&pixels, 8, 4, &EquirectMapping::Y_UP).unwrap_err();
+        assert!(
+            matches!(
+                error,
+                ShError::CoefficientOverflow {
+                    channel: 1,
+                    column: 5,
+                    row: 2,
+                    ..
+                }
+            ),
+            "{error:?}"
+        );
+        assert!(
+            alloc::format!("{error}").contains("column 5, row 2"),
+            "{error}"
+        );
+        // Non-finite texels still propagate (documented), they are no overflow.
+        let nan = project_equirect::<9, _>(&[[f32::NAN, 1.0, 1.0]], 1, 1, &EquirectMapping::Y_UP);
+        assert!(nan.unwrap().r.coeffs.iter().all(|c| c.is_nan()));
+    }
+
+    #[test]
+    fn mappings_accept_axes_of_any_finite_length() {
+        // try_normalize refused axes whose squared length overflows or
+        // underflows (1e20 squares to infinity, 1e-30 to zero).
+        for s in [1e20f32, 3e38, 1e-30, 1e-40] {
+            let z_up = EquirectMapping::new(Vec3::new(0.0, 0.0, s), Vec3::new(s, 0.0, 0.5 * s));
+            assert_eq!(
+                z_up,
+                EquirectMapping::new(Vec3::Z, Vec3::new(1.0, 0.0, 0.5)),
+                "{s}"
+            );
+            assert_eq!(
+                EquirectMapping::new(Vec3::Y * s, Vec3::X),
+                Some(EquirectMapping::Y_UP),
+                "{s}"
+            );
+            assert_eq!(
+                EquirectMapping::new(Vec3::Y, Vec3::X * s),
+                Some(EquirectMapping::Y_UP),
+                "{s}"
+            );
+        }
+        assert!(EquirectMapping::new(Vec3::Y, Vec3::new(1e20, 0.0, 0.0)).is_some());
+        assert!(EquirectMapping::new(Vec3::new(0.0, 1e-30, 0.0), Vec3::X).is_some());
+        assert_eq!(EquirectMapping::new(Vec3::INFINITY, Vec3::X), None);
+        assert_eq!(EquirectMapping::new(Vec3::Y, Vec3::Y * 1e30), None);
     }
 
     #[test]

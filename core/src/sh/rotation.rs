@@ -72,8 +72,11 @@ const UVW: [[f32; 3]; ROTATION_ENTRIES] = {
 /// matrix and applied to any number of coefficient vectors.
 ///
 /// Rotates the function: for `g = rotation.apply(&f)`, `g(ω) = f(R⁻¹ω)` (a lobe along
-/// `d` ends up along `R d`). `R` must be orthogonal (a rotation, or a rotation times
-/// -1); anything else gives meaningless but finite-in-finite-out numbers.
+/// `d` ends up along `R d`). `R` must be orthogonal, or orthogonal up to rounding
+/// (a rotation, or a rotation times -1): the recurrence assumes it, and band `l`'s
+/// matrix of any other `R` is meaningless and grows like `|R|^l`, so a large `R`
+/// overflows to infinities and NaN in the higher bands (`|R| ≈ 1e6` does in band
+/// `l = 7` in `f32`). Nothing is checked: normalise the columns first when unsure.
 /// The matrices live in a fixed array sized for [`MAX_BANDS`] (680 floats); only the
 /// first `Sh::<N>::BANDS` bands are computed.
 ///
@@ -188,6 +191,23 @@ impl<const N: usize> ShRotation<N> {
             }
         }
         Sh { coeffs: out }
+    }
+
+    /// [`ShRotation::apply`] in `f64` on `f64` coefficients (the matrices
+    /// widened), for sums that may exceed the `f32` range before the rotation
+    /// brings them back, and so that projections round once, at the end.
+    pub(crate) fn apply_f64(&self, coeffs: &[f64; N]) -> [f64; N] {
+        let mut out = [0.0f64; N];
+        for l in 0..Sh::<N>::BANDS {
+            let size = 2 * l + 1;
+            let matrix = &self.matrices[band_offset(l)..band_offset(l) + size * size];
+            let input = &coeffs[l * l..l * l + size];
+            let output = &mut out[l * l..l * l + size];
+            for (row, o) in matrix.chunks_exact(size).zip(output) {
+                *o = row.iter().zip(input).map(|(&a, b)| f64::from(a) * b).sum();
+            }
+        }
+        out
     }
 
     /// The rotated coefficients of each channel of `sh`.
