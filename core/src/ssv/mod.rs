@@ -98,7 +98,7 @@
 //! just inside. Near any other edge the two triangles lie on either side of
 //! the segment's plane and the watertight test cannot slip between them. So
 //! the reference sample is chosen among the minimum's samples as one whose
-//! segment keeps more than [`NEAR_ANGLE`] (seen from the receiver, fifty
+//! segment keeps more than 2^-14 (an angle seen from the receiver, fifty
 //! times the ray's rounding) from every silhouette edge the sweep met and
 //! lies as deep inside the light (so that every edge near its segment is a
 //! candidate of the structure); a hit the exact test refutes away from the
