@@ -503,7 +503,16 @@ impl TriangleCone {
         let widen = if exact == 0b111 {
             0.0
         } else {
-            table.max_error()
+            // Two planes each off by up to the table's error move the corner
+            // where they meet by up to error / sin(α/2), α the corner's
+            // interior angle (cos α = -n_k · n_l for the inward edge normals):
+            // more than the error itself at every corner narrower than 60°.
+            let unit = self.normals.map(|m| m * (1.0 / m.length()));
+            let least_dot = dot(unit[0], unit[1])
+                .min(dot(unit[1], unit[2]))
+                .min(dot(unit[2], unit[0]));
+            let sin_half = (0.5 * (1.0 + least_dot)).max(0.0).sqrt();
+            (table.max_error() / sin_half.max(1e-3)).min(4.0)
         };
         if classes.spread < BOXED_SPREAD {
             return self.mask_boxed(&entries, exact, 0.25 * classes.spread + widen);
@@ -1347,6 +1356,50 @@ mod table_quality_tests {
                 }
                 prop_assert_eq!(quad & outer & (m1 | m2).complement(), HemiMask::EMPTY, "pinhole, {:?}", table);
             }
+        }
+    }
+
+    /// A quad (found by `quad_has_no_pinholes_in_table_quality` on a random
+    /// seed) whose diagonal reads the table in both triangles and meets table
+    /// edges at acute corners: the cone's box was widened by the table's error
+    /// alone, but two table planes off by that error move their corner by
+    /// error / sin(α/2), so cell (9, 11) of the quad fell outside both boxes.
+    #[test]
+    fn table_quality_keeps_acute_table_corners_without_a_pinhole() {
+        let [a, b, c, d] = [
+            Vec3::new(-1.7418975, -0.87627107, 3.8172474),
+            Vec3::new(-1.801111, 2.2654705, 3.910523),
+            Vec3::new(-1.8593441, 0.9545593, 3.871603),
+            Vec3::new(-1.8148206, -2.213231, 3.7775545),
+        ];
+        let (t1, t2) = (
+            TriangleCone::new(a, b, c, false).unwrap(),
+            TriangleCone::new(a, c, d, false).unwrap(),
+        );
+        let s = if cross(a, b).dot(c) < 0.0 { -1.0 } else { 1.0 };
+        for table in tables() {
+            let (first, second) = (
+                table.classify_edges([a, b, c]),
+                table.classify_edges([a, c, d]),
+            );
+            let plane = |p: Vec3, q: Vec3, exact: u32| {
+                let m = s * cross(p, q);
+                if exact == 1 {
+                    half_space_mask(m)
+                } else {
+                    table.lookup(m)
+                }
+            };
+            let outer = plane(a, b, first.exact & 1)
+                & plane(b, c, first.exact >> 1 & 1)
+                & plane(c, d, second.exact >> 1 & 1)
+                & plane(d, a, second.exact >> 2 & 1);
+            let covered = t1.mask_table(&table) | t2.mask_table(&table);
+            assert_eq!(
+                outer & covered.complement(),
+                HemiMask::EMPTY,
+                "pinhole, {table:?}"
+            );
         }
     }
 
