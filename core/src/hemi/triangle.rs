@@ -511,7 +511,7 @@ impl TriangleCone {
             let least_dot = dot(unit[0], unit[1])
                 .min(dot(unit[1], unit[2]))
                 .min(dot(unit[2], unit[0]));
-            let sin_half = (0.5 * (1.0 + least_dot)).max(0.0).sqrt();
+            let sin_half = libm::sqrtf((0.5 * (1.0 + least_dot)).max(0.0));
             (table.max_error() / sin_half.max(1e-3)).min(4.0)
         };
         if classes.spread < BOXED_SPREAD {
