@@ -171,35 +171,24 @@ pub struct MrtTap {
 pub fn hemi_oct_encode(local: Vec3) -> Option<(f32, f32)> {
     // Only instructions on the hot path: `abs`, `max` and `clamp` are core's
     // intrinsics (no libm call), and one division instead of two.
-    let z = local.z.max(0.0);
-    let sum = local.x.abs() + local.y.abs() + z;
+    let mut local = local;
+    let mut sum = local.x.abs() + local.y.abs() + local.z.max(0.0);
     if !(sum >= f32::MIN_POSITIVE && sum.is_finite()) {
-        return hemi_oct_encode_wide(local);
+        // A sum that overflows f32 or falls below its normal range (where
+        // `1 / sum` overflows and the coordinates would be NaN): the same
+        // direction scaled by a power of two, exactly.
+        if !local.is_finite() {
+            return None;
+        }
+        local = crate::geom::normalize_exponent(local);
+        sum = local.x.abs() + local.y.abs() + local.z.max(0.0);
+        if sum < f32::MIN_POSITIVE {
+            return None;
+        }
     }
     let inv = 1.0 / sum;
     let (px, py) = (local.x * inv, local.y * inv);
     Some(((px + py).clamp(-1.0, 1.0), (px - py).clamp(-1.0, 1.0)))
-}
-
-/// [`hemi_oct_encode`] of a vector whose `|x| + |y| + z` overflows `f32` or
-/// falls below its normal range (where `1 / sum` overflows and the coordinates
-/// would be NaN): the same map in `f64`, where neither happens.
-#[cold]
-#[inline(never)]
-fn hemi_oct_encode_wide(local: Vec3) -> Option<(f32, f32)> {
-    if !local.is_finite() {
-        return None;
-    }
-    let d = local.as_dvec3();
-    let sum = d.x.abs() + d.y.abs() + d.z.max(0.0);
-    if sum <= 0.0 {
-        return None;
-    }
-    let (px, py) = (d.x / sum, d.y / sum);
-    Some((
-        (px + py).clamp(-1.0, 1.0) as f32,
-        (px - py).clamp(-1.0, 1.0) as f32,
-    ))
 }
 
 /// The unit local direction of square coordinates `(a, b) ∈ [-1, 1]²`.

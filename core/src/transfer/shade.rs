@@ -462,15 +462,15 @@ pub fn shade_mrt_pca(
 }
 
 /// `v` normalised, or zero for a zero or non-finite `v`; a finite vector whose
-/// squared length leaves `f32`'s range is normalised in `f64` (glam's
-/// `normalize_or_zero` gives zero there).
+/// squared length leaves `f32`'s range is first scaled by a power of two
+/// (glam's `normalize_or_zero` gives zero there).
 #[inline]
 fn unit_or_zero(v: Vec3) -> Vec3 {
     let unit = v.normalize_or_zero();
     if unit != Vec3::ZERO || v == Vec3::ZERO || !v.is_finite() {
         return unit;
     }
-    v.as_dvec3().normalize_or_zero().as_vec3()
+    crate::geom::normalize_exponent(v).normalize_or_zero()
 }
 
 /// Surface parameters applied at run time.
