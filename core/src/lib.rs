@@ -68,6 +68,7 @@ extern crate std;
 
 pub mod geom;
 pub mod hemi;
+mod prefetch;
 pub mod raycast;
 pub mod rng;
 pub mod sh;

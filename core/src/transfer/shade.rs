@@ -15,6 +15,7 @@ use glam::{Vec3, Vec4};
 use super::mrt::{MrtTap, mrt_tap};
 use super::{Payload, TransferKind, TransferSet};
 use crate::geom::Frame;
+use crate::prefetch::prefetch;
 use crate::sh::{MAX_COEFFS, ShRgb, ZonalKernel, eval_basis, eval_basis_into};
 
 /// RGB lighting coefficients of an [`ShRgb`], coefficient-major.
@@ -617,37 +618,6 @@ fn block_taps(
 /// requested: enough that a row requested from memory (hundreds of cycles) has
 /// arrived by the time its vertex is shaded (tens of cycles each).
 const PREFETCH_AHEAD: usize = 8;
-
-/// Asks the cache for the line holding `data[index]`: a hint, which neither faults
-/// nor changes any value, whatever the address (no-op off x86).
-#[inline(always)]
-fn prefetch(data: &[f32], index: usize) {
-    #[cfg(all(
-        any(target_arch = "x86", target_arch = "x86_64"),
-        target_feature = "sse"
-    ))]
-    {
-        #[cfg(target_arch = "x86")]
-        use core::arch::x86::{_MM_HINT_T0, _mm_prefetch};
-        #[cfg(target_arch = "x86_64")]
-        use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        // Pointer arithmetic without a dereference: no bounds to keep.
-        let address = data.as_ptr().wrapping_add(index).cast::<i8>();
-        #[allow(unsafe_code)]
-        // SAFETY: `prefetch` has no architectural effect besides filling a cache
-        // line: it never faults and never reads memory visibly, for any address.
-        // The only reason it is `unsafe` is its `#[target_feature(enable = "sse")]`,
-        // which every x86-64 target has and which this build guards by `cfg`.
-        unsafe {
-            _mm_prefetch::<_MM_HINT_T0>(address)
-        };
-    }
-    #[cfg(not(all(
-        any(target_arch = "x86", target_arch = "x86_64"),
-        target_feature = "sse"
-    )))]
-    let _ = (data, index);
-}
 
 /// Requests the four rows of vertex `v`'s tap (two pairs of adjacent rows, `2N`
 /// values each, starting anywhere in a cache line).
