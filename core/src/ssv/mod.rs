@@ -165,6 +165,9 @@ const ANGLE_SCALE: f64 = (ANGLE_BUCKETS / 4) as f64;
 /// Most light samples a [`SoftShadows`] may have.
 pub const MAX_SAMPLES: usize = 1024;
 
+/// Sample counts up to this take the smaller of a query's two counter arrays.
+const COMMON_SAMPLES: usize = 256;
+
 /// Depth to which the hierarchy is subdivided at creation when the `std` feature
 /// (and with it lazy, thread-safe construction) is off.
 pub const NO_STD_EAGER_DEPTH: u32 = 3;
@@ -809,8 +812,16 @@ impl SoftShadows {
             }
             return Ok(info);
         }
-        let mut counters = [0i32; MAX_SAMPLES];
-        let counters = &mut counters[..n];
+        // Only the counters in use are zeroed: clearing all of MAX_SAMPLES
+        // (4 KiB) took about 2 % of a bunny query at 256 samples.
+        let mut common = [0i32; COMMON_SAMPLES];
+        let mut rare;
+        let counters = if n <= COMMON_SAMPLES {
+            &mut common[..n]
+        } else {
+            rare = [0i32; MAX_SAMPLES];
+            &mut rare[..n]
+        };
         let mut silhouettes = Silhouettes::new();
         self.sweep(p, counters, &mut info, &mut silhouettes);
         let min = counters.iter().copied().min().expect("at least one sample");
