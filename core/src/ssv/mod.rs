@@ -37,12 +37,19 @@
 //!
 //! Certified signs: every determinant above is evaluated in `f64` from `f32`
 //! inputs with Shewchuk's forward error bound and, when the bound does not settle
-//! the sign, exactly ([`predicates`]). Tie rule: the weight terms use the true
-//! sign (0 counts 0); the three crossing tests treat an exact zero as negative,
-//! with arguments always in the same canonical order (edge endpoints by welded
-//! vertex number, which depends only on positions), so a sample exactly on a
-//! projected edge, or an edge exactly through the centroid's direction, is
-//! counted the same way by every structure. Zero mismatches against the exact
+//! the sign, exactly ([`predicates`]). Tie rules: the weight terms use the
+//! true sign (0 counts 0). The centroid is only where the sweep starts, so its
+//! ties must not change any answer: every determinant with `c` in it is taken
+//! at `c + ε e₁ + ε² e₂ + ε³ e₃` for an infinitesimal `ε > 0` (where it is
+//! exactly zero, the sign of the first non-zero term of that move), one and
+//! the same point for every edge, so a receiver whose segment to the centroid
+//! passes exactly through an occluder vertex or edge gets the oracle's bits.
+//! (Breaking each such tie as "negative" on its own put the centroid on the
+//! negative side of all the planes through a vertex at once, which no point
+//! is.) The other exact zeros, a sample exactly on a projected edge, count as
+//! negative, with arguments always in the same canonical order (edge endpoints
+//! by welded vertex number, which depends only on positions), so every
+//! structure counts them the same way. Zero mismatches against the exact
 //! oracle are claimed for inputs where no segment passes exactly through an edge
 //! or vertex (there the visibility itself is a matter of convention).
 //!
@@ -151,7 +158,9 @@ use hierarchy::Hierarchy;
 pub use light::{
     LIGHT_TOLERANCE, LightError, LightPolygon, MAX_LIGHT_VERTICES, SamplePattern, SplitMix64,
 };
-use predicates::{ORIENT_BOUND, crossing_in_triangle, det3_with_permanent, orient3d_exact};
+use predicates::{
+    ORIENT_BOUND, cross_sign_sequence, crossing_in_triangle, det3_with_permanent, orient3d_exact,
+};
 pub use predicates::{orient3d, segment_meets_triangle};
 use wedge::{Aabb, LightShape};
 
@@ -1491,13 +1500,18 @@ impl<'a> Kernel<'a> {
         if !(above && below) {
             return true;
         }
-        // Side of the centroid: tie counts negative.
+        // Side of the centroid, its ties broken by the centroid's
+        // infinitesimal move (module docs).
         let cw = self.cp.to_array();
         let (det, perm) = det3_with_permanent(a3, b3, cw);
         let c_pos = if det.abs() > ORIENT_BOUND * perm {
             det > 0.0
         } else {
-            orient3d_exact(wide(a), wide(b), wide(ss.centroid), wide(self.p)) > 0
+            let (a, b, p) = (wide(a), wide(b), wide(self.p));
+            match orient3d_exact(a, b, wide(ss.centroid), p) {
+                0 => cross_sign_sequence(a, p, b, p) > 0,
+                sign => sign > 0,
+            }
         };
         let amat = aw.cross(self.cp);
         let bmat = bw.cross(self.cp);
@@ -1696,14 +1710,28 @@ impl<'a> Kernel<'a> {
             let s = wide(ss.samples[ss.order[i] as usize]);
             let pp = wide(self.p);
             let cc = wide(ss.centroid);
-            let exact_pos =
-                |f: Option<bool>, x: [f64; 3], y: [f64; 3], z: [f64; 3], w: [f64; 3]| {
-                    f.unwrap_or_else(|| orient3d_exact(x, y, z, w) > 0)
-                };
-            let ps = exact_pos(fs, wide(a), wide(b), s, pp);
-            let pa = exact_pos(fa, wide(a), cc, s, pp);
-            let pb = exact_pos(fb, wide(b), cc, s, pp);
-            let po = exact_pos(fo, wide(a), wide(b), cc, s);
+            let (a, b) = (wide(a), wide(b));
+            // The sign, exact; where it is zero and the determinant has the
+            // centroid in it, the sign of the term the centroid's move adds
+            // (`moved`), else negative.
+            let exact_pos = |f: Option<bool>, [x, y, z, w]: [[f64; 3]; 4], moved: fn(_) -> i32| {
+                f.unwrap_or_else(|| match orient3d_exact(x, y, z, w) {
+                    0 => moved([x, y, z, w]) > 0,
+                    sign => sign > 0,
+                })
+            };
+            let ps = exact_pos(fs, [a, b, s, pp], |_| 0);
+            // det[a - p, c - p, s - p]: the move adds det[a - p, e, s - p].
+            let pa = exact_pos(fa, [a, cc, s, pp], |[x, _, z, w]| {
+                -cross_sign_sequence(x, w, z, w)
+            });
+            let pb = exact_pos(fb, [b, cc, s, pp], |[x, _, z, w]| {
+                -cross_sign_sequence(x, w, z, w)
+            });
+            // det[a - s, b - s, c - s]: the move adds det[a - s, b - s, e].
+            let po = exact_pos(fo, [a, b, cc, s], |[x, y, _, w]| {
+                cross_sign_sequence(x, w, y, w)
+            });
             if ps != want || pa == pb || po != want {
                 return false;
             }

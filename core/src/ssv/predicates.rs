@@ -86,6 +86,33 @@ pub(crate) fn orient3d_exact(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3])
     total.sign()
 }
 
+/// The sign of the first non-zero component of `(x1 - x0) × (y1 - y0)`, exactly
+/// (0 when the product is zero), for `f64` inputs that are `f32` values.
+///
+/// This is the sign, for every small enough `ε > 0`, of
+/// `det[x1 - x0, y1 - y0, ε e₁ + ε² e₂ + ε³ e₃]`: the term a determinant gains
+/// when the point in its third column moves by that infinitesimal amount. The
+/// soft shadow sweep breaks ties at its start point this way ([`super`] module
+/// docs), so that every determinant sees one and the same moved point.
+pub(crate) fn cross_sign_sequence(x1: [f64; 3], x0: [f64; 3], y1: [f64; 3], y0: [f64; 3]) -> i32 {
+    let diff = |p: [f64; 3], q: [f64; 3], i: usize| -> [f64; 2] {
+        let (high, low) = two_diff(p[i], q[i]);
+        [low, high]
+    };
+    for k in 0..3 {
+        // (x × y)_k = x_i y_j - x_j y_i
+        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+        let mut minor = Expansion::<MINOR>::product(&diff(x1, x0, i), &diff(y1, y0, j));
+        let other = Expansion::<PRODUCT>::product(&diff(x1, x0, j), &diff(y1, y0, i));
+        minor.subtract(&other);
+        let sign = minor.sign();
+        if sign != 0 {
+            return sign;
+        }
+    }
+    0
+}
+
 #[inline]
 fn two_sum(a: f64, b: f64) -> (f64, f64) {
     let x = a + b;
@@ -252,6 +279,31 @@ mod tests {
     use super::*;
     use alloc::vec;
     use proptest::prelude::*;
+
+    proptest! {
+        /// The first non-zero component of the cross product, against integers
+        /// (small values, so every `f32` and product is exact there).
+        #[test]
+        fn cross_sign_sequence_is_the_first_nonzero_component(
+            v in proptest::array::uniform12(-4i64..=4),
+        ) {
+            let p = |i: usize| [v[i], v[i + 1], v[i + 2]];
+            let (x1, x0, y1, y0) = (p(0), p(3), p(6), p(9));
+            let x = [x1[0] - x0[0], x1[1] - x0[1], x1[2] - x0[2]];
+            let y = [y1[0] - y0[0], y1[1] - y0[1], y1[2] - y0[2]];
+            let cross = [
+                x[1] * y[2] - x[2] * y[1],
+                x[2] * y[0] - x[0] * y[2],
+                x[0] * y[1] - x[1] * y[0],
+            ];
+            let expected = cross.iter().find(|&&c| c != 0).map_or(0, |c| c.signum() as i32);
+            let wide = |q: [i64; 3]| q.map(|c| c as f64);
+            prop_assert_eq!(
+                cross_sign_sequence(wide(x1), wide(x0), wide(y1), wide(y0)),
+                expected
+            );
+        }
+    }
 
     fn det_i128(a: [i64; 3], b: [i64; 3], c: [i64; 3], d: [i64; 3]) -> i32 {
         let v = |p: [i64; 3]| {

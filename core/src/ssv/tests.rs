@@ -1199,3 +1199,77 @@ fn irradiance_of_an_unlit_receiver_is_zero_for_any_light() {
     assert_eq!(ss.irradiance(Vec3::ZERO, Vec3::Z, &[0]), 0.0);
     assert!(ss.irradiance(Vec3::ZERO, Vec3::Z, &[1]) > 0.0);
 }
+
+/// Whether some segment from `p` to a sample passes exactly through an edge or
+/// a vertex of a triangle it crosses (where bits are a matter of convention).
+fn touches_an_edge(tris: &[[Vec3; 3]], p: Vec3, samples: &[Vec3]) -> bool {
+    samples.iter().any(|&s| {
+        tris.iter().any(|&[a, b, c]| {
+            if orient3d(a, b, c, p) * orient3d(a, b, c, s) >= 0 {
+                return false;
+            }
+            let e = [
+                orient3d(p, s, a, b),
+                orient3d(p, s, b, c),
+                orient3d(p, s, c, a),
+            ];
+            e.contains(&0) && !(e.contains(&1) && e.contains(&-1))
+        })
+    })
+}
+
+/// A receiver whose segment to the light's centroid passes exactly through an
+/// occluder vertex: the sweep starts on the projections of every edge at that
+/// vertex. Treating each such tie as "negative" on its own put the centroid on
+/// the negative side of every one of those planes at once, which no point is,
+/// so the relative depth complexity came out wrong and every sample was
+/// reported blocked (the review's reproducer: 0 of 64 visible, 48 exact). No
+/// segment to a sample passes through an edge or vertex here (checked), so the
+/// oracle's answer is the only right one.
+#[test]
+fn a_receiver_in_line_with_the_centroid_and_a_vertex_gets_the_oracle_bits() {
+    let light = quad_light(Vec3::new(0.0, 0.0, 2.0), 0.5);
+    let c = light.centroid();
+    assert_eq!(c, Vec3::new(0.0, 0.0, 2.0));
+    // The review's lone triangle over the origin, with a corner on the line
+    // from the origin to the centroid.
+    let mut lone = Soup::default();
+    lone.push([
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, 0.5),
+        Vec3::new(0.0, 1.0, 0.5),
+    ]);
+    let stratified = light.samples(64, SamplePattern::Stratified, 1);
+    assert!(!touches_an_edge(&lone.triangles(), Vec3::ZERO, &stratified));
+    check(&lone, &light, &stratified, &[Vec3::ZERO]);
+    // An axis-aligned square, a cube and a pyramid with dyadic corners, and
+    // receivers at 2v - c for every corner v: v is then exactly the midpoint
+    // of the receiver and the centroid.
+    let square = grid(1, 1, |u, v| Vec3::new(0.3 * u, 0.3 * v, 1.0));
+    let mut solids = cube(Vec3::new(0.0625, -0.03125, 1.0), 0.125);
+    let apex = Vec3::new(-0.25, 0.125, 1.25);
+    let base = [(-0.5, -0.125), (0.0, -0.125), (0.0, 0.375), (-0.5, 0.375)]
+        .map(|(x, y)| Vec3::new(x, y, 1.0));
+    for k in 0..4 {
+        solids.push([base[k], base[(k + 1) % 4], apex]);
+    }
+    solids.push([base[0], base[2], base[1]]);
+    solids.push([base[0], base[3], base[2]]);
+    for seed in [1, 2] {
+        let samples = light.samples(64, SamplePattern::Jittered, seed);
+        for soup in [&lone, &square, &solids] {
+            let receivers: Vec<Vec3> = soup
+                .positions
+                .iter()
+                .map(|&v| 2.0 * Vec3::from(v) - c)
+                .collect();
+            for (&p, &v) in receivers.iter().zip(&soup.positions) {
+                let v = Vec3::from(v);
+                assert_eq!(orient3d(p, v, c, Vec3::X), 0);
+                assert_eq!(orient3d(p, v, c, Vec3::Y), 0);
+                assert!(!touches_an_edge(&soup.triangles(), p, &samples));
+            }
+            check(soup, &light, &samples, &receivers);
+        }
+    }
+}
