@@ -1674,11 +1674,12 @@ void antumbra_ssv_options_init(struct antumbra_ssv_options *options);
  *        triangle finite and within ±1e12, position_stride 0 (packed) or >= 12.
  *        Copied: the mesh may be freed afterwards.
  * @param light_vertices 3 floats per vertex, in order around the polygon (either
- *        winding): convex, planar within 1e-4 of its diameter, non-zero area, no
+ *        winding): convex, planar within 1e-4 of its diameter (or 8 units of
+ *        f32 rounding at its largest coordinate, if more), non-zero area, no
  *        two consecutive vertices equal, coordinates finite within ±1e12.
  * @param light_vertex_count 3 to `ANTUMBRA_SSV_MAX_LIGHT_VERTICES` (16).
  * @param samples 3 floats per light sample (bit i of a result is sample i), each
- *        on the light polygon within 1e-4 of its diameter; make them with
+ *        on the light polygon within the same tolerance; make them with
  *        `antumbra_ssv_generate_samples`. Copied.
  * @param sample_count 1 to `ANTUMBRA_SSV_MAX_SAMPLES` (1024).
  * @param options NULL for the defaults (see `antumbra_ssv_options_init`).

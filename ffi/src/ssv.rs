@@ -278,16 +278,16 @@ fn check_options(options: &antumbra_ssv_options) -> Result<(SsvOptions, bool), E
 }
 
 /// `count` points of 3 floats at `pointer`, each finite and within ±1e12, named
-/// `argument[i]` in messages.
+/// `argument[i]` in messages, their count `count_argument`.
 ///
 /// # Safety
 /// A non-NULL `pointer` must be valid for `3 * count` floats for `'a`.
 unsafe fn points<'a>(
     pointer: *const f32,
-    count: usize,
+    (count, count_argument): (usize, &str),
     argument: &str,
 ) -> Result<&'a [f32], Error> {
-    let xyz = raw::element_count(count, 3, format_args!("{argument} count"))?;
+    let xyz = raw::element_count(count, 3, count_argument)?;
     // SAFETY: forwarded contract.
     let floats = unsafe { raw::slice(pointer, xyz, argument) }?;
     for (i, p) in floats.chunks_exact(3).enumerate() {
@@ -325,7 +325,13 @@ unsafe fn read_light(
         )));
     }
     // SAFETY: forwarded contract.
-    let floats = unsafe { points(light_vertices, light_vertex_count, "light_vertices") }?;
+    let floats = unsafe {
+        points(
+            light_vertices,
+            (light_vertex_count, "light_vertex_count"),
+            "light_vertices",
+        )
+    }?;
     LightPolygon::new(&to_vec3s(floats)).map_err(light_error)
 }
 
@@ -345,7 +351,7 @@ fn light_error(error: LightError) -> Error {
         ),
         LightError::NotPlanar { vertex } => Error::invalid(format!(
             "light_vertices[{vertex}] is off the polygon's plane (tolerance {:e} of its \
-             diameter)",
+             diameter, or 8 units of f32 rounding at its largest coordinate if more)",
             antumbra_core::ssv::LIGHT_TOLERANCE
         )),
         LightError::NotConvex { vertex } => Error::invalid(format!(
@@ -353,8 +359,9 @@ fn light_error(error: LightError) -> Error {
              more than once)"
         )),
         LightError::SampleOffLight { index } => Error::invalid(format!(
-            "samples[{index}] is off the light polygon (beyond {:e} of its diameter from its \
-             plane or outside its edges)",
+            "samples[{index}] is off the light polygon (beyond {:e} of its diameter, or 8 \
+             units of f32 rounding at its largest coordinate if more, from its plane or \
+             outside its edges)",
             antumbra_core::ssv::LIGHT_TOLERANCE
         )),
     }
@@ -373,11 +380,12 @@ fn light_error(error: LightError) -> Error {
 ///        triangle finite and within ±1e12, position_stride 0 (packed) or >= 12.
 ///        Copied: the mesh may be freed afterwards.
 /// @param light_vertices 3 floats per vertex, in order around the polygon (either
-///        winding): convex, planar within 1e-4 of its diameter, non-zero area, no
+///        winding): convex, planar within 1e-4 of its diameter (or 8 units of
+///        f32 rounding at its largest coordinate, if more), non-zero area, no
 ///        two consecutive vertices equal, coordinates finite within ±1e12.
 /// @param light_vertex_count 3 to `ANTUMBRA_SSV_MAX_LIGHT_VERTICES` (16).
 /// @param samples 3 floats per light sample (bit i of a result is sample i), each
-///        on the light polygon within 1e-4 of its diameter; make them with
+///        on the light polygon within the same tolerance; make them with
 ///        `antumbra_ssv_generate_samples`. Copied.
 /// @param sample_count 1 to `ANTUMBRA_SSV_MAX_SAMPLES` (1024).
 /// @param options NULL for the defaults (see `antumbra_ssv_options_init`).
@@ -439,7 +447,8 @@ pub unsafe extern "C" fn antumbra_ssv_create(
             )));
         }
         // SAFETY: caller contract on `samples`.
-        let samples = to_vec3s(unsafe { points(samples, sample_count, "samples") }?);
+        let samples =
+            to_vec3s(unsafe { points(samples, (sample_count, "sample_count"), "samples") }?);
         light.validate_samples(&samples).map_err(light_error)?;
         let triangles = mesh.triangle_count();
         let shadows =
@@ -576,7 +585,7 @@ pub unsafe extern "C" fn antumbra_ssv_query(
     with_handle("antumbra_ssv_query", ssv, |ssv| {
         let words = ssv.shadows.words_per_receiver();
         // SAFETY: caller contract on `points`.
-        let floats = unsafe { self::points(points, point_count, "points") }?;
+        let floats = unsafe { self::points(points, (point_count, "point_count"), "points") }?;
         let word_count = raw::element_count(
             point_count,
             words,
@@ -798,6 +807,38 @@ mod tests {
         };
         assert_eq!(r, ANTUMBRA_RESULT_OK);
         assert!(samples.iter().all(|x| x.is_finite()), "{samples:?}");
+    }
+
+    /// An overflowing `point_count` was reported as "points count"; the
+    /// message names the parameter.
+    #[test]
+    fn an_overflowing_point_count_is_named() {
+        let samples = [0.0f32, 0.0, 2.0];
+        let ssv = create(ANTUMBRA_SSV_STRUCTURE_HIERARCHY, &samples, 0);
+        let points = [0.0f32; 3];
+        let mut bits = [7u64];
+        // SAFETY: a valid handle; the count is refused before anything is read.
+        let r = unsafe {
+            antumbra_ssv_query(
+                ssv,
+                points.as_ptr(),
+                usize::MAX / 2,
+                bits.as_mut_ptr(),
+                core::ptr::null_mut(),
+            )
+        };
+        // SAFETY: the library's own NUL-terminated message.
+        let message = unsafe { core::ffi::CStr::from_ptr(crate::antumbra_last_error_message()) }
+            .to_string_lossy()
+            .into_owned();
+        // SAFETY: created above, destroyed once.
+        unsafe { antumbra_ssv_destroy(ssv) };
+        assert_eq!(r, ANTUMBRA_RESULT_INVALID_ARGUMENT);
+        assert!(
+            message.starts_with("antumbra_ssv_query: point_count:"),
+            "{message}"
+        );
+        assert_eq!(bits, [7]);
     }
 
     /// The C defaults are written out for the header's docs; they must be core's.

@@ -9,8 +9,15 @@ use glam::{DVec3, Vec3};
 pub const MAX_LIGHT_VERTICES: usize = 16;
 
 /// Relative tolerance (of the light's diameter) for planarity of the polygon and
-/// for user samples being on the plane and inside the polygon.
+/// for user samples being on the plane and inside the polygon; see
+/// [`LightPolygon::tolerance`] for the absolute one.
 pub const LIGHT_TOLERANCE: f32 = 1e-4;
+
+/// Units of `f32` rounding at the light's largest coordinate below which the
+/// tolerance never goes: rounding a point of the polygon to `f32` moves it by up
+/// to `√3/2` units, the stored centroid by as much, and the stored normal tilts
+/// by a unit over at most the diameter; twice their sum, rounded up.
+const ROUNDING_UNITS: f64 = 8.0;
 
 /// Why a light polygon or a sample set was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,7 +31,8 @@ pub enum LightError {
     NonFinite,
     /// Zero area, or two consecutive vertices equal.
     Degenerate,
-    /// A vertex is farther than [`LIGHT_TOLERANCE`] × diameter from the plane.
+    /// A vertex is farther than the tolerance ([`LightPolygon::tolerance`])
+    /// from the plane.
     NotPlanar {
         /// The offending vertex.
         vertex: usize,
@@ -74,7 +82,7 @@ impl core::error::Error for LightError {}
 /// A convex planar polygonal area light (3 to 16 vertices, either winding).
 ///
 /// Validated on creation: finite, no repeated consecutive vertices, non-zero area,
-/// every vertex within [`LIGHT_TOLERANCE`] × diameter of the best-fit plane
+/// every vertex within the tolerance ([`LightPolygon::tolerance`]) of the best-fit plane
 /// (through the centroid, Newell normal), and convex (every turn the same sign,
 /// total turning one revolution). The light is never an occluder and emits from
 /// both sides as far as visibility is concerned: receivers on either side see it.
@@ -85,6 +93,7 @@ pub struct LightPolygon {
     normal: Vec3,
     area: f32,
     diameter: f32,
+    tolerance: f32,
 }
 
 impl LightPolygon {
@@ -117,7 +126,12 @@ impl LightPolygon {
             return Err(LightError::Degenerate);
         }
         let normal = newell / twice_area;
-        let tolerance = f64::from(LIGHT_TOLERANCE) * diameter;
+        let largest = wide
+            .iter()
+            .map(|w| w.abs().max_element())
+            .fold(0.0, f64::max);
+        let rounding = ROUNDING_UNITS * f64::from(f32::EPSILON) * largest;
+        let tolerance = (f64::from(LIGHT_TOLERANCE) * diameter).max(rounding);
         for (vertex, w) in wide.iter().enumerate() {
             if (*w - centroid).dot(normal).abs() > tolerance {
                 return Err(LightError::NotPlanar { vertex });
@@ -147,6 +161,7 @@ impl LightPolygon {
             normal: normal.as_vec3(),
             area: (0.5 * twice_area) as f32,
             diameter: diameter as f32,
+            tolerance: tolerance as f32,
         })
     }
 
@@ -175,9 +190,13 @@ impl LightPolygon {
         self.diameter
     }
 
-    /// Absolute tolerance: [`LIGHT_TOLERANCE`] × diameter.
+    /// Absolute tolerance: [`LIGHT_TOLERANCE`] × diameter, or, for a light small
+    /// against its distance from the origin, eight units of `f32` rounding at
+    /// its largest coordinate if that is more (so that the samples
+    /// [`LightPolygon::samples`] rounds to `f32` are on the light by
+    /// [`LightPolygon::contains`]).
     pub fn tolerance(&self) -> f32 {
-        LIGHT_TOLERANCE * self.diameter
+        self.tolerance
     }
 
     /// Whether `point` is within the tolerance of the plane and of the polygon.
@@ -410,5 +429,36 @@ mod tests {
             q.validate_samples(&[Vec3::new(0.0, 0.0, 5.01)]),
             Err(LightError::SampleOffLight { index: 0 })
         );
+    }
+
+    /// The C API review's reproducer: a small tilted light far from the
+    /// origin, whose generated samples (rounded to `f32`) lay farther off its
+    /// plane than 1e-4 of its diameter, so creating soft shadows with them
+    /// failed. Lights of several sizes and distances, both patterns.
+    #[test]
+    fn generated_samples_of_small_far_lights_are_on_the_light() {
+        for (side, offset) in [(0.1f32, 1000.0f32), (1.0, 1e4), (0.01, 100.0), (1e-3, 3.0)] {
+            let o = Vec3::splat(offset);
+            let light = LightPolygon::new(&[
+                o + Vec3::new(side, 0.0, 0.0),
+                o + Vec3::new(0.0, side, 0.0),
+                o + Vec3::new(0.0, 0.0, side),
+            ])
+            .unwrap();
+            for pattern in [SamplePattern::Stratified, SamplePattern::Jittered] {
+                let samples = light.samples(64, pattern, 1);
+                assert_eq!(
+                    light.validate_samples(&samples),
+                    Ok(()),
+                    "{side} at {offset}"
+                );
+            }
+        }
+        // Near the origin the relative tolerance stands: a point 2e-4 of the
+        // diameter off the plane is still refused.
+        let light = LightPolygon::new(&[Vec3::X, Vec3::Y, Vec3::Z]).unwrap();
+        let off = light.centroid() + 2e-4 * light.diameter() * light.normal();
+        assert!(!light.contains(off));
+        assert_eq!(light.tolerance(), LIGHT_TOLERANCE * light.diameter());
     }
 }
