@@ -42,6 +42,7 @@ impl EnvironmentMap {
         const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
         const PNG_MAGIC: [u8; 8] = [0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a];
         let image = if bytes.starts_with(&EXR_MAGIC) {
+            check_exr_size(name, bytes)?;
             decode_exr(bytes)
                 .with_context(|| format!("cannot decode OpenEXR environment map {name}"))?
         } else if bytes.starts_with(&PNG_MAGIC) {
@@ -79,6 +80,29 @@ impl EnvironmentMap {
         let (column, row) = equirect::uv_to_texel(uv, self.image.width(), self.image.height());
         self.image.get(column, row)
     }
+}
+
+/// Most pixels an environment map may have: 16384 × 8192, the largest maps in
+/// common use (1.5 GiB as linear RGB).
+const MAX_MAP_PIXELS: usize = 16384 * 8192;
+
+/// Refuses an EXR whose header declares a layer of more than
+/// [`MAX_MAP_PIXELS`]. The decoder allocates the image from the header before
+/// it reads a pixel, so a corrupt or hostile header of a few hundred bytes could
+/// otherwise ask for gigabytes (or overflow the size and panic).
+fn check_exr_size(name: &str, bytes: &[u8]) -> Result<()> {
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .with_context(|| format!("cannot decode OpenEXR environment map {name}"))?;
+    for header in &meta.headers {
+        let (width, height) = (header.layer_size.width(), header.layer_size.height());
+        if width.checked_mul(height).is_none_or(|n| n > MAX_MAP_PIXELS) {
+            return Err(Error::msg(format!(
+                "environment map {name} declares {width}x{height} pixels; at most \
+                 {MAX_MAP_PIXELS} (16384x8192) are supported"
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// The first RGB(A) layer of an EXR file, at full resolution.
@@ -122,6 +146,49 @@ fn sanitize(rgb: Vec3) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 2×1 EXR whose header is patched to declare `width` × `height`
+    /// pixels (no pixel data added): the size a corrupt file claims.
+    fn exr_declaring(width: i32, height: i32) -> Vec<u8> {
+        use exr::prelude::*;
+        let image = Image::from_channels(
+            (2, 1),
+            SpecificChannels::rgb(|_: Vec2<usize>| (1.0f32, 1.0f32, 1.0f32)),
+        );
+        let mut out = std::io::Cursor::new(Vec::new());
+        image.write().to_buffered(&mut out).unwrap();
+        let mut bytes = out.into_inner();
+        for attribute in [&b"dataWindow\0box2i\0"[..], &b"displayWindow\0box2i\0"[..]] {
+            let at = bytes
+                .windows(attribute.len())
+                .position(|w| w == attribute)
+                .unwrap()
+                + attribute.len()
+                + 4;
+            bytes[at + 8..at + 12].copy_from_slice(&(width - 1).to_le_bytes());
+            bytes[at + 12..at + 16].copy_from_slice(&(height - 1).to_le_bytes());
+        }
+        bytes
+    }
+
+    /// The CLI review's hostile maps: a few hundred bytes whose header
+    /// declared 30000² or 100000² pixels took 10 GB before failing, aborted
+    /// on the allocation, or panicked on a capacity overflow.
+    #[test]
+    fn a_header_declaring_a_huge_map_is_refused_before_decoding() {
+        assert!(EnvironmentMap::decode("small", &exr_declaring(2, 1)).is_ok());
+        for (width, height) in [(30000, 30000), (100000, 100000), (1 << 20, 1 << 20)] {
+            let bytes = exr_declaring(width, height);
+            assert!(bytes.len() < 1000);
+            let error = EnvironmentMap::decode("huge", &bytes).unwrap_err();
+            assert!(
+                format!("{error:#}").contains("at most 134217728"),
+                "{width}x{height}: {error:#}"
+            );
+        }
+        // A size the header reader itself refuses is an error as well.
+        assert!(EnvironmentMap::decode("huge", &exr_declaring(i32::MAX, i32::MAX)).is_err());
+    }
 
     #[test]
     fn lookup_uses_the_documented_axes() {
