@@ -35,12 +35,15 @@ pub struct Simplified {
 }
 
 /// Simplifies `mesh` by clustering its vertices in cubic cells of edge
-/// `cell_size` (see the module docs). `cell_size` must be positive and finite.
+/// `cell_size` (see the module docs); an error unless `cell_size` is positive
+/// and finite.
 pub fn cluster_vertices(mesh: &TriangleMesh, cell_size: f32) -> Result<Simplified> {
-    assert!(
-        cell_size > 0.0 && cell_size.is_finite(),
-        "cell size must be a positive number, got {cell_size}"
-    );
+    if !(cell_size > 0.0 && cell_size.is_finite()) {
+        return Err(Error::msg(format!(
+            "cannot simplify {}: the cell size must be a positive number, got {cell_size}",
+            mesh.name()
+        )));
+    }
     let origin = mesh.bounds().min;
     let cell_of = |p: Vec3| {
         let c = ((p - origin) / cell_size).floor();

@@ -514,3 +514,30 @@ fn bench_hemi_frames_run_on_another_mesh_with_table_quality() {
     assert!(text.contains("triangles of 992"), "{text}");
     assert!(text.contains("full near + far mesh"), "{text}");
 }
+
+/// The CLI review's reproducer: `bench hemi` on a mesh whose vertices are all
+/// at one point panicked after its timing tables (an `assert!` on the far
+/// mesh's cell size); it is refused before any timing.
+#[test]
+fn bench_hemi_refuses_a_mesh_of_zero_extent() {
+    let dir = scratch("zero-extent");
+    let point = dir.join("point.obj");
+    std::fs::write(&point, "v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n").unwrap();
+    let output = antumbra(&[
+        "bench",
+        "hemi",
+        "--mesh",
+        point.to_str().unwrap(),
+        "--no-embree",
+        "--min-time",
+        "1",
+    ]);
+    assert!(!output.status.success());
+    let text = stderr(&output);
+    assert!(text.contains("zero extent"), "{text}");
+    assert!(!text.contains("panicked"), "{text}");
+    assert!(
+        !stdout(&output).contains("rasterizer"),
+        "timed before refusing"
+    );
+}

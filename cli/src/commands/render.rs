@@ -26,12 +26,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     }
     let started = Instant::now();
     let mesh = TriangleMesh::load_obj(&args.mesh)?;
-    if mesh.bounds().diagonal() <= 0.0 {
-        return Err(Error::msg(format!(
-            "{} has zero extent: all its vertices are at one point",
-            mesh.name()
-        )));
-    }
+    crate::hemi_shading::check_extent(&mesh)?;
     let env = args.env.as_deref().map(EnvironmentMap::load).transpose()?;
     let out = args
         .out
