@@ -482,6 +482,12 @@ fn bake_error(error: BakeError) -> Error {
         BakeError::NormalCount { .. } | BakeError::Normal { .. } => "normals",
         BakeError::TooManyVertices(_) | BakeError::NoVertices => "mesh->vertex_count",
         BakeError::BrdfNotFinite => "options->brdf_params",
+        BakeError::TooLarge { .. } => {
+            return Error::new(
+                ANTUMBRA_RESULT_OUT_OF_MEMORY,
+                format!("mesh and options: {error}"),
+            );
+        }
     };
     Error::invalid(format!("{field}: {error}"))
 }

@@ -19,7 +19,6 @@
 //! `k-1` result); within a pass vertices are independent and draw from their own
 //! random streams, so the result is identical serial or parallel, for a seed.
 
-use alloc::vec;
 use alloc::vec::Vec;
 use core::f32::consts::PI;
 use core::sync::atomic::{AtomicUsize, Ordering};
@@ -269,12 +268,21 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
         Projection::None => coeffs,
         _ => coeffs * coeffs,
     };
-    let mut measured = vec![0.0f32; vertices * gathered];
+    // The big buffers first, fallibly: a grid and band count inside their
+    // ranges can still ask for more memory than there is on a large mesh (MRT
+    // at grid 64 and 8 bands is 1 MiB per vertex), and that must be an error
+    // before any ray, not an abort after the rays.
+    let rows = (grid * grid) as usize;
+    let mut out = match options.measurement {
+        Measurement::Mrt { .. } => zeros(vertices.checked_mul(rows * coeffs))?,
+        _ => Vec::new(),
+    };
+    let mut measured = zeros(vertices.checked_mul(gathered))?;
     let mut previous = Vec::new();
     let done = AtomicUsize::new(0);
     let total = vertices * (options.bounces as usize + 1);
     for pass in 0..=options.bounces {
-        let mut irradiance = vec![0.0f32; vertices * coeffs];
+        let mut irradiance = zeros(vertices.checked_mul(coeffs))?;
         let ctx = PassContext {
             mesh,
             normals,
@@ -313,10 +321,8 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
         }
         previous = irradiance;
     }
-    let data = if let Measurement::Mrt { grid, .. } = options.measurement {
+    let data = if let Measurement::Mrt { .. } = options.measurement {
         let b = &brdf_nodes;
-        let rows = (grid * grid) as usize;
-        let mut out = vec![0.0f32; vertices * rows * coeffs];
         let apply = |v: usize, dst: &mut [f32]| {
             let t = &measured[v * gathered..(v + 1) * gathered];
             for g in 0..rows {
@@ -352,6 +358,19 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
         normals,
         payload: Payload::Dense(data),
     })
+}
+
+/// `len` zeros, or [`BakeError::TooLarge`] when `len` (`None`: it overflowed)
+/// floats cannot be allocated.
+fn zeros(len: Option<usize>) -> Result<Vec<f32>, BakeError> {
+    let too_large = |len: Option<usize>| BakeError::TooLarge {
+        bytes: len.map_or(u64::MAX, |n| (n as u64).saturating_mul(4)),
+    };
+    let n = len.ok_or(too_large(len))?;
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| too_large(len))?;
+    v.resize(n, 0.0);
+    Ok(v)
 }
 
 type VertexWork<'a> = dyn Fn(usize, &mut [f32], &mut [f32]) + Sync + 'a;
@@ -501,4 +520,27 @@ fn gather_n<C: RayCaster + ?Sized, const N: usize>(
             true
         },
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The CLI review's MRT bake at grid 64 and 8 bands on 25,600 vertices
+    /// (26.8 GB) aborted on the allocation; the buffers are now reserved
+    /// fallibly. A size that overflows, or that no allocator can give, is an
+    /// error (a real out-of-memory depends on the machine, so it is not
+    /// provoked here).
+    #[test]
+    fn buffers_too_large_to_allocate_are_an_error() {
+        assert_eq!(zeros(None), Err(BakeError::TooLarge { bytes: u64::MAX }));
+        let half = usize::MAX / 2;
+        assert_eq!(
+            zeros(Some(half)),
+            Err(BakeError::TooLarge {
+                bytes: (half as u64).saturating_mul(4)
+            })
+        );
+        assert_eq!(zeros(Some(3)), Ok(alloc::vec![0.0; 3]));
+    }
 }

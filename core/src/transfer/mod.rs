@@ -330,6 +330,11 @@ pub enum BakeError {
     /// The MRT BRDF's kernel gave a non-finite value, so its node matrix is not
     /// finite.
     BrdfNotFinite,
+    /// The transfer data would not fit in memory (checked before any ray).
+    TooLarge {
+        /// Bytes of one of its buffers (`u64::MAX`: the size overflowed).
+        bytes: u64,
+    },
 }
 
 impl fmt::Display for BakeError {
@@ -350,6 +355,11 @@ impl fmt::Display for BakeError {
             BakeError::TooManyVertices(n) => write!(f, "{n} vertices is more than 2^32 - 1"),
             BakeError::NoVertices => f.write_str("the mesh has no vertices"),
             BakeError::BrdfNotFinite => f.write_str("brdf.kernel returned a non-finite value"),
+            BakeError::TooLarge { bytes } => write!(
+                f,
+                "the transfer data needs a buffer of {bytes} bytes, more than can be allocated \
+                 (fewer vertices, bands or a smaller grid)"
+            ),
         }
     }
 }
