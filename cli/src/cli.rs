@@ -324,8 +324,8 @@ pub struct BenchRaycastArgs {
     #[arg(long, value_name = "FILE.obj")]
     pub mesh: Option<PathBuf>,
 
-    /// Number of distinct rays in the batch.
-    #[arg(long, value_name = "N", default_value_t = 20_000, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Number of distinct rays in the batch (at most 2^24, held in memory at once).
+    #[arg(long, value_name = "N", default_value_t = 20_000, value_parser = clap::value_parser!(u32).range(1..=1 << 24))]
     pub rays: u32,
 
     /// Time each figure over at least this many milliseconds (the batch is cast
@@ -494,8 +494,8 @@ pub struct VerifyRaycastArgs {
     #[arg(long, value_name = "FILE.obj")]
     pub mesh: Vec<PathBuf>,
 
-    /// Random rays per mesh.
-    #[arg(long, value_name = "N", default_value_t = 20_000, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Random rays per mesh (at most 2^24, held in memory at once).
+    #[arg(long, value_name = "N", default_value_t = 20_000, value_parser = clap::value_parser!(u32).range(1..=1 << 24))]
     pub rays: u32,
 
     /// Seed of the random rays.

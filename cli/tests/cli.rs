@@ -541,3 +541,20 @@ fn bench_hemi_refuses_a_mesh_of_zero_extent() {
         "timed before refusing"
     );
 }
+
+/// The CLI review's reproducers: `--rays 4294967295` made `bench raycast` and
+/// `verify` ask for 155 GB and abort; the option is bounded by the parser.
+#[test]
+fn ray_counts_beyond_memory_are_refused_by_the_parser() {
+    for args in [
+        &["bench", "raycast", "--rays", "4294967295"][..],
+        &["verify", "--rays", "4294967295"],
+    ] {
+        let output = antumbra(args);
+        assert_eq!(output.status.code(), Some(2), "{args:?}");
+        assert!(
+            stderr(&output).contains("is not in 1..=16777216"),
+            "{args:?}"
+        );
+    }
+}

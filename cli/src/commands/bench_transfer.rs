@@ -231,9 +231,24 @@ fn ray_throughput(mesh: &TriangleMesh, args: &BenchTransferArgs, min_time: Durat
 fn the_bakes_rays(mesh: &TriangleMesh, config: &BakeConfig) -> Result<Vec<Ray>> {
     let normals = prt::unit_normals(mesh);
     let options = prt::bake_options(mesh, config);
-    let mut rays = Vec::with_capacity(
-        mesh.vertex_count() * config.rays as usize * (config.bounces as usize + 1),
-    );
+    // Reserved fallibly: `--rays` up to 65,536 on a large mesh is more rays than
+    // memory holds, which must be an error, not an abort.
+    let count = mesh
+        .vertex_count()
+        .checked_mul(config.rays as usize * (config.bounces as usize + 1));
+    let mut rays: Vec<Ray> = Vec::new();
+    count
+        .and_then(|n| rays.try_reserve_exact(n).ok())
+        .ok_or_else(|| {
+            Error::msg(format!(
+                "cannot hold the bake's {} rays ({} vertices x {} rays x {} passes) for Embree; \
+                 use fewer --rays",
+                count.map_or_else(|| "too many".to_string(), |n| n.to_string()),
+                mesh.vertex_count(),
+                config.rays,
+                config.bounces + 1
+            ))
+        })?;
     for pass in 0..=config.bounces {
         for (v, (p, n)) in mesh.positions().iter().zip(&normals).enumerate() {
             bake_rays(Vec3::from(*p), *n, v, pass, &options, |r| rays.push(r.ray))
