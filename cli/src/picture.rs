@@ -1,6 +1,7 @@
 //! Images: linear-light float RGB ([`HdrImage`]) as renderers produce them, and
 //! writing finished 8-bit pictures as PNG.
 
+use std::io::Write;
 use std::path::Path;
 
 use glam::Vec3;
@@ -104,9 +105,17 @@ pub fn save_png(picture: &image::RgbImage, path: &Path) -> Result<()> {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("cannot create folder {}", parent.display()))?;
     }
-    picture
-        .save_with_format(path, image::ImageFormat::Png)
-        .with_context(|| format!("cannot write PNG {}", path.display()))
+    // Encoded into our own buffered writer and flushed here: `save_with_format`
+    // drops its writer unflushed, so a failure to write a small picture (one
+    // that fits the buffer) was swallowed and reported as success.
+    let write = || -> std::io::Result<()> {
+        let mut file = std::io::BufWriter::new(std::fs::File::create(path)?);
+        picture
+            .write_to(&mut file, image::ImageFormat::Png)
+            .map_err(std::io::Error::other)?;
+        file.flush()
+    };
+    write().with_context(|| format!("cannot write PNG {}", path.display()))
 }
 
 #[cfg(test)]

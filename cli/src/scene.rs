@@ -66,8 +66,19 @@ impl Scene {
         }
         let view = MeshView::new(&positions, &indices)
             .with_context(|| format!("{} with a ground plane is not a valid mesh", mesh.name()))?;
-        let bvh = BvhScene::new(&view)
-            .with_context(|| format!("cannot build the ray-casting scene of {}", mesh.name()))?;
+        let bvh = BvhScene::new(&view).with_context(|| {
+            if ground {
+                // The ground is 100 diagonals wide: a mesh within range can
+                // put its corners out of range.
+                format!(
+                    "cannot build the ray-casting scene of {} with its ground plane (try \
+                     --no-ground)",
+                    mesh.name()
+                )
+            } else {
+                format!("cannot build the ray-casting scene of {}", mesh.name())
+            }
+        })?;
         Ok(Scene {
             positions,
             indices,

@@ -558,3 +558,58 @@ fn ray_counts_beyond_memory_are_refused_by_the_parser() {
         );
     }
 }
+
+/// The CLI review's reproducers of silent wrong output: a small PNG that could
+/// not be written was reported as written (its bytes sat in an unflushed
+/// buffer), and `--rotate nan` rendered a black mesh.
+#[cfg(target_os = "linux")]
+#[test]
+fn failed_writes_and_non_finite_rotations_are_errors() {
+    let teapot = data("teapot.obj");
+    let common = ["render", "--mesh", &teapot, "--size", "8", "--samples", "1"];
+    let output = antumbra(&[&common[..], &["--out", "/dev/full"]].concat());
+    assert!(!output.status.success());
+    assert!(
+        stderr(&output).contains("cannot write PNG"),
+        "{}",
+        stderr(&output)
+    );
+    let dir = scratch("rotate-nan");
+    let out = dir.join("x.png");
+    let output = antumbra(
+        &[
+            &common[..],
+            &["--rotate=nan", "--out", out.to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    assert!(!output.status.success());
+    assert!(stderr(&output).contains("--rotate"), "{}", stderr(&output));
+    assert!(!out.exists());
+}
+
+/// A mesh name with a line break kept the AO text format's header on one
+/// line only by luck; it is escaped.
+#[cfg(target_os = "linux")]
+#[test]
+fn the_ao_text_header_is_one_line_whatever_the_mesh_name() {
+    let dir = scratch("newline-name");
+    let mesh = dir.join("new\nline.obj");
+    std::fs::copy(data("teapot.obj"), &mesh).unwrap();
+    let out = dir.join("ao.txt");
+    let output = antumbra(&[
+        "bake",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--rays",
+        "2",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_success(&output);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].starts_with("# antumbra ambient occlusion"));
+    assert!(lines[0].contains("new\\nline.obj"), "{}", lines[0]);
+    assert_eq!(lines.len(), 1 + 792, "teapot: 792 vertices");
+}

@@ -228,7 +228,8 @@ fn format_text(mesh: &TriangleMesh, rays: u32, max_distance: f32, visibility: &[
         "# antumbra ambient occlusion v1: {} lines follow, line i+2 = visibility of vertex i \
          in [0,1] (1 = unoccluded, cosine-weighted); mesh {}, {} rays per vertex, max distance {}\n",
         visibility.len(),
-        mesh.name(),
+        // One header line whatever the file name holds.
+        mesh.name().escape_debug(),
         rays,
         if max_distance.is_finite() {
             max_distance.to_string()

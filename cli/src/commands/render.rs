@@ -21,6 +21,13 @@ use crate::tonemap::{to_srgb8_auto, to_unit8};
 
 /// Loads the inputs, renders, writes the PNG and says where.
 pub fn run(args: &RenderArgs) -> Result<()> {
+    if !args.rotate.is_finite() {
+        // NaN would rotate the lighting to NaN: a silently black picture.
+        return Err(Error::msg(format!(
+            "--rotate is {}; expected a finite number of degrees",
+            args.rotate
+        )));
+    }
     if let Some(bake) = &args.bake {
         return run_relight(args, bake);
     }
