@@ -53,6 +53,18 @@ impl EnvironmentMap {
                 "{name} is neither an OpenEXR nor a PNG file (environment maps must be one of those)"
             )));
         };
+        let brightest = image
+            .pixels()
+            .iter()
+            .map(|p| p.max_element())
+            .fold(0.0f32, f32::max);
+        if brightest > MAX_RADIANCE {
+            return Err(Error::msg(format!(
+                "environment map {name} has a texel of {brightest:e}; at most {MAX_RADIANCE:e} \
+                 is supported (a render sums up to 65,536 samples of it over the sphere in \
+                 f32, which must not overflow)"
+            )));
+        }
         if image.width() < 2 || image.height() < 1 {
             return Err(Error::msg(format!(
                 "environment map {name} is only {}x{} pixels",
@@ -81,6 +93,12 @@ impl EnvironmentMap {
         self.image.get(column, row)
     }
 }
+
+/// Brightest texel value an environment map may have: a pixel of a render is
+/// a sum of up to 65,536 samples of radiance times `4π` (over two estimators)
+/// in `f32`, which stays below `f32::MAX` (3.4e38) from here. A map of 1e37
+/// made every picture black (an infinite sum, then a zero exposure).
+const MAX_RADIANCE: f32 = 1e32;
 
 /// Most pixels an environment map may have: 16384 × 8192, the largest maps in
 /// common use (1.5 GiB as linear RGB).
@@ -188,6 +206,25 @@ mod tests {
         }
         // A size the header reader itself refuses is an error as well.
         assert!(EnvironmentMap::decode("huge", &exr_declaring(i32::MAX, i32::MAX)).is_err());
+    }
+
+    /// The CLI review's map of 1e37 everywhere rendered black on the
+    /// ray-traced path; such maps are refused when loaded.
+    #[test]
+    fn maps_too_bright_to_render_in_f32_are_refused() {
+        let map = |value: f32| {
+            use exr::prelude::*;
+            let image = Image::from_channels(
+                (16, 8),
+                SpecificChannels::rgb(|_: Vec2<usize>| (value, value, value)),
+            );
+            let mut out = std::io::Cursor::new(Vec::new());
+            image.write().to_buffered(&mut out).unwrap();
+            out.into_inner()
+        };
+        assert!(EnvironmentMap::decode("bright", &map(1e30)).is_ok());
+        let error = EnvironmentMap::decode("too bright", &map(1e37)).unwrap_err();
+        assert!(format!("{error:#}").contains("at most 1e32"), "{error:#}");
     }
 
     #[test]
