@@ -97,8 +97,23 @@ fn camera_for(bounds: &crate::bounds::Bounds, width: usize, height: usize) -> Ca
     Camera::framing(bounds, view, width as f32 / height as f32, 0.08)
 }
 
-/// Supersampling of relit pictures (samples per pixel side).
+/// Supersampling of relit pictures (samples per pixel side), as long as the
+/// framebuffer stays within [`RELIGHT_SAMPLE_BUDGET`].
 const RELIGHT_SUPERSAMPLING: usize = 3;
+
+/// Most framebuffer samples a relit picture may take (16 bytes each, so 1 GiB):
+/// `--size 8192` at 3×3 samples per pixel took 13 GB.
+const RELIGHT_SAMPLE_BUDGET: usize = 1 << 26;
+
+/// The supersampling of a relit picture of `width` × `height` pixels: the most,
+/// up to [`RELIGHT_SUPERSAMPLING`], whose framebuffer fits the budget, and at
+/// least one.
+fn relight_supersampling(width: usize, height: usize) -> usize {
+    (1..=RELIGHT_SUPERSAMPLING)
+        .rev()
+        .find(|&f| (width * f).saturating_mul(height * f) <= RELIGHT_SAMPLE_BUDGET)
+        .unwrap_or(1)
+}
 
 /// Diffuse albedo of relit diffuse bakes (the ray-traced pictures' object albedo).
 const RELIGHT_ALBEDO: [f32; 3] = [0.80, 0.78, 0.74];
@@ -151,7 +166,7 @@ fn run_relight(args: &RenderArgs, bake: &std::path::Path) -> Result<()> {
         &mesh,
         &colors,
         (width, height),
-        RELIGHT_SUPERSAMPLING,
+        relight_supersampling(width, height),
     );
     let picture = super::demo::hemi::develop(&frame, prt::exposure_of(&frame));
     save_png(&super::demo::hemi::to_rgb8(&picture), &out)?;
@@ -198,4 +213,23 @@ fn default_output(args: &RenderArgs, lit: bool) -> PathBuf {
         .file_stem()
         .map_or_else(|| "render".into(), |s| s.to_string_lossy().into_owned());
     PathBuf::from(format!("{stem}-{}.png", if lit { "env" } else { "ao" }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The CLI review's `render --bake --size 8192` took 13 GB at 3×3 samples
+    /// per pixel; large pictures take fewer samples, small ones keep 3×3.
+    #[test]
+    fn relit_framebuffers_stay_within_the_budget() {
+        assert_eq!(relight_supersampling(640, 480), 3);
+        assert_eq!(relight_supersampling(2048, 1536), 3);
+        assert_eq!(relight_supersampling(4096, 3072), 2);
+        assert_eq!(relight_supersampling(8192, 6144), 1);
+        for (w, h) in [(640, 480), (4096, 3072), (8192, 6144), (16384, 12288)] {
+            let f = relight_supersampling(w, h);
+            assert!(f == 1 || w * f * h * f <= RELIGHT_SAMPLE_BUDGET);
+        }
+    }
 }
