@@ -41,6 +41,19 @@ pub(crate) fn normalize_exponent(m: Vec3) -> Vec3 {
     m * pow2(-half) * pow2(half - e)
 }
 
+/// `v` normalised, or zero for a zero or non-finite `v`. A finite vector whose
+/// squared length leaves `f32`'s range (where glam's `normalize_or_zero` gives
+/// zero) is first scaled by a power of two ([`normalize_exponent`]); elsewhere
+/// the result is `v.normalize_or_zero()` itself.
+#[inline]
+pub(crate) fn unit_or_zero(v: Vec3) -> Vec3 {
+    let unit = v.normalize_or_zero();
+    if unit != Vec3::ZERO || v == Vec3::ZERO || !v.is_finite() {
+        return unit;
+    }
+    normalize_exponent(v).normalize_or_zero()
+}
+
 const TWO_POW_64: f32 = 18_446_744_073_709_551_616.0;
 
 /// `2^k` for `|k| <= 126`.

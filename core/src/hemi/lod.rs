@@ -92,7 +92,7 @@ use super::transfer::{TransferMethod, TransferRotation, shade_diffuse};
 use super::triangle::classify_four;
 use super::{Accumulator, Culled, Quality, Receiver, TriangleCone, TriangleCounts, table_raster};
 use crate::geom::MeshView;
-use crate::geom::normalize_exponent;
+use crate::geom::unit_or_zero;
 use crate::sh::{Sh, ShRgb};
 
 /// Why a batch call rejected its arguments (nothing was written).
@@ -158,10 +158,9 @@ pub fn vertex_normals(mesh: &MeshView<'_>, out: &mut [Vec3]) -> Result<(), Batch
         out[k as usize] += n;
     }
     for n in out.iter_mut() {
-        // Scaled by a power of two first (exact), so that squaring the sum's
-        // components overflows or underflows for no finite non-zero sum (edges
-        // above about 4e9 or below 1e-12 did).
-        *n = normalize_exponent(*n).normalize_or_zero();
+        // Edges above about 4e9 or below 1e-12 once gave zero normals: squaring
+        // the sum's components overflowed or underflowed.
+        *n = unit_or_zero(*n);
     }
     Ok(())
 }
@@ -1170,9 +1169,9 @@ pub fn shade_vertex<const N: usize>(
     let diffuse = shade_diffuse(&transfer, lighting, material.albedo);
     let glossy = match material.lobe {
         Some(lobe) if material.specular != Vec3::ZERO => {
-            // Scaled first (exact), so that a far eye (beyond about 1e19) does
-            // not overflow the squared length into a zero direction.
-            let to_eye = normalize_exponent(material.eye - position).normalize_or_zero();
+            // A far eye (beyond about 1e19) must not overflow the squared
+            // length into a zero direction.
+            let to_eye = unit_or_zero(material.eye - position);
             let mirror = frame.to_local(mirror_direction(normal, to_eye));
             let g = glossy_transfer(method.table(), &mask, lobe, mirror);
             shade_glossy(&rotation.to_world(&g), lighting, material.specular)

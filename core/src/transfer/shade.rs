@@ -14,7 +14,7 @@ use glam::{Vec3, Vec4};
 
 use super::mrt::{MrtTap, mrt_tap};
 use super::{Payload, TransferKind, TransferSet};
-use crate::geom::Frame;
+use crate::geom::{Frame, unit_or_zero};
 use crate::prefetch::prefetch;
 use crate::sh::{MAX_COEFFS, ShRgb, ZonalKernel, eval_basis, eval_basis_into};
 
@@ -460,18 +460,6 @@ pub fn shade_mrt_pca(
         return Vec3::ZERO;
     };
     pca_at_tap(&weights[..components], frame_terms, stride, tap)
-}
-
-/// `v` normalised, or zero for a zero or non-finite `v`; a finite vector whose
-/// squared length leaves `f32`'s range is first scaled by a power of two
-/// (glam's `normalize_or_zero` gives zero there).
-#[inline]
-fn unit_or_zero(v: Vec3) -> Vec3 {
-    let unit = v.normalize_or_zero();
-    if unit != Vec3::ZERO || v == Vec3::ZERO || !v.is_finite() {
-        return unit;
-    }
-    crate::geom::normalize_exponent(v).normalize_or_zero()
 }
 
 /// Surface parameters applied at run time.
