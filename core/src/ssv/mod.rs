@@ -177,6 +177,18 @@ pub const MAX_SAMPLES: usize = 1024;
 /// Sample counts up to this take the smaller of a query's two counter arrays.
 const COMMON_SAMPLES: usize = 256;
 
+/// Runs `f` on `n` zeroed counters on the stack (`n <= MAX_SAMPLES`). Only
+/// what is used is zeroed: clearing all of [`MAX_SAMPLES`] (4 KiB) took about
+/// 2 % of a bunny query at 256 samples.
+#[inline(always)]
+fn with_counters<R>(n: usize, f: impl FnOnce(&mut [i32]) -> R) -> R {
+    if n <= COMMON_SAMPLES {
+        f(&mut [0i32; COMMON_SAMPLES][..n])
+    } else {
+        f(&mut [0i32; MAX_SAMPLES][..n])
+    }
+}
+
 /// Depth to which the hierarchy is subdivided at creation when the `std` feature
 /// (and with it lazy, thread-safe construction) is off.
 pub const NO_STD_EAGER_DEPTH: u32 = 3;
@@ -589,11 +601,19 @@ impl SoftShadows {
             .map(|k| angles.partition_point(|&t| t < k as f64 / ANGLE_SCALE) as u32)
             .collect();
         let order: Vec<u32> = keyed.iter().map(|k| k.1).chain(central).collect();
+        let twice_area: f64 = (0..light_uv.len())
+            .map(|i| {
+                let ((x0, y0), (x1, y1)) = (light_uv[i], light_uv[(i + 1) % light_uv.len()]);
+                x0 * y1 - x1 * y0
+            })
+            .sum();
+        let orientation = if twice_area < 0.0 { -1.0 } else { 1.0 };
         let insets = order
             .iter()
             .map(|&o| {
                 inset(
                     &light_uv,
+                    orientation,
                     samples[o as usize].as_dvec3() - plane_point,
                     u_axis,
                     v_axis,
@@ -821,31 +841,27 @@ impl SoftShadows {
             }
             return Ok(info);
         }
-        // Only the counters in use are zeroed: clearing all of MAX_SAMPLES
-        // (4 KiB) took about 2 % of a bunny query at 256 samples.
-        let mut common = [0i32; COMMON_SAMPLES];
-        let mut rare;
-        let counters = if n <= COMMON_SAMPLES {
-            &mut common[..n]
-        } else {
-            rare = [0i32; MAX_SAMPLES];
-            &mut rare[..n]
-        };
         let mut silhouettes = Silhouettes::new();
-        self.sweep(p, counters, &mut info, &mut silhouettes);
-        let min = counters.iter().copied().min().expect("at least one sample");
+        let lit = with_counters(n, |counters| {
+            self.sweep(p, counters, &mut info, &mut silhouettes);
+            let min = counters.iter().copied().min().expect("at least one sample");
+            if self.minimum_blocked(p, counters, min, &silhouettes) {
+                return false;
+            }
+            // Counters are in angular order; bits in the caller's order.
+            for (&r, &o) in counters.iter().zip(&self.order) {
+                let i = o as usize;
+                if r == min {
+                    bits[i / 64] |= 1 << (i % 64);
+                }
+            }
+            true
+        });
         info.rays = 1;
-        if self.minimum_blocked(p, counters, min, &silhouettes) {
+        if !lit {
             return Ok(info);
         }
-        // Counters are in angular order; bits in the caller's order. Then the
-        // near-light triangles take away the samples they block.
-        for (&r, &o) in counters.iter().zip(&self.order) {
-            let i = o as usize;
-            if r == min {
-                bits[i / 64] |= 1 << (i % 64);
-            }
-        }
+        // The near-light triangles take away the samples they block.
         self.clear_blocked(
             &self.near_light,
             &self.near_sides,
@@ -931,14 +947,14 @@ impl SoftShadows {
                 *o = count(&self.band, s);
             }
         } else {
-            let mut counters = [0i32; MAX_SAMPLES];
-            let counters = &mut counters[..n];
             let mut silhouettes = Silhouettes::new();
-            self.sweep(p, counters, &mut QueryInfo::default(), &mut silhouettes);
-            for (k, &r) in counters.iter().enumerate() {
-                let i = self.order[k] as usize;
-                out[i] = r + count(&self.near_light, self.samples[i]);
-            }
+            with_counters(n, |counters| {
+                self.sweep(p, counters, &mut QueryInfo::default(), &mut silhouettes);
+                for (k, &r) in counters.iter().enumerate() {
+                    let i = self.order[k] as usize;
+                    out[i] = r + count(&self.near_light, self.samples[i]);
+                }
+            });
         }
         let min = out.iter().copied().min().unwrap_or(0);
         out.iter_mut().for_each(|o| *o -= min);
@@ -1058,13 +1074,14 @@ impl SoftShadows {
             .enumerate()
             .filter(|&(_, &r)| r == min)
             .map(|(k, _)| k);
-        let first =
-            self.samples[self.order[counters.iter().position(|&r| r == min).unwrap_or(0)] as usize];
         match self.reference_sample(p, candidates, silhouettes) {
             Some(s) => self
                 .reference_blocked(p, s, true)
                 .unwrap_or_else(|| self.exactly_blocked(p, s)),
-            None => self.exactly_blocked(p, first),
+            None => {
+                let first = counters.iter().position(|&r| r == min).unwrap_or(0);
+                self.exactly_blocked(p, self.samples[self.order[first] as usize])
+            }
         }
     }
 
@@ -1850,16 +1867,10 @@ impl EdgePlanes {
 /// How far the point `d` (relative to the light's centroid) lies inside the
 /// convex polygon `uv` (the light's vertices in the plane's `(u, v)`
 /// coordinates), measured in the plane: the least distance to an edge's line,
-/// negative outside.
-fn inset(uv: &[(f64, f64)], d: DVec3, u_axis: DVec3, v_axis: DVec3) -> f64 {
+/// negative outside. `orientation` is 1 for a counter-clockwise `uv`, -1 for a
+/// clockwise one.
+fn inset(uv: &[(f64, f64)], orientation: f64, d: DVec3, u_axis: DVec3, v_axis: DVec3) -> f64 {
     let (x, y) = (d.dot(u_axis), d.dot(v_axis));
-    let area: f64 = (0..uv.len())
-        .map(|i| {
-            let ((x0, y0), (x1, y1)) = (uv[i], uv[(i + 1) % uv.len()]);
-            x0 * y1 - x1 * y0
-        })
-        .sum();
-    let orientation = if area < 0.0 { -1.0 } else { 1.0 };
     (0..uv.len())
         .map(|i| {
             let ((x0, y0), (x1, y1)) = (uv[i], uv[(i + 1) % uv.len()]);
