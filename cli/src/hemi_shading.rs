@@ -182,24 +182,10 @@ pub struct LodMesh {
     pub normal_offset: f32,
 }
 
-/// An error unless `mesh` has a positive, finite bounding-box diagonal in
-/// `f32` (every size here is a fraction of it).
-pub fn check_extent(mesh: &TriangleMesh) -> Result<()> {
-    let diagonal = mesh.bounds().diagonal();
-    if diagonal > 0.0 && diagonal.is_finite() {
-        Ok(())
-    } else {
-        Err(Error::msg(format!(
-            "{} has zero extent (or one too small for f32): all its vertices are at one point",
-            mesh.name()
-        )))
-    }
-}
-
 impl LodMesh {
     /// Builds the far mesh of `full` (see the module docs for the sizes).
     pub fn new(full: TriangleMesh) -> Result<Self> {
-        check_extent(&full)?;
+        full.require_extent()?;
         let diagonal = full.bounds().diagonal();
         let far = cluster_vertices(&full, FAR_CELL_OF_DIAGONAL * diagonal)?;
         Ok(Self::with_far(full, far, diagonal))

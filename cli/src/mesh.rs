@@ -135,6 +135,20 @@ impl TriangleMesh {
         Bounds::of_points(self.positions.iter().map(|&p| Vec3::from(p)))
     }
 
+    /// An error unless the bounding-box diagonal is positive and finite in
+    /// `f32`: commands that size things from it (cameras, far meshes) need one.
+    pub fn require_extent(&self) -> Result<()> {
+        let diagonal = self.bounds().diagonal();
+        if diagonal > 0.0 && diagonal.is_finite() {
+            Ok(())
+        } else {
+            Err(Error::msg(format!(
+                "{} has zero extent (or one too small for f32): all its vertices are at one point",
+                self.name()
+            )))
+        }
+    }
+
     /// Area-weighted average of the normals of the triangles around each vertex,
     /// normalised; `Vec3::ZERO` for a vertex that touches only degenerate triangles
     /// (or none).

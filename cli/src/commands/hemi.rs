@@ -30,7 +30,7 @@ use crate::cli::{BenchHemiArgs, QualityArg, VerifyHemiArgs};
 use crate::error::{Error, Result};
 use crate::hemi_shading::{
     COEFFICIENTS, FAR_CELL_OF_DIAGONAL, LodMesh, NEAR_RADIUS_OF_DIAGONAL, OFFSET_OF_DIAGONAL,
-    PHONG_EXPONENT, Posed, Shader, Twist, check_extent, half_space_table, sky_lighting,
+    PHONG_EXPONENT, Posed, Shader, Twist, half_space_table, sky_lighting,
 };
 use crate::mesh::TriangleMesh;
 
@@ -166,7 +166,7 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
     let mesh = load(&args.mesh)?;
     // The frames per second need a far mesh, sized from the diagonal: refuse
     // before any timing rather than after.
-    check_extent(&mesh)?;
+    mesh.require_extent()?;
     let offset = OFFSET_OF_DIAGONAL * mesh.bounds().diagonal();
     let chosen = receivers(&mesh, args.receivers as usize);
     let count = chosen.len().max(1) as f64;

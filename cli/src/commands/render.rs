@@ -33,7 +33,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     }
     let started = Instant::now();
     let mesh = TriangleMesh::load_obj(&args.mesh)?;
-    crate::hemi_shading::check_extent(&mesh)?;
+    mesh.require_extent()?;
     let env = args.env.as_deref().map(EnvironmentMap::load).transpose()?;
     let out = args
         .out
