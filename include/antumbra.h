@@ -507,9 +507,10 @@ typedef struct antumbra_ssv_options {
    */
   uint32_t structure;
   /**
-   * Hierarchy: a node holding more candidate edges than this is subdivided when
-   * a query reaches it (and only when splitting shortens the lists). At least 1;
-   * default 32.
+   * Hierarchy: a node holding more candidate edges than this may be
+   * subdivided, where enough receivers fall in it (eight of one
+   * `antumbra_ssv_query` call, or eight queries over time) and only when
+   * splitting shortens the lists. At least 1; default 16.
    */
   uint32_t leaf_edges;
   /**
@@ -523,15 +524,18 @@ typedef struct antumbra_ssv_options {
   uint32_t hemicube_resolution;
   /**
    * 0 (the default): `antumbra_ssv_query` runs on the calling thread. 1: the
-   * points of one query call are split across the library's worker threads (a
-   * rayon pool of one thread per core, started on first use and kept for the
-   * life of the process). The bits are identical either way.
+   * points of one query call, and the building of the hierarchy's nodes they
+   * need, are split across the library's worker threads (a rayon pool of one
+   * thread per core, started on first use and kept for the life of the
+   * process). The bits are identical either way.
    */
   uint32_t parallel;
   /**
    * 0 (the default): the hierarchy's root box is the bounds of the occluders
    * and the light, grown by half their size on every side. 1: it is
-   * `[root_min, root_max]` (receivers outside it test every potential edge).
+   * `[root_min, root_max]`. Either way a hint: receivers outside the root
+   * box go to shells of boxes around it as fine as the root's own nodes,
+   * at about the same cost as inside.
    */
   uint32_t use_root_bounds;
   /**
@@ -1645,7 +1649,7 @@ antumbra_result antumbra_sh_rotate(const float *rotation,
                                    float *rotated);
 
 /**
- * Writes the default options: the hierarchy, 32 edges per leaf, depth 12,
+ * Writes the default options: the hierarchy, 16 edges per leaf, depth 12,
  * hemicube resolution 64, on the calling thread, the automatic root box.
  *
  * @param options the options to fill; every field is written.
@@ -1755,7 +1759,10 @@ void antumbra_ssv_destroy(struct antumbra_ssv *ssv);
  *
  * Cost: per receiver, one walk of the structure, the exact tests of its
  * candidate edges against the N samples, and one reference ray; no allocation
- * per receiver. The hierarchy builds the nodes a query reaches the first time.
+ * per receiver. Before the queries, the hierarchy builds the nodes the
+ * call's points need (it splits a node where eight or more of them fall and
+ * the split shortens the lists; a few arrays of `point_count` entries for
+ * that), so pass a frame's receivers in one call rather than one by one.
  * Ownership: borrows every array for the call only; the outputs must not overlap
  * each other or `points`.
  * Thread safety: any number of threads may query the same handle at once

@@ -72,8 +72,8 @@ mod prefetch;
 pub mod raycast;
 pub mod rng;
 pub mod sh;
-// Only the BVH's traversal has hand-written kernels so far.
-#[cfg(feature = "bvh")]
+// Hand-written kernels: the BVH's traversal (with `bvh`) and the soft-shadow
+// hierarchy's octant tests.
 mod simd;
 pub mod ssv;
 pub mod transfer;

@@ -76,9 +76,10 @@ pub struct antumbra_ssv_options {
     /// `_BRUTE_FORCE` (2) or `_RAY_TRACE` (3). All give the same bits; they differ
     /// in speed and memory.
     pub structure: u32,
-    /// Hierarchy: a node holding more candidate edges than this is subdivided when
-    /// a query reaches it (and only when splitting shortens the lists). At least 1;
-    /// default 32.
+    /// Hierarchy: a node holding more candidate edges than this may be
+    /// subdivided, where enough receivers fall in it (eight of one
+    /// `antumbra_ssv_query` call, or eight queries over time) and only when
+    /// splitting shortens the lists. At least 1; default 16.
     pub leaf_edges: u32,
     /// Hierarchy: deepest level of the octree, 0 to `ANTUMBRA_SSV_MAX_DEPTH_LIMIT`
     /// (24); default 12.
@@ -86,13 +87,16 @@ pub struct antumbra_ssv_options {
     /// Hemicube: cells per cube face side, 1 to 1024; default 64.
     pub hemicube_resolution: u32,
     /// 0 (the default): `antumbra_ssv_query` runs on the calling thread. 1: the
-    /// points of one query call are split across the library's worker threads (a
-    /// rayon pool of one thread per core, started on first use and kept for the
-    /// life of the process). The bits are identical either way.
+    /// points of one query call, and the building of the hierarchy's nodes they
+    /// need, are split across the library's worker threads (a rayon pool of one
+    /// thread per core, started on first use and kept for the life of the
+    /// process). The bits are identical either way.
     pub parallel: u32,
     /// 0 (the default): the hierarchy's root box is the bounds of the occluders
     /// and the light, grown by half their size on every side. 1: it is
-    /// `[root_min, root_max]` (receivers outside it test every potential edge).
+    /// `[root_min, root_max]`. Either way a hint: receivers outside the root
+    /// box go to shells of boxes around it as fine as the root's own nodes,
+    /// at about the same cost as inside.
     pub use_root_bounds: u32,
     /// Lower corner of the root box when `use_root_bounds` is 1 (finite).
     pub root_min: [f32; 3],
@@ -103,7 +107,7 @@ pub struct antumbra_ssv_options {
 
 const DEFAULT_OPTIONS: antumbra_ssv_options = antumbra_ssv_options {
     structure: ANTUMBRA_SSV_STRUCTURE_HIERARCHY,
-    leaf_edges: 32,
+    leaf_edges: 16,
     max_depth: 12,
     hemicube_resolution: 64,
     parallel: 0,
@@ -173,7 +177,7 @@ const _: () = {
     assert_send_sync::<antumbra_ssv>();
 };
 
-/// Writes the default options: the hierarchy, 32 edges per leaf, depth 12,
+/// Writes the default options: the hierarchy, 16 edges per leaf, depth 12,
 /// hemicube resolution 64, on the calling thread, the automatic root box.
 ///
 /// @param options the options to fill; every field is written.
@@ -562,7 +566,10 @@ impl Work {
 ///
 /// Cost: per receiver, one walk of the structure, the exact tests of its
 /// candidate edges against the N samples, and one reference ray; no allocation
-/// per receiver. The hierarchy builds the nodes a query reaches the first time.
+/// per receiver. Before the queries, the hierarchy builds the nodes the
+/// call's points need (it splits a node where eight or more of them fall and
+/// the split shortens the lists; a few arrays of `point_count` entries for
+/// that), so pass a frame's receivers in one call rather than one by one.
 /// Ownership: borrows every array for the call only; the outputs must not overlap
 /// each other or `points`.
 /// Thread safety: any number of threads may query the same handle at once
@@ -601,6 +608,8 @@ pub unsafe extern "C" fn antumbra_ssv_query(
         };
         // Every input is valid: the core query fails only on non-finite points
         // and short outputs, both excluded above.
+        let receivers: Vec<Vec3> = floats.chunks_exact(3).map(Vec3::from_slice).collect();
+        ssv.shadows.prepare(&receivers, ssv.parallel);
         let one = |k: usize, out: &mut [u64]| -> QueryInfo {
             let p = Vec3::from_slice(&floats[3 * k..]);
             ssv.shadows

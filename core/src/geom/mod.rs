@@ -61,3 +61,15 @@ const TWO_POW_64: f32 = 18_446_744_073_709_551_616.0;
 fn pow2(k: i32) -> f32 {
     f32::from_bits(((127 + k) as u32) << 23)
 }
+
+/// `x` rounded to the nearest `f32` at or below it (conservative lower bounds).
+pub(crate) fn f32_down(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) > x { y.next_down() } else { y }
+}
+
+/// `x` rounded to the nearest `f32` at or above it (conservative upper bounds).
+pub(crate) fn f32_up(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) < x { y.next_up() } else { y }
+}

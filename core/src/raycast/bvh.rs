@@ -126,6 +126,20 @@ impl core::fmt::Display for BvhError {
 
 impl core::error::Error for BvhError {}
 
+/// How much effort [`BvhScene::with_quality`] spends on the hierarchy.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BuildQuality {
+    /// obvhs's medium preset (PLOC with a medium search radius, then
+    /// reinsertion): the default, for scenes that answer many rays.
+    #[default]
+    Medium,
+    /// obvhs's fastest preset (PLOC with its smallest search radius, no
+    /// reinsertion): built in about a third of the time, for scenes that
+    /// answer few rays per build, such as the one reference ray per receiver
+    /// of soft shadows.
+    Fast,
+}
+
 impl BvhScene {
     /// Builds the hierarchy over every triangle of `mesh` (which may be empty).
     ///
@@ -136,6 +150,12 @@ impl BvhScene {
     /// the builder's own temporary allocations, of the same order, abort on
     /// exhaustion like any Rust allocation.
     pub fn new(mesh: &MeshView<'_>) -> Result<Self, BvhError> {
+        Self::with_quality(mesh, BuildQuality::Medium)
+    }
+
+    /// [`BvhScene::new`] with the builder's effort chosen: [`BuildQuality::Fast`]
+    /// for scenes that answer few rays per build.
+    pub fn with_quality(mesh: &MeshView<'_>, quality: BuildQuality) -> Result<Self, BvhError> {
         if let Some(&vertex) = mesh
             .indices()
             .iter()
@@ -173,7 +193,10 @@ impl BvhScene {
         // result in debug builds, which asserts a depth below 32 (the stack of its
         // own traversal) and so panics on degenerate meshes that this scene
         // traverses correctly.
-        let params = BvhBuildParams::medium_build();
+        let params = match quality {
+            BuildQuality::Medium => BvhBuildParams::medium_build(),
+            BuildQuality::Fast => BvhBuildParams::fastest_build(),
+        };
         let mut bvh2 = PlocBuilder::with_capacity(count).build(
             params.ploc_search_distance,
             &triangles,
@@ -181,8 +204,12 @@ impl BvhScene {
             params.sort_precision,
             params.search_depth_threshold,
         );
-        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
-        let mut bvh = bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false);
+        if params.reinsertion_batch_ratio > 0.0 {
+            ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+        }
+        // Ordering the children (for rays entering from any side) takes a
+        // third of the conversion.
+        let mut bvh = bvh2_to_cwbvh(&bvh2, 3, quality == BuildQuality::Medium, false);
         drop(bvh2);
         drop(triangles);
         let depth = depth(&bvh.nodes);
@@ -290,6 +317,55 @@ impl BvhScene {
         test: impl FnMut(&LeafGroup) -> Option<f32>,
     ) -> bool {
         self.search::<ANY_HIT, false>(&mut alloc::vec![0u64; self.depth], traversal, test)
+    }
+
+    /// Calls `visit` with the original index of every triangle whose leaf's box
+    /// (padded outward, as every box test here) overlaps the closed box `[lo,
+    /// hi]`, until it returns true; returns whether it did. A superset of the
+    /// triangles whose own boxes overlap `[lo, hi]`, in no particular order,
+    /// some more than once.
+    pub(crate) fn any_in_box(
+        &self,
+        lo: Vec3,
+        hi: Vec3,
+        mut visit: impl FnMut(usize) -> bool,
+    ) -> bool {
+        if self.triangle_count == 0 {
+            return false;
+        }
+        // Every node on the stack at most once: at most depth × 8 entries.
+        let mut stack = alloc::vec::Vec::with_capacity(8 * self.depth);
+        stack.push(0usize);
+        while let Some(index) = stack.pop() {
+            let node = &self.planes[index];
+            let [px, py, pz] = node.planes.0;
+            let mut overlapping = 0u32;
+            for child in 0..8 {
+                let inside = px[0][child] <= hi.x
+                    && px[1][child] >= lo.x
+                    && py[0][child] <= hi.y
+                    && py[1][child] >= lo.y
+                    && pz[0][child] <= hi.z
+                    && pz[1][child] >= lo.z;
+                overlapping |= u32::from(inside) << child;
+            }
+            let mut inner = overlapping & node.imask;
+            while inner != 0 {
+                let slot = inner.trailing_zeros();
+                inner &= inner - 1;
+                let rank = (node.imask & ((1 << slot) - 1)).count_ones();
+                stack.push((node.child_base + rank) as usize);
+            }
+            let mut leaves = overlapping & node.leaf_mask;
+            while leaves != 0 {
+                let leaf = node.take_leaf(&mut leaves);
+                let originals = &self.block_triangles[leaf.block];
+                if originals[..leaf.count].iter().any(|&t| visit(t as usize)) {
+                    return true;
+                }
+            }
+        }
+        false
     }
 
     /// The same scene with the AVX kernels on (where the processor has AVX, the

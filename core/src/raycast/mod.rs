@@ -20,7 +20,7 @@
 mod bvh;
 
 #[cfg(feature = "bvh")]
-pub use bvh::{BvhError, BvhScene, MAX_COORDINATE};
+pub use bvh::{BuildQuality, BvhError, BvhScene, MAX_COORDINATE};
 
 use glam::{BVec4A, Vec3, Vec4};
 

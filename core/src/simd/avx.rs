@@ -3,14 +3,20 @@
 #![allow(unsafe_code)]
 
 use core::arch::x86_64::{
-    __m256, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm_loadu_ps,
-    _mm256_add_ps, _mm256_and_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_div_ps, _mm256_loadu_ps,
-    _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps, _mm256_set_m128,
-    _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
+    __m256, _CMP_EQ_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm256_add_ps, _mm256_and_ps,
+    _mm256_andnot_ps, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps, _mm256_mul_ps,
+    _mm256_or_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sub_ps,
+};
+#[cfg(feature = "bvh")]
+use core::arch::x86_64::{
+    _CMP_GE_OQ, _CMP_LE_OQ, _mm_loadu_ps, _mm256_div_ps, _mm256_max_ps, _mm256_min_ps,
+    _mm256_set_m128, _mm256_storeu_ps,
 };
 
+#[cfg(feature = "bvh")]
 use glam::Vec4;
 
+#[cfg(feature = "bvh")]
 use super::{LaneHits8, Planes8, ShearedRay, SlabRay};
 
 #[inline(always)]
@@ -19,6 +25,7 @@ fn load(eight: &[f32; 8]) -> __m256 {
     unsafe { _mm256_loadu_ps(eight.as_ptr()) }
 }
 
+#[cfg(feature = "bvh")]
 /// Bit `i` set when the ray may enter child `i` of the node whose boxes are
 /// `planes` at a distance up to `t_max`: per lane `near = max(max(max(nx, ny), nz), t_min)` and
 /// `far = min(f + (|f| * slack + MIN_POSITIVE), t_max)` with
@@ -56,6 +63,7 @@ pub(crate) fn entered8(planes: &Planes8, ray: &SlabRay, t_max: f32) -> u32 {
     _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32
 }
 
+#[cfg(feature = "bvh")]
 /// The watertight triangle test on two blocks of four triangles at once, lanes
 /// 0–3 from `low` and 4–7 from `high` (`[corner][axis]` coordinates in lanes):
 /// per lane the `f32` operations, comparisons and masks of the four-lane
@@ -191,4 +199,100 @@ pub(crate) fn intersect8(
         u: store(_mm256_mul_ps(ev, inv_det)),
         v: store(_mm256_mul_ps(ew, inv_det)),
     }
+}
+
+/// The eight-octant edge tests of the soft-shadow hierarchy: bits of the
+/// octants that may see the edge as a silhouette (when `silhouette`, else all
+/// eight) and may meet its wedge (when `wedge`, else all eight), for the
+/// record `record` (layout [`super::edge_record`]). The `f32` operations,
+/// comparisons and combinations of the portable `ssv::edge_bounds` tests
+/// (`silhouette_lanes`, `wedge_lanes`), in the same order with the same
+/// operands, so the bits are the same (tested there).
+#[target_feature(enable = "avx")]
+#[inline]
+pub(crate) fn edge_octants8(
+    record: &[f32],
+    octants: &super::Octants8,
+    silhouette: bool,
+    wedge: bool,
+) -> u8 {
+    use super::OCTANT_SIGN as SIGN;
+    use super::edge_record::*;
+    let splat = |x: f32| _mm256_set1_ps(x);
+    let sign = [load(&SIGN[0]), load(&SIGN[1]), load(&SIGN[2])];
+    // Projections of the octants' centres on `n`, and their common radius.
+    let project = |n: &[f32]| {
+        let t = [
+            n[0] * octants.quarter[0],
+            n[1] * octants.quarter[1],
+            n[2] * octants.quarter[2],
+        ];
+        let base = n[0] * octants.centre[0] + n[1] * octants.centre[1] + n[2] * octants.centre[2];
+        let mid = _mm256_add_ps(
+            _mm256_add_ps(
+                _mm256_add_ps(splat(base), _mm256_mul_ps(sign[0], splat(t[0]))),
+                _mm256_mul_ps(sign[1], splat(t[1])),
+            ),
+            _mm256_mul_ps(sign[2], splat(t[2])),
+        );
+        (mid, t[0].abs() + t[1].abs() + t[2].abs())
+    };
+    let all = _mm256_cmp_ps::<_CMP_EQ_OQ>(_mm256_setzero_ps(), _mm256_setzero_ps());
+    let mut keep = 0xFF;
+    if silhouette {
+        let margin = splat(octants.margin);
+        let minus_margin = splat(-octants.margin);
+        let one = splat(1.0);
+        let mut weight = _mm256_setzero_ps();
+        let mut open = _mm256_setzero_ps();
+        for j in 0..2 {
+            let plane = &record[PLANES + 4 * j..][..4];
+            let (mid, rad) = project(&plane[..3]);
+            let m = _mm256_sub_ps(mid, splat(plane[3]));
+            let above = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(m, splat(rad)), margin);
+            let below = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(m, splat(rad)), minus_margin);
+            weight = _mm256_add_ps(
+                weight,
+                _mm256_sub_ps(_mm256_and_ps(above, one), _mm256_and_ps(below, one)),
+            );
+            open = _mm256_or_ps(open, _mm256_andnot_ps(_mm256_or_ps(above, below), all));
+        }
+        let nonzero = _mm256_cmp_ps::<_CMP_NEQ_UQ>(weight, _mm256_setzero_ps());
+        keep = _mm256_movemask_ps(_mm256_or_ps(open, nonzero)) as u8;
+        if keep == 0 {
+            return 0;
+        }
+    }
+    if wedge {
+        let inverse = record[INVERSE];
+        let side = record[SIDE];
+        let reach = if side > 0.0 {
+            _mm256_mul_ps(load(&octants.above), splat(inverse))
+        } else if side < 0.0 {
+            _mm256_mul_ps(load(&octants.below), splat(inverse))
+        } else {
+            splat(f32::MAX)
+        };
+        let mut separated = _mm256_setzero_ps();
+        let mut separate = |bounds: &[f32], mid: __m256, rad: f32| {
+            let (top, bottom) = (bounds[1] + octants.margin, bounds[0] - octants.margin);
+            let hi = _mm256_add_ps(splat(top), _mm256_mul_ps(reach, splat(bounds[2])));
+            let lo = _mm256_sub_ps(splat(bottom), _mm256_mul_ps(reach, splat(bounds[3])));
+            let over = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(mid, splat(rad)), hi);
+            let under = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(mid, splat(rad)), lo);
+            separated = _mm256_or_ps(separated, _mm256_or_ps(over, under));
+        };
+        for axis in 0..3 {
+            let bounds = &record[AXES + 4 * axis..][..4];
+            separate(bounds, load(&octants.axis_mid[axis]), octants.quarter[axis]);
+        }
+        let count = record[COUNT] as usize;
+        for d in 0..count {
+            let slot = &record[DIRECTIONS + DIRECTION * d..][..DIRECTION];
+            let (mid, rad) = project(&slot[..3]);
+            separate(&slot[3..], mid, rad);
+        }
+        keep &= !(_mm256_movemask_ps(separated) as u8);
+    }
+    keep
 }

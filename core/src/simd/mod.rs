@@ -3,9 +3,10 @@
 //! (named in its docs) and is tested against it bit for bit; callers pick a kernel
 //! here only after [`avx_available`] said the processor runs it.
 
-#[cfg(target_arch = "x86_64")]
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
 pub(crate) mod avx;
 
+#[cfg(feature = "bvh")]
 /// Slab planes of the eight child boxes of a wide BVH node: `[axis][side][child]`,
 /// side 0 the minima and side 1 the maxima. Aligned so that each row of eight is
 /// one 32-byte load that never splits a cache line.
@@ -13,6 +14,7 @@ pub(crate) mod avx;
 #[repr(C, align(32))]
 pub(crate) struct Planes8(pub [[[f32; 8]; 2]; 3]);
 
+#[cfg(feature = "bvh")]
 /// Per-ray constants of the eight-lane slab test of [`Planes8`] boxes.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SlabRay {
@@ -31,6 +33,7 @@ pub(crate) struct SlabRay {
 /// Whether this processor (and operating system) runs the AVX kernels of
 /// `avx`: detected once by the standard library and cached there. Always false
 /// off x86-64.
+#[cfg(feature = "std")]
 #[inline]
 pub(crate) fn avx_available() -> bool {
     #[cfg(target_arch = "x86_64")]
@@ -43,6 +46,7 @@ pub(crate) fn avx_available() -> bool {
     }
 }
 
+#[cfg(feature = "bvh")]
 /// Per-ray constants of the watertight triangle test in lanes: the ray after
 /// the axis permutation and shear of `raycast::PreparedRay` (whose fields these
 /// are).
@@ -58,6 +62,7 @@ pub(crate) struct ShearedRay {
     pub t_min: f32,
 }
 
+#[cfg(feature = "bvh")]
 /// What an eight-lane triangle test decided, lane `i` the triangle in lane `i`
 /// of the first block (`i < 4`) or lane `i - 4` of the second: the layout of
 /// `raycast::LaneHits` over eight lanes.
@@ -73,4 +78,63 @@ pub(crate) struct LaneHits8 {
     pub u: [f32; 8],
     /// Barycentric weight of the third corner per lane.
     pub v: [f32; 8],
+}
+
+/// The eight octants of a soft-shadow hierarchy node, as the eight-lane edge
+/// tests of `ssv::edge_bounds` (portable) and [`avx::edge_octants8`] take
+/// them: lane `i` is octant `i` (bit 0 of `i`: upper half in x, 1: in y, 2:
+/// in z).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub(crate) struct Octants8 {
+    /// Per axis, each octant's centre coordinate.
+    pub axis_mid: [[f32; 8]; 3],
+    /// Per octant, its highest point above the light's plane (0 if none).
+    pub above: [f32; 8],
+    /// Per octant, its lowest point below the light's plane, as a height.
+    pub below: [f32; 8],
+    /// The parent's centre.
+    pub centre: [f32; 3],
+    /// Half an octant's extent per axis.
+    pub quarter: [f32; 3],
+    /// Margin of every comparison.
+    pub margin: f32,
+}
+
+/// `±1` per octant and axis: the side of each octant's centre from its
+/// parent's.
+pub(crate) const OCTANT_SIGN: [[f32; 8]; 3] = {
+    let mut s = [[0.0; 8]; 3];
+    let mut i = 0;
+    while i < 8 {
+        let mut axis = 0;
+        while axis < 3 {
+            s[axis][i] = if i >> axis & 1 == 1 { 1.0 } else { -1.0 };
+            axis += 1;
+        }
+        i += 1;
+    }
+    s
+};
+
+/// Layout of one edge record of `ssv::edge_bounds`, in `f32`s: the side of the
+/// light's plane the edge is on (`±1`, 0 across it), the inverse of its
+/// smallest height, the number of directions; per axis `[min, max, climb,
+/// fall]`; the two adjacent triangles' planes `[nx, ny, nz, d]`; then per
+/// direction `[nx, ny, nz, min, max, climb, fall]`.
+pub(crate) mod edge_record {
+    /// `±1` or 0.
+    pub const SIDE: usize = 0;
+    /// `1 / smallest height` above (or below) the light's plane.
+    pub const INVERSE: usize = 1;
+    /// Directions used.
+    pub const COUNT: usize = 2;
+    /// Axis bounds, four per axis.
+    pub const AXES: usize = 3;
+    /// Triangle planes, four each.
+    pub const PLANES: usize = AXES + 12;
+    /// First direction.
+    pub const DIRECTIONS: usize = PLANES + 8;
+    /// `f32`s per direction.
+    pub const DIRECTION: usize = 7;
 }

@@ -1,167 +1,169 @@
 //! The 2006 query structure (Lehtinen, Laine and Aila 2006, §4): an octree over
 //! the receivers' space whose node keeps the potential silhouette edges whose
 //! penumbra wedge and silhouette region may touch the node's box (both tests
-//! conservative, [`super::wedge`]), subdivided lazily where queries arrive.
-//!
-//! The wedge test is also run per part of the light: an edge matters to `p`
-//! only if `p` lies in the wedge of the part of the light from which the edge
-//! is a silhouette (the argument and the pieces are the hemicube's,
-//! [`super::hemicube`] module docs), so a node keeps an edge only when its box
-//! may meet the wedge of one of those pieces (after the whole-light tests,
-//! which are cheaper and reject most). Measured with `antumbra bench ssv
-//! --samples 256` (leaf edges 32, depth 12): node memory 12 → 6.4 MiB on the
-//! armadillo (52k triangles), 920 → 420 KiB on the bunny, 330 → 121 KiB on the
-//! teapot; candidates per query 14.0 / 14.0 / 13.2 → 12.8 / 11.4 / 9.3 on the
-//! bunny (horizontal / 45° / 80° light), about unchanged on the armadillo
-//! (80 / 74 / 33 → 81 / 72 / 31), where some 73% of the candidates already
-//! have a non-zero weight at the receiver (real silhouettes).
+//! conservative: [`super::edge_bounds`] in `f32` lanes, [`super::wedge`] in
+//! `f64` where the lanes do not apply), subdivided lazily where queries arrive.
 //!
 //! Invariant: an edge left out of a node contributes nothing to any receiver in
 //! the node's box, so a query that walks to the leaf holding its point and runs
 //! the exact tests on the leaf's list gets exactly the brute-force bits.
 //!
-//! A node with more than `leaf_edges` edges and depth below `max_depth` tries a
-//! split the first time a query passes through it, and keeps the eight children
-//! only when the split pays: a query's cost is about its leaf's list length
-//! times the per-candidate cost, so a split is kept when the children's mean
-//! list is at most [`SPLIT_GAIN`] of the parent's; otherwise the node stays a
-//! leaf for good (the trial children are dropped). Near penumbrae many wedges
-//! cover a whole node and its children alike; without this rule such nodes split
-//! to the depth limit (tens of thousands of nodes for a floor of receivers), with
-//! it construction stays a small fraction of a dense image's query time. With
-//! `std` the split decision is a `OnceLock`: concurrent queries may race to make
-//! it, one wins, the others wait for it (never a torn node). Without `std` there is no
-//! portable blocking once-cell and `unsafe` is off, so the octree is subdivided
-//! eagerly at creation to depth [`super::NO_STD_EAGER_DEPTH`] and queries walk
-//! what exists.
+//! Space beyond the root. The root box `B₀` is a hint (by default the occluders
+//! and the light, grown by half their size). A receiver outside it goes to the
+//! first of the boxes `B_k` (`B₀`'s centre, `2^k` times its half-extent) that
+//! holds it; `B_k` is cut into 4 × 4 × 4 cells, the inner eight of which make
+//! `B_{k-1}`, and each of the 56 outer cells (as large as an octant of
+//! `B_{k-1}`) is the root of an octree of its own, made when the first query
+//! lands in it by testing every potential edge against its box. So every point
+//! a query can name is covered by a node as fine as its surroundings need:
+//! a receiver never falls back to every edge, wherever the caller puts it
+//! (shells reach every finite `f32` point). Cost: one test of every potential
+//! edge per cell that receives queries (a ground twice the root's width touches
+//! 12 cells of the first shell).
+//!
+//! When a node splits. Splitting a node of `L` edges tests each against the
+//! eight octants (a few tens of nanoseconds per edge in lanes); a query through
+//! it tests `L` candidates. So a node splits once it has served
+//! [`SPLIT_AFTER`] queries (the classic rent-or-buy rule: the split costs about
+//! what those queries cost, and a node few receivers reach is not refined for
+//! them), when it holds more than `leaf_edges` edges and is above the depth
+//! limit, and keeps its children only when they pay: the children's mean list
+//! must be at most [`SPLIT_GAIN`] of the node's, else the node stays a leaf for
+//! good. Children's lists are written when a query first enters them (a floor of
+//! receivers enters four of every eight), from one octant mask per parent edge.
+//!
+//! Threads: every lazily made part (a split decision, a child, a shell, a cell)
+//! is a once-cell. With `std` a `OnceLock`: concurrent queries that need the
+//! same part wait for the one making it. Without `std` a lock-free
+//! `once_cell::race::OnceBox`: racing queries may each make it and all but one
+//! copy is dropped. Either way a node is never seen half built.
 
 use alloc::boxed::Box;
+use alloc::vec;
 use alloc::vec::Vec;
-use core::sync::atomic::{AtomicUsize, Ordering};
+use core::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 use glam::DVec3;
 
 use super::SsvOptions;
+use super::edge_bounds::EdgeBounds;
 use super::edges::EdgeGraph;
-use super::hemicube::{grown_light, silhouette_pieces};
-use super::wedge::{
-    Aabb, LightShape, box_may_see_silhouette, box_meets_wedge, octants_meeting_wedge,
-    octants_seeing_silhouette,
-};
+use super::wedge::{Aabb, LightShape};
 use crate::prefetch::prefetch;
 
 /// A split is kept when the children's mean list length is at most this
 /// fraction of the parent's (module docs).
 pub(crate) const SPLIT_GAIN: f64 = 0.75;
 
+/// Queries a node serves before it tries to split (module docs): as many as
+/// the receivers of a batch that make [`Hierarchy::prepare`] split it, so a
+/// static scene queried frame after frame refines where a single frame did
+/// not pay for it.
+pub(crate) const SPLIT_AFTER: u32 = BATCH_SPLIT as u32;
+
+/// Receivers of a batch in a node for [`Hierarchy::prepare`] to split it.
+const BATCH_SPLIT: usize = 8;
+
+/// Receivers under a node for [`Hierarchy::prepare`] to build its subtrees
+/// on several threads.
+#[cfg(feature = "parallel")]
+const PARALLEL_RECEIVERS: usize = 2048;
+
+/// Edges of the strided sample a split tests first (module docs).
+const SAMPLED_EDGES: usize = 32;
+
+/// A split is refused from its sample when the sample's children lists
+/// exceed the [`SPLIT_GAIN`] limit by this factor (room for the sample's
+/// noise: a refused split that would have paid costs more than one made in
+/// vain).
+const REFUSE_MARGIN: f64 = 1.0;
+
+/// Shells beyond the root: enough for any finite `f32` point around any root
+/// (half-extents of at least `2^-150`, points within `2^128`).
+const MAX_SHELLS: usize = 288;
+
+/// A value made once, on first use, by whichever thread needs it first.
 #[cfg(feature = "std")]
-type Children = std::sync::OnceLock<Option<Box<[Node; 8]>>>;
+struct Once<T>(std::sync::OnceLock<T>);
 #[cfg(not(feature = "std"))]
-type Children = Option<Box<[Node; 8]>>;
+struct Once<T>(once_cell::race::OnceBox<T>);
 
-/// The light as the per-piece cut needs it: the grown region `K` (in-plane
-/// outline), its thickness `tol` and the scale of the rounding slack.
-struct Cut {
-    region: Vec<DVec3>,
-    tol: f64,
-    scale: f64,
-}
-
-impl Cut {
-    fn new(shape: &LightShape, origin: DVec3) -> Self {
-        let scale = shape
-            .vertices
-            .iter()
-            .fold(origin.abs().max_element(), |m, v| {
-                m.max(v.abs().max_element())
-            });
-        let tol = shape.tolerance + PIECE_SLACK * scale;
-        Cut {
-            region: grown_light(shape, origin, tol),
-            tol,
-            scale,
-        }
+impl<T> Once<T> {
+    fn new() -> Self {
+        Once(Default::default())
     }
 
-    /// Of the octants in `mask`, those that may meet the wedge of some part of
-    /// the light from which the edge may be a silhouette.
-    fn octants(
-        &self,
-        graph: &EdgeGraph,
-        shape: &LightShape,
-        e: u32,
-        bounds: &Aabb,
-        mask: u8,
-    ) -> u8 {
-        let edge = &graph.edges[e as usize];
-        let Some(pieces) = silhouette_pieces(graph, edge, &self.region, self.tol, self.scale)
-        else {
-            return mask;
-        };
-        let a = graph.positions[edge.a as usize].as_dvec3();
-        let b = graph.positions[edge.b as usize].as_dvec3();
-        let mut out = 0;
-        for piece in pieces {
-            let light = LightShape {
-                vertices: piece,
-                normal: shape.normal,
-                tolerance: self.tol,
-            };
-            out |= octants_meeting_wedge(&light, a, b, bounds);
-            if out & mask == mask {
-                break;
-            }
-        }
-        out & mask
+    #[cfg(feature = "std")]
+    fn with(value: T) -> Self {
+        Once(std::sync::OnceLock::from(value))
     }
 
-    fn keep(&self, graph: &EdgeGraph, shape: &LightShape, e: u32, bounds: &Aabb) -> bool {
-        let edge = &graph.edges[e as usize];
-        let Some(pieces) = silhouette_pieces(graph, edge, &self.region, self.tol, self.scale)
-        else {
-            return true;
-        };
-        let a = graph.positions[edge.a as usize].as_dvec3();
-        let b = graph.positions[edge.b as usize].as_dvec3();
-        pieces.into_iter().any(|piece| {
-            let light = LightShape {
-                vertices: piece,
-                normal: shape.normal,
-                tolerance: self.tol,
-            };
-            box_meets_wedge(&light, a, b, bounds)
-        })
+    #[cfg(not(feature = "std"))]
+    fn with(value: T) -> Self {
+        Once(once_cell::race::OnceBox::with_value(Box::new(value)))
+    }
+
+    fn get(&self) -> Option<&T> {
+        self.0.get()
+    }
+
+    #[cfg(feature = "std")]
+    fn get_or_init(&self, make: impl FnOnce() -> T) -> &T {
+        self.0.get_or_init(make)
+    }
+
+    #[cfg(not(feature = "std"))]
+    fn get_or_init(&self, make: impl FnOnce() -> T) -> &T {
+        self.0.get_or_init(|| Box::new(make()))
     }
 }
 
-/// Relative rounding slack of the pieces' vertices (as the hemicube's).
-const PIECE_SLACK: f64 = 1e-9;
+/// What became of a node: a leaf for good, or eight children.
+enum Split {
+    Leaf,
+    Children(Box<Children>),
+}
+
+struct Children {
+    /// Per edge of the parent (same order), the octants it belongs to.
+    masks: Box<[u8]>,
+    /// Edges per octant.
+    counts: [u32; 8],
+    /// Made when a query first enters them.
+    nodes: [Once<Node>; 8],
+}
 
 struct Node {
     bounds: Aabb,
-    depth: u32,
-    edges: Vec<u32>,
-    children: Children,
+    /// Splits still allowed below this node (the depth limit).
+    levels: u32,
+    edges: Box<[u32]>,
+    /// Queries served while the split was undecided.
+    visits: AtomicU32,
+    split: Once<Split>,
+}
+
+struct Shell {
+    /// Cell `(i, j, k)` (per axis 0..4) at `i + 4 j + 16 k`; the inner eight
+    /// stay empty (they are the shell inside).
+    cells: [Once<Node>; 64],
 }
 
 pub(crate) struct Hierarchy {
     root: Node,
-    cut: Cut,
+    /// `B₀`'s corners, centre and half-extent.
+    root_min: DVec3,
+    root_max: DVec3,
+    centre: DVec3,
+    half: DVec3,
+    shells: Vec<Once<Box<Shell>>>,
+    bounds: EdgeBounds,
+    /// Every slot of `bounds`: lists hold slots, not edges (the lists of
+    /// shell cells are cut from this one).
     all: Vec<u32>,
     leaf_edges: usize,
     max_depth: u32,
     nodes: AtomicUsize,
     bytes: AtomicUsize,
-}
-
-fn keep(graph: &EdgeGraph, shape: &LightShape, e: u32, bounds: &Aabb) -> bool {
-    let edge = &graph.edges[e as usize];
-    let a = graph.positions[edge.a as usize].as_dvec3();
-    let b = graph.positions[edge.b as usize].as_dvec3();
-    box_may_see_silhouette(graph, edge, bounds) && box_meets_wedge(shape, a, b, bounds)
-}
-
-fn node_bytes(node: &Node) -> usize {
-    core::mem::size_of::<Node>() + node.edges.capacity() * core::mem::size_of::<u32>()
 }
 
 impl Hierarchy {
@@ -170,109 +172,36 @@ impl Hierarchy {
         shape: &LightShape,
         potential: &[u32],
         root: Aabb,
-        origin: DVec3,
         options: SsvOptions,
     ) -> Self {
-        let cut = Cut::new(shape, origin);
-        let edges: Vec<u32> = potential
-            .iter()
-            .copied()
-            .filter(|&e| keep(graph, shape, e, &root) && cut.keep(graph, shape, e, &root))
-            .collect();
-        let root = Node {
-            bounds: root,
-            depth: 0,
-            edges,
-            children: Children::default(),
-        };
-        let bytes = node_bytes(&root) + core::mem::size_of_val(potential);
-        #[allow(unused_mut)]
+        let bounds = EdgeBounds::new(graph, shape, potential);
+        let all = (0..bounds.edges().len() as u32).collect();
         let mut h = Hierarchy {
-            root,
-            cut,
-            all: potential.to_vec(),
+            root: Node {
+                bounds: root,
+                levels: 0,
+                edges: Box::new([]),
+                visits: AtomicU32::new(0),
+                split: Once::with(Split::Leaf),
+            },
+            root_min: root.min,
+            root_max: root.max,
+            centre: root.center(),
+            half: root.half(),
+            shells: (0..MAX_SHELLS).map(|_| Once::new()).collect(),
+            bounds,
+            all,
             leaf_edges: options.leaf_edges as usize,
             max_depth: options.max_depth,
-            nodes: AtomicUsize::new(1),
-            bytes: AtomicUsize::new(bytes),
+            nodes: AtomicUsize::new(0),
+            bytes: AtomicUsize::new(0),
         };
-        #[cfg(not(feature = "std"))]
-        {
-            let (leaf, max) = (h.leaf_edges, h.max_depth.min(super::NO_STD_EAGER_DEPTH));
-            // Nodes added and their bytes.
-            let mut added = (0, 0);
-            Self::subdivide_eagerly(graph, shape, &h.cut, &mut h.root, (leaf, max), &mut added);
-            let (count, total) = added;
-            h.nodes.fetch_add(count, Ordering::Relaxed);
-            h.bytes.fetch_add(total, Ordering::Relaxed);
-        }
+        h.bytes.store(
+            h.bounds.bytes() + h.all.capacity() * 4 + h.shells.capacity() * 8,
+            Ordering::Relaxed,
+        );
+        h.root = h.cell(graph, shape, root, h.max_depth);
         h
-    }
-
-    #[cfg(not(feature = "std"))]
-    fn subdivide_eagerly(
-        graph: &EdgeGraph,
-        shape: &LightShape,
-        cut: &Cut,
-        node: &mut Node,
-        (leaf, max_depth): (usize, u32),
-        added: &mut (usize, usize),
-    ) {
-        if node.edges.len() <= leaf || node.depth >= max_depth {
-            return;
-        }
-        let Some(mut children) = Self::split(graph, shape, cut, node) else {
-            return;
-        };
-        added.0 += 8;
-        added.1 += children.iter().map(node_bytes).sum::<usize>();
-        for child in children.iter_mut() {
-            Self::subdivide_eagerly(graph, shape, cut, child, (leaf, max_depth), added);
-        }
-        node.children = Some(children);
-    }
-
-    /// The node's eight children, when they pay ([`SPLIT_GAIN`]). Each edge is
-    /// tested against the eight octants at once (shared per-direction work).
-    fn split(
-        graph: &EdgeGraph,
-        shape: &LightShape,
-        cut: &Cut,
-        node: &Node,
-    ) -> Option<Box<[Node; 8]>> {
-        let mut lists: [Vec<u32>; 8] = Default::default();
-        for &e in &node.edges {
-            let edge = &graph.edges[e as usize];
-            let mut mask = octants_seeing_silhouette(graph, edge, &node.bounds);
-            if mask != 0 {
-                let a = graph.positions[edge.a as usize].as_dvec3();
-                let b = graph.positions[edge.b as usize].as_dvec3();
-                mask &= octants_meeting_wedge(shape, a, b, &node.bounds);
-            }
-            if mask != 0 {
-                mask = cut.octants(graph, shape, e, &node.bounds, mask);
-            }
-            for (i, list) in lists.iter_mut().enumerate() {
-                if mask >> i & 1 == 1 {
-                    list.push(e);
-                }
-            }
-        }
-        let total: usize = lists.iter().map(Vec::len).sum();
-        if total as f64 > 8.0 * SPLIT_GAIN * node.edges.len() as f64 {
-            return None;
-        }
-        let mut lists = lists.into_iter();
-        Some(Box::new(core::array::from_fn(|i| {
-            let mut edges = lists.next().unwrap_or_default();
-            edges.shrink_to_fit();
-            Node {
-                bounds: node.bounds.octant(i),
-                depth: node.depth + 1,
-                edges,
-                children: Children::default(),
-            }
-        })))
     }
 
     pub fn nodes(&self) -> usize {
@@ -283,8 +212,267 @@ impl Hierarchy {
         self.bytes.load(Ordering::Relaxed)
     }
 
-    /// Calls `visit` with every edge of the leaf holding `p` (every potential
-    /// edge when `p` is outside the root), building nodes on the way.
+    /// A node over `bounds` cut from every potential edge.
+    fn cell(&self, graph: &EdgeGraph, shape: &LightShape, bounds: Aabb, levels: u32) -> Node {
+        // The box is octant 0 of a box twice its size.
+        let parent = Aabb {
+            min: bounds.min,
+            max: bounds.max + (bounds.max - bounds.min),
+        };
+        let mut masks = vec![0u8; self.all.len()];
+        self.bounds.octant_masks(
+            graph,
+            shape,
+            &parent,
+            &self.all,
+            0..self.all.len(),
+            &mut masks,
+        );
+        let edges = self
+            .all
+            .iter()
+            .zip(&masks)
+            .filter(|&(_, &m)| m & 1 == 1)
+            .map(|(&e, _)| e)
+            .collect();
+        self.node(bounds, levels, edges)
+    }
+
+    fn node(&self, bounds: Aabb, levels: u32, edges: Box<[u32]>) -> Node {
+        let split = if edges.len() > self.leaf_edges && levels > 0 {
+            Once::new()
+        } else {
+            Once::with(Split::Leaf)
+        };
+        self.nodes.fetch_add(1, Ordering::Relaxed);
+        self.bytes.fetch_add(
+            core::mem::size_of::<Node>() + edges.len() * core::mem::size_of::<u32>(),
+            Ordering::Relaxed,
+        );
+        Node {
+            bounds,
+            levels,
+            edges,
+            visits: AtomicU32::new(0),
+            split,
+        }
+    }
+
+    /// The node's children when they pay ([`SPLIT_GAIN`]).
+    /// The node's children, when they pay: when their mean list is at most
+    /// [`SPLIT_GAIN`] of the node's. (The mean over all eight, not weighted by
+    /// where the receivers are: a floor of receivers sits in the lower
+    /// octants of a root whose upper ones hold the light, and those lower
+    /// octants keep nearly every edge at the first split; weighted, the split
+    /// that the levels below need was refused.)
+    fn split(&self, graph: &EdgeGraph, shape: &LightShape, node: &Node) -> Split {
+        let weights = [1u32; 8];
+        let edges = &node.edges;
+        let mut masks = vec![0u8; edges.len()].into_boxed_slice();
+        let weight: u64 = weights.iter().map(|&w| u64::from(w)).sum();
+        // Candidates the expected queries would test in the children, over
+        // those they test in the node (`n` edges of `masks` looked at).
+        let pays = |masks: &[u8], which: &mut dyn Iterator<Item = usize>, n: usize, margin: f64| {
+            let after: u64 = which
+                .map(|k| {
+                    let m = masks[k];
+                    (0..8)
+                        .map(|i| u64::from(m >> i & 1) * u64::from(weights[i]))
+                        .sum::<u64>()
+                })
+                .sum();
+            after as f64 <= margin * SPLIT_GAIN * (weight * n as u64) as f64
+        };
+        // A strided sample first: most splits that will not pay are refused
+        // after testing it alone.
+        let step = (edges.len() / SAMPLED_EDGES).max(1);
+        let sample = (0..edges.len()).step_by(step);
+        if step > 1 {
+            self.bounds.octant_masks(
+                graph,
+                shape,
+                &node.bounds,
+                edges,
+                sample.clone(),
+                &mut masks,
+            );
+            if !pays(&masks, &mut sample.clone(), sample.len(), REFUSE_MARGIN) {
+                return Split::Leaf;
+            }
+            let rest = (0..edges.len()).filter(|k| k % step != 0);
+            self.bounds
+                .octant_masks(graph, shape, &node.bounds, edges, rest, &mut masks);
+        } else {
+            self.bounds
+                .octant_masks(graph, shape, &node.bounds, edges, sample, &mut masks);
+        }
+        if !pays(&masks, &mut (0..edges.len()), edges.len(), 1.0) {
+            return Split::Leaf;
+        }
+        let mut counts = [0u32; 8];
+        for &m in masks.iter() {
+            for (i, count) in counts.iter_mut().enumerate() {
+                *count += u32::from(m >> i & 1);
+            }
+        }
+        self.bytes.fetch_add(
+            core::mem::size_of::<Children>() + masks.len(),
+            Ordering::Relaxed,
+        );
+        Split::Children(Box::new(Children {
+            masks,
+            counts,
+            nodes: core::array::from_fn(|_| Once::new()),
+        }))
+    }
+
+    /// Child `i` of `node`, made from the parent's masks on first use.
+    fn child<'a>(&self, node: &Node, children: &'a Children, i: usize) -> &'a Node {
+        children.nodes[i].get_or_init(|| {
+            let mut edges = Vec::with_capacity(children.counts[i] as usize);
+            edges.extend(
+                node.edges
+                    .iter()
+                    .zip(children.masks.iter())
+                    .filter(|&(_, &m)| m >> i & 1 == 1)
+                    .map(|(&e, _)| e),
+            );
+            self.node(node.bounds.octant(i), node.levels - 1, edges.into())
+        })
+    }
+
+    /// Where `p` starts its walk: the root, or a cell of the first shell
+    /// around the root that holds it (module docs); `None` only beyond every
+    /// shell (no finite `f32` point).
+    fn top_slot(&self, p: DVec3) -> Option<TopSlot> {
+        if self.root.bounds.contains(p) {
+            return Some(TopSlot::Root);
+        }
+        // Shell k spans centre ± 2^(k+1) half; its inner part is shell k - 1
+        // (the root for k = 0).
+        let (mut inner_min, mut inner_max) = (self.root_min, self.root_max);
+        let mut scale = 2.0;
+        for shell in 0..MAX_SHELLS {
+            let outer_min = self.centre - scale * self.half;
+            let outer_max = self.centre + scale * self.half;
+            if p.cmpge(outer_min).all() && p.cmple(outer_max).all() {
+                let cuts = [outer_min, inner_min, self.centre, inner_max, outer_max];
+                let slot = |axis: usize| {
+                    let x = p[axis];
+                    usize::from(x >= cuts[1][axis])
+                        + usize::from(x >= cuts[2][axis])
+                        + usize::from(x >= cuts[3][axis])
+                };
+                let (i, j, l) = (slot(0), slot(1), slot(2));
+                let corner = |s: [usize; 3]| DVec3::new(cuts[s[0]].x, cuts[s[1]].y, cuts[s[2]].z);
+                return Some(TopSlot::Cell {
+                    shell,
+                    cell: i + 4 * j + 16 * l,
+                    bounds: Aabb {
+                        min: corner([i, j, l]),
+                        max: corner([i + 1, j + 1, l + 1]),
+                    },
+                });
+            }
+            (inner_min, inner_max) = (outer_min, outer_max);
+            scale *= 2.0;
+        }
+        None
+    }
+
+    /// The node of a [`TopSlot`], made (one test of every edge against its
+    /// box) the first time a query starts there.
+    fn top_node(&self, graph: &EdgeGraph, shape: &LightShape, slot: TopSlot) -> &Node {
+        let TopSlot::Cell {
+            shell,
+            cell,
+            bounds,
+        } = slot
+        else {
+            return &self.root;
+        };
+        let shell_cells = self.shells[shell].get_or_init(|| {
+            self.bytes
+                .fetch_add(core::mem::size_of::<Shell>(), Ordering::Relaxed);
+            Box::new(Shell {
+                cells: core::array::from_fn(|_| Once::new()),
+            })
+        });
+        shell_cells.cells[cell].get_or_init(|| {
+            // As fine as the root's octants allow, at any distance.
+            let levels = self.max_depth.saturating_sub(1) + shell as u32;
+            self.cell(graph, shape, bounds, levels)
+        })
+    }
+
+    /// Builds, ahead of a batch of queries, the nodes its receivers `points`
+    /// need: from each top node down, a node is split (if undecided) when
+    /// [`BATCH_SPLIT`] or more of the receivers fall in it, its children kept
+    /// when they pay for the receivers in them ([`SPLIT_GAIN`], weighted by
+    /// where the receivers are), and the walk goes on in the children that
+    /// hold receivers. Unlike the split rule of single queries (which counts
+    /// the queries a node has served), no query pays for a coarse node that
+    /// the batch will split, and a node few receivers reach is not refined for
+    /// them. With `parallel` (and the `parallel` feature) the subtrees are
+    /// built on rayon's threads. The bits of the queries are the same either
+    /// way.
+    pub fn prepare(&self, graph: &EdgeGraph, shape: &LightShape, points: &[DVec3], parallel: bool) {
+        // Receivers grouped by top node: the root's (key 0), then each shell
+        // cell's (key 1 + 64 shell + cell), by a counting sort.
+        let keys: Vec<u32> = points
+            .iter()
+            .map(|&p| match self.top_slot(p) {
+                Some(TopSlot::Root) => 0,
+                Some(TopSlot::Cell { shell, cell, .. }) => 1 + 64 * shell as u32 + cell as u32,
+                None => u32::MAX,
+            })
+            .collect();
+        let buckets = 1 + 64 * MAX_SHELLS;
+        let mut starts = vec![0u32; buckets + 1];
+        for &k in &keys {
+            if k != u32::MAX {
+                starts[k as usize + 1] += 1;
+            }
+        }
+        for b in 0..buckets {
+            starts[b + 1] += starts[b];
+        }
+        let mut fill = starts.clone();
+        let placed = starts[buckets] as usize;
+        let mut order = vec![0u32; placed];
+        for (i, &k) in keys.iter().enumerate() {
+            if k != u32::MAX {
+                let slot = &mut fill[k as usize];
+                order[*slot as usize] = i as u32;
+                *slot += 1;
+            }
+        }
+        let mut scratch = vec![0u32; placed];
+        for b in 0..buckets {
+            let (lo, hi) = (starts[b] as usize, starts[b + 1] as usize);
+            if lo == hi {
+                continue;
+            }
+            let p = points[order[lo] as usize];
+            let Some(slot) = self.top_slot(p) else {
+                continue;
+            };
+            let node = self.top_node(graph, shape, slot);
+            let job = Batch {
+                hierarchy: self,
+                graph,
+                shape,
+                points,
+                parallel,
+            };
+            job.refine(node, &mut order[lo..hi], &mut scratch[lo..hi]);
+        }
+    }
+
+    /// Calls `visit` with every edge of the leaf holding `p`, building nodes
+    /// on the way: an undecided node splits once it has served
+    /// [`SPLIT_AFTER`] queries (the rule for receivers that come one at a
+    /// time; [`Self::prepare`] decides for a batch before its queries).
     pub fn for_each_candidate(
         &self,
         graph: &EdgeGraph,
@@ -292,46 +480,109 @@ impl Hierarchy {
         p: DVec3,
         visit: impl FnMut(u32),
     ) {
-        if !self.root.bounds.contains(p) {
-            visit_prefetched(graph, &self.all, visit);
+        let Some(slot) = self.top_slot(p) else {
+            // Unreachable for finite points (MAX_SHELLS); every edge is right.
+            visit_prefetched(graph, self.bounds.edges(), &self.all, visit);
             return;
-        }
-        let mut node = &self.root;
+        };
+        let mut node = self.top_node(graph, shape, slot);
         loop {
-            let children = if node.edges.len() > self.leaf_edges && node.depth < self.max_depth {
-                self.children(graph, shape, node)
-            } else {
-                None
+            let split = match node.split.get() {
+                Some(split) => split,
+                None => {
+                    if node.visits.fetch_add(1, Ordering::Relaxed) + 1 < SPLIT_AFTER {
+                        break;
+                    }
+                    node.split.get_or_init(|| self.split(graph, shape, node))
+                }
             };
-            match children {
-                Some(c) => node = &c[node.bounds.octant_of(p)],
-                None => break,
+            match split {
+                Split::Leaf => break,
+                Split::Children(children) => {
+                    node = self.child(node, children, node.bounds.octant_of(p));
+                }
             }
         }
-        visit_prefetched(graph, &node.edges, visit);
+        visit_prefetched(graph, self.bounds.edges(), &node.edges, visit);
     }
+}
 
-    #[cfg(feature = "std")]
-    fn children<'a>(
-        &self,
-        graph: &EdgeGraph,
-        shape: &LightShape,
-        node: &'a Node,
-    ) -> Option<&'a [Node; 8]> {
-        node.children
-            .get_or_init(|| {
-                let children = Self::split(graph, shape, &self.cut, node)?;
-                self.nodes.fetch_add(8, Ordering::Relaxed);
-                self.bytes
-                    .fetch_add(children.iter().map(node_bytes).sum(), Ordering::Relaxed);
-                Some(children)
-            })
-            .as_deref()
-    }
+/// Where a walk starts.
+#[derive(Clone, Copy)]
+enum TopSlot {
+    Root,
+    Cell {
+        shell: usize,
+        cell: usize,
+        bounds: Aabb,
+    },
+}
 
-    #[cfg(not(feature = "std"))]
-    fn children<'a>(&self, _: &EdgeGraph, _: &LightShape, node: &'a Node) -> Option<&'a [Node; 8]> {
-        node.children.as_deref()
+/// What [`Hierarchy::prepare`]'s recursion carries.
+#[derive(Clone, Copy)]
+struct Batch<'a> {
+    hierarchy: &'a Hierarchy,
+    graph: &'a EdgeGraph,
+    shape: &'a LightShape,
+    points: &'a [DVec3],
+    #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
+    parallel: bool,
+}
+
+impl Batch<'_> {
+    /// Refines `node` for the receivers `indices` (into `points`), `scratch`
+    /// as long as `indices` for their partition by octant.
+    fn refine(&self, node: &Node, indices: &mut [u32], scratch: &mut [u32]) {
+        let h = self.hierarchy;
+        let octant = |i: u32| node.bounds.octant_of(self.points[i as usize]);
+        let mut counts = [0u32; 8];
+        for &i in indices.iter() {
+            counts[octant(i)] += 1;
+        }
+        let split = match node.split.get() {
+            Some(split) => split,
+            None if indices.len() < BATCH_SPLIT => return,
+            None => node
+                .split
+                .get_or_init(|| h.split(self.graph, self.shape, node)),
+        };
+        let Split::Children(children) = split else {
+            return;
+        };
+        let mut starts = [0usize; 9];
+        for i in 0..8 {
+            starts[i + 1] = starts[i] + counts[i] as usize;
+        }
+        let mut fill = starts;
+        for &i in indices.iter() {
+            let o = octant(i);
+            scratch[fill[o]] = i;
+            fill[o] += 1;
+        }
+        indices.copy_from_slice(scratch);
+        // The children's ranges, each with its own part of both buffers.
+        let mut parts: Vec<(usize, &mut [u32], &mut [u32])> = Vec::with_capacity(8);
+        let (mut rest, mut rest_scratch) = (indices, scratch);
+        for (i, &count) in counts.iter().enumerate() {
+            let n = count as usize;
+            let (part, tail) = core::mem::take(&mut rest).split_at_mut(n);
+            let (part_scratch, tail_scratch) = core::mem::take(&mut rest_scratch).split_at_mut(n);
+            (rest, rest_scratch) = (tail, tail_scratch);
+            if n > 0 {
+                parts.push((i, part, part_scratch));
+            }
+        }
+        let run = |(i, part, part_scratch): (usize, &mut [u32], &mut [u32])| {
+            let child = h.child(node, children, i);
+            self.refine(child, part, part_scratch);
+        };
+        #[cfg(feature = "parallel")]
+        if self.parallel && starts[8] >= PARALLEL_RECEIVERS {
+            use rayon::prelude::*;
+            parts.into_par_iter().for_each(run);
+            return;
+        }
+        parts.into_iter().for_each(run);
     }
 }
 
@@ -341,24 +592,24 @@ impl Hierarchy {
 const EDGES_AHEAD: usize = 8;
 const POSITIONS_AHEAD: usize = 4;
 
-/// Visits `edges` in order, asking the cache ahead of time for what each
+/// Visits the edges of `slots` (`of_slot` maps a slot to its edge) in order, asking the cache ahead of time for what each
 /// visit reads first: a leaf's candidates are scattered over the mesh, and
 /// the chain edge record → endpoint positions is two dependent misses per
 /// candidate (measured with `perf`: the largest single stall of a query).
 /// The second stage reads only records the first one requested. (Requesting
 /// the third vertices' positions as well measured no better.)
 #[inline(always)]
-fn visit_prefetched(graph: &EdgeGraph, edges: &[u32], mut visit: impl FnMut(u32)) {
-    for (i, &e) in edges.iter().enumerate() {
-        if let Some(&ahead) = edges.get(i + EDGES_AHEAD) {
-            prefetch(&graph.edges, ahead as usize);
+fn visit_prefetched(graph: &EdgeGraph, of_slot: &[u32], slots: &[u32], mut visit: impl FnMut(u32)) {
+    for (i, &slot) in slots.iter().enumerate() {
+        if let Some(&ahead) = slots.get(i + EDGES_AHEAD) {
+            prefetch(&graph.edges, of_slot[ahead as usize] as usize);
         }
-        if let Some(&ahead) = edges.get(i + POSITIONS_AHEAD) {
-            let edge = &graph.edges[ahead as usize];
+        if let Some(&ahead) = slots.get(i + POSITIONS_AHEAD) {
+            let edge = &graph.edges[of_slot[ahead as usize] as usize];
             prefetch(&graph.positions, edge.a as usize);
             prefetch(&graph.positions, edge.b as usize);
             prefetch(&graph.third, edge.first as usize);
         }
-        visit(e);
+        visit(of_slot[slot as usize]);
     }
 }

@@ -80,11 +80,13 @@
 //!
 //! - [`Structure::Hierarchy`] (default): the 2006 structure, an octree over the
 //!   receivers' space whose nodes keep the edges whose wedge and silhouette region
-//!   may touch the node box, subdivided lazily where queries arrive (threshold
-//!   [`SsvOptions::leaf_edges`], depth limit [`SsvOptions::max_depth`]); a query
-//!   walks one root-to-leaf path. With `std`, concurrent queries may build nodes
-//!   concurrently (each child array is a `OnceLock`); without `std` the octree is
-//!   subdivided eagerly at creation to depth [`NO_STD_EAGER_DEPTH`].
+//!   may touch the node box, subdivided lazily where receivers are (threshold
+//!   [`SsvOptions::leaf_edges`], depth limit [`SsvOptions::max_depth`]; a batch
+//!   of receivers splits the nodes enough of them fall in before it is queried,
+//!   [`SoftShadows::prepare`], a receiver queried alone those that have served
+//!   a few queries); shells of boxes around the root cover every other point.
+//!   A query walks one root-to-leaf path. Concurrent queries may build nodes
+//!   concurrently (every lazily made part is a once-cell).
 //! - [`Structure::Hemicube`]: the 2005-style structure, wedges projected from the
 //!   light's centroid onto a cube of direction cells (each edge listed in the
 //!   cells its wedge, restricted to the part of the light from which the edge
@@ -133,6 +135,7 @@
 //! silhouette edges for the reference sample (16 KiB, left uninitialised); the
 //! samples are read from an `f64` structure of arrays made at creation.
 
+mod edge_bounds;
 mod edges;
 mod hemicube;
 mod hierarchy;
@@ -189,10 +192,6 @@ fn with_counters<R>(n: usize, f: impl FnOnce(&mut [i32]) -> R) -> R {
     }
 }
 
-/// Depth to which the hierarchy is subdivided at creation when the `std` feature
-/// (and with it lazy, thread-safe construction) is off.
-pub const NO_STD_EAGER_DEPTH: u32 = 3;
-
 /// Which structure finds the candidate edges of a receiver.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[repr(u32)]
@@ -215,15 +214,19 @@ pub enum Structure {
 pub struct SsvOptions {
     /// The candidate-edge structure.
     pub structure: Structure,
-    /// Hierarchy: a node with more edges than this is subdivided when a query
-    /// reaches it and the split pays (the children's mean list is at most 3/4
-    /// of the node's; otherwise it stays a leaf) (default 32).
+    /// Hierarchy: a node with more edges than this may be subdivided, where
+    /// enough receivers fall in it and the split pays (the children's mean
+    /// list is at most 3/4 of the node's; otherwise it stays a leaf) (default
+    /// 16).
     pub leaf_edges: u32,
     /// Hierarchy: deepest level (default 12).
     pub max_depth: u32,
-    /// Hierarchy: the root box `[min, max]`; receivers outside it test every
-    /// potential silhouette edge. Default: the bounds of the occluders and the
-    /// light, grown by half their size on every side.
+    /// Hierarchy: the root box `[min, max]`, a hint: receivers outside it go
+    /// to shells of boxes twice, four times, ... its size around it, each cut
+    /// into cells as fine as the root's octants, so they cost about what they
+    /// would inside (the first query in a cell tests every edge against it
+    /// once). Default: the bounds of the occluders and the light, grown by
+    /// half their size on every side.
     pub root_bounds: Option<[Vec3; 2]>,
     /// Hemicube: cells per face side (default 64: on the benchmark scene it
     /// lists 22–29% fewer candidates than 32 in under 1 MB; 128 saves another
@@ -235,7 +238,7 @@ impl Default for SsvOptions {
     fn default() -> Self {
         SsvOptions {
             structure: Structure::Hierarchy,
-            leaf_edges: 32,
+            leaf_edges: 16,
             max_depth: 12,
             root_bounds: None,
             hemicube_resolution: 64,
@@ -399,6 +402,21 @@ impl Caster {
     }
 }
 
+/// Sets the first `n` bits of `bits` (bit `i` of word `i / 64`), clears the
+/// rest of the words given.
+fn set_first(bits: &mut [u64], n: usize) {
+    for (k, w) in bits.iter_mut().enumerate() {
+        let left = n.saturating_sub(64 * k);
+        *w = if left >= 64 { !0 } else { (1u64 << left) - 1 };
+    }
+}
+
+/// Pieces of a segment whose boxes find the triangles of an exact reference
+/// decision ([`SoftShadows::exactly_blocked`]); a power of two, so the
+/// pieces' parameters are exact.
+#[cfg(feature = "bvh")]
+const SEGMENT_PIECES: usize = 32;
+
 /// Most hits the reference ray re-checks exactly before it calls the segment
 /// blocked (each is a hit the `f32` caster reports that the exact test refutes,
 /// such as a triangle through a receiver on a surface).
@@ -441,6 +459,8 @@ pub struct SoftShadows {
     /// Sample indices by pseudo-angle about the centroid in the light's plane;
     /// samples closer to the centroid than `angle_radius` come last.
     order: Vec<u32>,
+    /// The inverse of `order`: sample `i`'s place in the angular order.
+    rank: Vec<u32>,
     /// Pseudo-angles of the first `angles.len()` samples of `order`.
     angles: Vec<f64>,
     /// `angle_starts[k]`: the first index of `angles` at or above the
@@ -527,10 +547,11 @@ impl SoftShadows {
             vmax = vmax.max(v);
         }
         let margin = 4.0 * tolerance;
-        let mut regular = Vec::with_capacity(occluders.triangle_count());
+        // Regular triangles as indices into the occluders' positions.
+        let mut regular: Vec<[u32; 3]> = Vec::with_capacity(occluders.triangle_count());
         let mut near_light = Vec::new();
         let mut band = Vec::new();
-        for tri in occluders.triangles() {
+        for (t, tri) in occluders.triangles().enumerate() {
             if edges::degenerate(tri[0], tri[1], tri[2]) {
                 continue;
             }
@@ -540,7 +561,7 @@ impl SoftShadows {
                 heights[0].max(heights[1]).max(heights[2]),
             );
             if hmin > band_half_width || hmax < -band_half_width {
-                regular.push(tri);
+                regular.push(occluders.triangle_indices(t));
                 continue;
             }
             band.push(tri);
@@ -565,12 +586,15 @@ impl SoftShadows {
                 || tv0 > vmax + margin
                 || tv1 < vmin - margin
             {
-                regular.push(tri);
+                regular.push(occluders.triangle_indices(t));
             } else {
                 near_light.push(tri);
             }
         }
-        let graph = EdgeGraph::new(regular.iter().copied());
+        let positions: Vec<Vec3> = (0..occluders.vertex_count())
+            .map(|v| occluders.position(v))
+            .collect();
+        let graph = EdgeGraph::from_indexed(&positions, &regular);
         let potential: Vec<u32> = (0..graph.edges.len() as u32)
             .filter(|&e| !graph.is_flat(&graph.edges[e as usize]))
             .collect();
@@ -644,6 +668,13 @@ impl SoftShadows {
             band_planes,
             sample_lo,
             sample_hi,
+            rank: {
+                let mut rank = alloc::vec![0u32; order.len()];
+                for (k, &i) in order.iter().enumerate() {
+                    rank[i as usize] = k as u32;
+                }
+                rank
+            },
             order,
             angles,
             angle_starts,
@@ -684,7 +715,6 @@ impl SoftShadows {
                     &this.shape,
                     &this.potential,
                     root,
-                    this.centroid.as_dvec3(),
                     options,
                 ));
             }
@@ -727,7 +757,10 @@ impl SoftShadows {
             let positions: Vec<[f32; 3]> = graph.positions.iter().map(|p| p.to_array()).collect();
             let indices: Vec<u32> = graph.triangles.iter().flatten().copied().collect();
             let mesh = MeshView::new(&positions, &indices).map_err(|_| SsvError::Caster)?;
-            let scene = crate::raycast::BvhScene::new(&mesh).map_err(|_| SsvError::Caster)?;
+            // One reference ray per receiver: a quick build pays.
+            let scene =
+                crate::raycast::BvhScene::with_quality(&mesh, crate::raycast::BuildQuality::Fast)
+                    .map_err(|_| SsvError::Caster)?;
             Ok(Caster::Bvh(scene))
         }
         #[cfg(not(feature = "bvh"))]
@@ -848,12 +881,19 @@ impl SoftShadows {
             if self.minimum_blocked(p, counters, min, &silhouettes) {
                 return false;
             }
-            // Counters are in angular order; bits in the caller's order.
-            for (&r, &o) in counters.iter().zip(&self.order) {
-                let i = o as usize;
-                if r == min {
-                    bits[i / 64] |= 1 << (i % 64);
-                }
+            if info.silhouettes == 0 {
+                // No edge changed a counter: every sample shares the minimum.
+                set_first(bits, n);
+                return true;
+            }
+            // Counters are in angular order, bits in the caller's: gathered
+            // branch-free through the inverse order (a scattered, branchy
+            // store per sample took 40 % of a query of a lit receiver).
+            for (w, word) in bits.iter_mut().enumerate() {
+                let rank = &self.rank[64 * w..(64 * w + 64).min(n)];
+                *word = rank.iter().enumerate().fold(0u64, |acc, (j, &k)| {
+                    acc | u64::from(counters[k as usize] == min) << j
+                });
             }
             true
         });
@@ -961,6 +1001,25 @@ impl SoftShadows {
         Ok(())
     }
 
+    /// Builds ahead what queries of `points` will need of the structure (the
+    /// hierarchy's nodes, split where enough of the receivers fall to pay for
+    /// it; nothing for the other structures), so that a batch of receivers
+    /// queried next pays neither coarse nodes nor nodes it does not need.
+    /// [`SoftShadows::query_batch`] does this itself; call it before
+    /// querying a batch one point at a time. With `parallel` (and the
+    /// `parallel` feature) the work is spread over rayon's pool. Non-finite
+    /// points are skipped. Never changes a query's bits.
+    pub fn prepare(&self, points: &[Vec3], parallel: bool) {
+        if let Some(h) = &self.hierarchy {
+            let points: Vec<DVec3> = points
+                .iter()
+                .filter(|p| p.is_finite())
+                .map(|p| p.as_dvec3())
+                .collect();
+            h.prepare(&self.graph, &self.shape, &points, parallel);
+        }
+    }
+
     /// Queries every point: receiver `r`'s bits go to
     /// `bits[r * words_per_receiver()..][..words_per_receiver()]`, its visible
     /// count to `visible[r]` when given. Every point is checked before any is
@@ -992,6 +1051,7 @@ impl SoftShadows {
             return Err(SsvError::NonFiniteReceiver);
         }
         let bits = &mut bits[..needed];
+        self.prepare(points, cfg!(feature = "parallel"));
         let one = |p: Vec3, out: &mut [u64]| self.query(p, out).unwrap_or(0);
         #[cfg(feature = "parallel")]
         {
@@ -1167,18 +1227,44 @@ impl SoftShadows {
     }
 
     /// Whether the open segment `p → s` meets an occluder triangle, exactly
-    /// ([`segment_meets_triangle`] on every triangle whose box meets the
-    /// segment's): linear in the triangles, for the rare references
+    /// ([`segment_meets_triangle`] on every triangle whose box meets the box of
+    /// one of [`SEGMENT_PIECES`] consecutive pieces of the segment, found
+    /// through the reference caster's hierarchy; without `bvh`, every triangle
+    /// whose box meets the segment's), for the rare references
     /// [`Self::minimum_blocked`] cannot leave to a ray.
     #[cold]
     #[inline(never)]
     fn exactly_blocked(&self, p: Vec3, s: Vec3) -> bool {
-        let (lo, hi) = (p.min(s), p.max(s));
-        self.graph.triangles.iter().any(|t| {
-            let [a, b, c] = t.map(|v| self.graph.positions[v as usize]);
-            let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
-            tlo.cmple(hi).all() && thi.cmpge(lo).all() && segment_meets_triangle(p, s, a, b, c)
-        })
+        let meets = |t: usize| {
+            let [a, b, c] = self.graph.triangles[t].map(|v| self.graph.positions[v as usize]);
+            segment_meets_triangle(p, s, a, b, c)
+        };
+        #[cfg(feature = "bvh")]
+        {
+            let Caster::Bvh(scene) = &self.caster;
+            let (pw, sw) = (p.as_dvec3(), s.as_dvec3());
+            let d = sw - pw;
+            // Every point of a piece is in the box of its ends; the ends are
+            // off by the rounding of `p + t d` (t is exact: a power of two
+            // divides it), far below this pad.
+            let pad = 4.0 * f64::EPSILON * (pw.abs() + sw.abs());
+            (0..SEGMENT_PIECES).any(|k| {
+                let t = |k: usize| k as f64 / SEGMENT_PIECES as f64;
+                let (x0, x1) = (pw + d * t(k), pw + d * t(k + 1));
+                let lo = (x0.min(x1) - pad).to_array().map(crate::geom::f32_down);
+                let hi = (x0.max(x1) + pad).to_array().map(crate::geom::f32_up);
+                scene.any_in_box(Vec3::from(lo), Vec3::from(hi), meets)
+            })
+        }
+        #[cfg(not(feature = "bvh"))]
+        {
+            let (lo, hi) = (p.min(s), p.max(s));
+            (0..self.graph.triangles.len()).any(|t| {
+                let [a, b, c] = self.graph.triangles[t].map(|v| self.graph.positions[v as usize]);
+                let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
+                tlo.cmple(hi).all() && thi.cmpge(lo).all() && meets(t)
+            })
+        }
     }
 
     /// Clears in `bits` every sample `s` for which one of `triangles` meets the

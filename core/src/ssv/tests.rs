@@ -174,7 +174,7 @@ fn check(soup: &Soup, light: &LightPolygon, samples: &[Vec3], receivers: &[Vec3]
         .collect();
     let mut brute = Vec::new();
     // The four structures, plus a hierarchy whose root box misses most receivers
-    // (they fall back to every potential edge) and cuts through the mesh.
+    // (they go to the shells around it) and cuts through the mesh.
     let small_root = SsvOptions {
         structure: Structure::Hierarchy,
         leaf_edges: 4,
@@ -476,11 +476,10 @@ fn hierarchy_does_less_work_than_brute_force() {
         totals[2],
         receivers.len() as u64 * stats.potential_edges as u64
     );
-    // Lazy (std) subdivision goes as deep as the queries need; the eager no_std
-    // octree stops at depth NO_STD_EAGER_DEPTH.
-    let factor = if cfg!(feature = "std") { 5 } else { 2 };
+    // Lazy subdivision goes as deep as the queries need (with or without
+    // std).
     assert!(
-        totals[0] * factor < totals[2],
+        totals[0] * 5 < totals[2],
         "hierarchy {} vs brute {}",
         totals[0],
         totals[2]
@@ -495,7 +494,7 @@ fn hierarchy_does_less_work_than_brute_force() {
 
 #[cfg(feature = "std")]
 #[test]
-fn concurrent_queries_build_the_same_hierarchy() {
+fn concurrent_queries_give_the_serial_bits() {
     let mut soup = torus(Vec3::new(0.0, 0.0, 1.0), 1.0, 0.3, 12);
     soup.append(&grid(6, 6, |u, v| {
         Vec3::new(6.0 * u - 3.0, 6.0 * v - 3.0, 0.0)
@@ -525,7 +524,9 @@ fn concurrent_queries_build_the_same_hierarchy() {
             });
         }
     });
-    assert_eq!(shared.statistics().nodes, serial.statistics().nodes);
+    // The tree itself depends on the order queries arrive in (a node splits
+    // after serving a few), never the bits; both were refined.
+    assert!(shared.statistics().nodes > 8 && serial.statistics().nodes > 8);
 }
 
 proptest! {
@@ -1271,5 +1272,77 @@ fn a_receiver_in_line_with_the_centroid_and_a_vertex_gets_the_oracle_bits() {
             }
             check(soup, &light, &samples, &receivers);
         }
+    }
+}
+
+/// Receivers anywhere: those outside the root box (the default one, fitted
+/// to the occluders and the light, or a small hint) go to the shells around
+/// it. Every bit is brute force's, at any distance, and a receiver on a
+/// ground much wider than the root tests about as many candidates as under a
+/// root fitted to all the receivers: none falls back to every edge.
+#[test]
+fn receivers_beyond_the_root_get_exact_bits_without_falling_back() {
+    let mut soup = torus(Vec3::new(0.0, 0.0, 1.0), 0.6, 0.2, 16);
+    soup.append(&sphere(Vec3::new(0.4, 0.3, 1.6), 0.25, 10));
+    let light = quad_light(Vec3::new(0.2, 0.1, 3.0), 0.3);
+    let samples = light.samples(64, SamplePattern::Jittered, 9);
+    // A ground four times as wide as the default root, lit from above.
+    let mut ground = Vec::new();
+    for j in 0..40 {
+        for i in 0..40 {
+            let at = |k: usize| -6.0 + 12.0 * k as f32 / 39.0;
+            ground.push(Vec3::new(at(i), at(j), 0.0));
+        }
+    }
+    let far = [
+        Vec3::new(1e3, -2e3, 5.0),
+        Vec3::new(-3e7, 1.0, -4e6),
+        Vec3::new(0.1, 0.2, -1e20),
+        Vec3::new(3e38, -3e38, 1e38),
+        Vec3::new(0.0, 0.0, 3.0e5),
+    ];
+    let with = |root: Option<[Vec3; 2]>| {
+        SoftShadows::new(
+            &soup.view(),
+            light.clone(),
+            &samples,
+            SsvOptions {
+                root_bounds: root,
+                ..SsvOptions::default()
+            },
+        )
+        .unwrap()
+    };
+    let default = with(None);
+    let hint = with(Some([Vec3::new(-0.2, -0.2, 0.9), Vec3::new(0.3, 0.1, 1.3)]));
+    let fitted = with(Some([
+        Vec3::new(-6.0, -6.0, -0.1),
+        Vec3::new(6.0, 6.0, 3.4),
+    ]));
+    let brute = build(&soup, &light, &samples, Structure::BruteForce);
+    let mut candidates = [0u64; 3];
+    for (r, &p) in ground.iter().chain(&far).enumerate() {
+        let mut expected = [0u64; 1];
+        brute.query(p, &mut expected).unwrap();
+        for (k, ss) in [&default, &hint, &fitted].into_iter().enumerate() {
+            let mut bits = [0u64; 1];
+            let info = ss.query_detailed(p, &mut bits).unwrap();
+            assert_eq!(bits, expected, "structure {k}, receiver {r} at {p:?}");
+            if r < ground.len() {
+                candidates[k] += u64::from(info.candidates);
+            }
+        }
+    }
+    // Shadows reach the ground, so some bits are clear and some set.
+    let potential = brute.statistics().potential_edges as u64;
+    let ground_count = ground.len() as u64;
+    assert!(candidates[2] > 0 && candidates[2] * 10 < potential * ground_count);
+    for k in 0..2 {
+        assert!(
+            candidates[k] <= 2 * candidates[2],
+            "structure {k}: {} candidates against {} with a fitted root",
+            candidates[k],
+            candidates[2]
+        );
     }
 }

@@ -94,6 +94,7 @@ pub(crate) struct LightShape {
 }
 
 /// Whether the box may meet the wedge of `(a, b)` (false: provably not).
+#[cfg(test)]
 pub(crate) fn box_meets_wedge(light: &LightShape, a: DVec3, b: DVec3, bx: &Aabb) -> bool {
     let (c, h) = (bx.center(), bx.half());
     let scale = a.abs().max(b.abs()).max(c.abs() + h).max_element().max(
@@ -168,6 +169,7 @@ pub(crate) fn box_meets_wedge(light: &LightShape, a: DVec3, b: DVec3, bx: &Aabb)
 /// Whether some point of the box may have a non-zero weight for `edge` (false:
 /// the box is strictly on one side of every adjacent plane and the weight there
 /// is zero).
+#[cfg(test)]
 pub(crate) fn box_may_see_silhouette(graph: &EdgeGraph, edge: &Edge, bx: &Aabb) -> bool {
     let p = |i: u32| graph.positions[i as usize].as_dvec3();
     let (a, b) = (p(edge.a), p(edge.b));

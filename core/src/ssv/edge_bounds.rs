@@ -1,0 +1,845 @@
+//! The hierarchy's conservative box tests ([`super::wedge`]) for the eight
+//! octants of a node at once, in `f32` lanes, from per-edge bounds computed
+//! once at creation.
+//!
+//! Everything the tests need that does not depend on the box is worked out per
+//! potential edge in `f64` when the soft shadows are created and kept rounded
+//! outward to `f32` ([`EdgeBounds`]): the edge's extent along each direction
+//! tried, how far the wedge may climb beyond it per unit of `reach`, and the
+//! unit normals of its adjacent triangles. A split then tests one edge against
+//! its node's eight octants (lane `i` is octant `i`, [`Aabb::octant`]) with a
+//! few multiply-adds per direction, where the `f64` tests of [`super::wedge`]
+//! normalise every direction and project the light afresh for every box.
+//!
+//! Directions. The penumbra wedge's faces (its own planes, so the ones that
+//! separate it from boxes near it): the two planes through the edge that
+//! support the light (the edge and one light vertex each, every other vertex on
+//! one side), and for each light edge the plane through it and the endpoint
+//! that leaves the other endpoint on the light's side; then the three axes for
+//! boxes far from it. These are a subset of the `f64` test's directions (which
+//! also tries the light's normal, every edge–vertex plane and both endpoints of
+//! every light edge), so where the two keep an octant alike the bits cannot
+//! differ, and both are conservative on their own: an octant is dropped only
+//! when one direction separates it from the wedge, each extent bounded as in
+//! [`super::wedge`].
+//!
+//! Rounding. A direction is rounded to `f32` before the extents along it are
+//! computed (in `f64`, from the exact `f64` values of the `f32` positions), so
+//! the bounds hold for the very direction the lanes use; they are rounded
+//! outward to `f32`. The lanes' own arithmetic (a box's projection, `reach`
+//! times a climb) is a handful of `f32` operations on numbers bounded by the
+//! scene's and the box's largest coordinates: every comparison carries a margin
+//! of [`REL`] times those magnitudes, some 80 times the worst rounding. Scenes
+//! or boxes beyond `2^±100` (where `f32` products could overflow or lose
+//! everything to underflow) and edges whose bounds are not finite take the
+//! `f64` tests instead.
+
+use alloc::vec;
+use alloc::vec::Vec;
+use glam::DVec3;
+
+use super::edges::Edge;
+use super::edges::EdgeGraph;
+use super::hemicube::grown_light;
+use super::wedge::{Aabb, LightShape, octants_meeting_wedge, octants_seeing_silhouette};
+use crate::geom::{f32_down as down, f32_up as up};
+use crate::prefetch::prefetch;
+use crate::simd::edge_record::{AXES, COUNT, DIRECTION, DIRECTIONS, INVERSE, PLANES, SIDE};
+use crate::simd::{OCTANT_SIGN as SIGN, Octants8};
+
+/// Octants tested at once.
+const LANES: usize = 8;
+type Lanes = [f32; LANES];
+
+/// Relative margin of every lane comparison (of the magnitudes involved).
+const REL: f32 = 1e-5;
+
+/// Relative slack of the `f64` extents (as [`super::wedge`]'s).
+const SLACK: f64 = 1e-9;
+
+/// Relative rounding slack of the pieces' vertices (as the hemicube's).
+const PIECE_SLACK: f64 = 1e-9;
+
+/// Largest magnitude (scene or box coordinate) the lanes accept: products of
+/// two such stay far inside `f32`, and `REL` times one stays far above the
+/// smallest normal `f32`.
+const LANE_RANGE: f64 = 1e30;
+const LANE_FLOOR: f64 = 1e-30;
+
+/// The box-independent bounds of every potential edge (module docs).
+pub(crate) struct EdgeBounds {
+    /// `f32`s per edge: [`DIRECTIONS`] + [`DIRECTION`] per direction.
+    stride: usize,
+    /// The edges kept (those that may be a silhouette from the light), by
+    /// slot: lists of the hierarchy hold slots.
+    edges: Vec<u32>,
+    /// One record per slot.
+    records: Vec<f32>,
+    /// Per slot: bit 0, the silhouette test goes through `f64` (not exactly
+    /// two adjacent triangles, or an unusable plane); bit 1, the wedge test
+    /// does (a bound is not finite).
+    fallback: Vec<u8>,
+    /// Whether the scene's coordinates suit the lanes at all.
+    lanes: bool,
+    /// Largest coordinate of the occluders and the light.
+    scale: f64,
+    /// `SLACK * scale + tolerance`: the `f64` tests' absolute slack.
+    slack: f64,
+    /// The light's lowest point along its normal.
+    light_base: DVec3,
+}
+
+const SILHOUETTE_F64: u8 = 1;
+const WEDGE_F64: u8 = 2;
+
+/// `v` normalised in `f64` and rounded to `f32` (exact in `f64` again), or
+/// `None` when it has no direction.
+fn unit_f32(v: DVec3) -> Option<DVec3> {
+    // Products of f32 coordinates: the squared length stays inside f64.
+    let r = v.normalize_or_zero().as_vec3().as_dvec3();
+    (r != DVec3::ZERO && r.is_finite()).then_some(r)
+}
+
+impl EdgeBounds {
+    /// The bounds of those edges of `potential` (of `graph`) that may be a
+    /// silhouette from some point of the light (the others can never change a
+    /// receiver's counters, [`super::hemicube`] module docs), by slot.
+    pub fn new(graph: &EdgeGraph, shape: &LightShape, potential: &[u32]) -> Self {
+        let k = shape.vertices.len();
+        // A piece of the light has at most two more vertices than the light.
+        let directions = 2 + k + 2;
+        let stride = DIRECTIONS + DIRECTION * directions;
+        let scale = graph
+            .positions
+            .iter()
+            .map(|p| f64::from(p.abs().max_element()))
+            .chain(shape.vertices.iter().map(|v| v.abs().max_element()))
+            .fold(0.0f64, f64::max);
+        let lanes = scale < LANE_RANGE && (scale > LANE_FLOOR || scale == 0.0);
+        // The light grown by its tolerance, cut per edge to the part from
+        // which the edge may be a silhouette (as the hemicube's).
+        let origin = shape.vertices.iter().fold(DVec3::ZERO, |s, v| s + *v) / k as f64;
+        let light_scale = shape
+            .vertices
+            .iter()
+            .fold(origin.abs().max_element(), |m, v| {
+                m.max(v.abs().max_element())
+            });
+        let piece_tol = shape.tolerance + PIECE_SLACK * light_scale;
+        let region = grown_light(shape, origin, piece_tol);
+        let mut edges = Vec::new();
+        let mut records = Vec::new();
+        let mut fallback = Vec::new();
+        let mut record = vec![0.0f32; stride];
+        let mut piece = Polygon::default();
+        for &e in potential {
+            let edge = &graph.edges[e as usize];
+            let (light, tol): (&[DVec3], f64) =
+                match silhouette_part(graph, edge, &region, piece_tol, light_scale, &mut piece) {
+                    Part::None => continue,
+                    Part::Piece => (piece.points(), piece_tol),
+                    Part::Whole => (&shape.vertices, shape.tolerance),
+                };
+            let slack = SLACK * scale + tol;
+            fallback.push(Self::record(graph, shape, light, e, slack, &mut record));
+            records.extend_from_slice(&record);
+            edges.push(e);
+        }
+        EdgeBounds {
+            stride,
+            edges,
+            records,
+            fallback,
+            lanes,
+            scale,
+            slack: SLACK * scale + shape.tolerance.max(piece_tol),
+            light_base: shape.vertices[0],
+        }
+    }
+
+    /// The edge of each slot.
+    pub fn edges(&self) -> &[u32] {
+        &self.edges
+    }
+
+    /// Fills `out` with edge `e`'s record; returns its fallback bits.
+    /// `light` is the polygon whose wedge is bounded (the light, or the piece
+    /// of it from which the edge may be a silhouette), in the plane of `shape`.
+    fn record(
+        graph: &EdgeGraph,
+        shape: &LightShape,
+        light: &[DVec3],
+        e: u32,
+        slack: f64,
+        out: &mut [f32],
+    ) -> u8 {
+        let edge = &graph.edges[e as usize];
+        let at = |i: u32| graph.positions[i as usize].as_dvec3();
+        let (a, b) = (at(edge.a), at(edge.b));
+        let mut fallback = 0;
+        // How far wedge rays may run within a box: `reach = height / inverse`.
+        let l0 = shape.vertices[0];
+        let (ha, hb) = (shape.normal.dot(a - l0), shape.normal.dot(b - l0));
+        let (side, inverse) = if ha > slack && hb > slack {
+            (1.0, 1.0 / ha.min(hb))
+        } else if ha < -slack && hb < -slack {
+            (-1.0, 1.0 / -ha.max(hb))
+        } else {
+            (0.0, 0.0)
+        };
+        out[SIDE] = side;
+        out[INVERSE] = up(inverse);
+        let put = |out: &mut [f32], n: DVec3| -> bool {
+            let (ea, eb) = (n.dot(a), n.dot(b));
+            let (emin, emax) = (ea.min(eb), ea.max(eb));
+            let (mut lmin, mut lmax) = (f64::INFINITY, f64::NEG_INFINITY);
+            for v in light {
+                let d = n.dot(*v);
+                lmin = lmin.min(d);
+                lmax = lmax.max(d);
+            }
+            out[0] = down(emin);
+            out[1] = up(emax);
+            // The rounding of `reach` times these is folded in (REL of them).
+            let grow = 1.0 + f64::from(REL);
+            out[2] = up((emax - lmin + slack).max(0.0) * grow);
+            out[3] = up((lmax - emin + slack).max(0.0) * grow);
+            out[..4].iter().all(|x| x.is_finite())
+        };
+        let mut finite = true;
+        for axis in 0..3 {
+            let n = DVec3::AXES[axis];
+            finite &= put(&mut out[AXES + 4 * axis..], n);
+        }
+        // The adjacent triangles' unit normals and offsets.
+        let third = graph.third_of(edge);
+        if third.len() == 2 {
+            for (j, &v) in third.iter().enumerate() {
+                let plane = &mut out[PLANES + 4 * j..][..4];
+                match unit_f32((b - a).cross(at(v) - a)) {
+                    Some(n) => {
+                        plane[..3].copy_from_slice(&n.as_vec3().to_array());
+                        // Rounded to nearest: the margin covers it (and the
+                        // products below).
+                        plane[3] = n.dot(a) as f32;
+                        if !plane[3].is_finite() {
+                            fallback |= SILHOUETTE_F64;
+                        }
+                    }
+                    None => fallback |= SILHOUETTE_F64,
+                }
+            }
+        } else {
+            fallback |= SILHOUETTE_F64;
+        }
+        // The wedge's faces: two planes through the edge supporting the light,
+        let k = light.len();
+        let along = b - a;
+        let mut found = 0;
+        for j in 0..k {
+            let n = along.cross(light[j] - a);
+            let (mut below, mut above) = (false, false);
+            for (m, v) in light.iter().enumerate() {
+                if m != j {
+                    let s = n.dot(*v - a);
+                    below |= s < 0.0;
+                    above |= s > 0.0;
+                    if below && above {
+                        break;
+                    }
+                }
+            }
+            if found < 2
+                && !(below && above)
+                && let Some(n) = unit_f32(n)
+            {
+                let slot = &mut out[DIRECTIONS + DIRECTION * found..][..DIRECTION];
+                slot[..3].copy_from_slice(&n.as_vec3().to_array());
+                finite &= put(&mut slot[3..], n);
+                found += 1;
+            }
+        }
+        // (fewer than two when the edge's line passes through the light), and
+        // per light edge, the plane through it and the endpoint that keeps
+        // the other endpoint on the light's side.
+        for j in 0..k {
+            let (l0, l1) = (light[j], light[(j + 1) % k]);
+            let inside = light[(j + 2) % k];
+            let plane = |x: DVec3| (l1 - l0).cross(x - l0);
+            let na = plane(a);
+            let n = if na.dot(b - l0) * na.dot(inside - l0) >= 0.0 {
+                na
+            } else {
+                plane(b)
+            };
+            if let Some(n) = unit_f32(n) {
+                let slot = &mut out[DIRECTIONS + DIRECTION * found..][..DIRECTION];
+                slot[..3].copy_from_slice(&n.as_vec3().to_array());
+                finite &= put(&mut slot[3..], n);
+                found += 1;
+            }
+        }
+        out[COUNT] = found as f32;
+        if !finite {
+            fallback |= WEDGE_F64;
+        }
+        fallback
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.records.capacity() * core::mem::size_of::<f32>()
+            + self.fallback.capacity()
+            + self.edges.capacity() * core::mem::size_of::<u32>()
+    }
+
+    /// The octants of `parent` (bit `i`: [`Aabb::octant`] `i`) that may meet
+    /// the wedge and the silhouette region of the edge of slot `slots[k]`,
+    /// into `masks[k]`, for each `k` in `which` (indices into both). Never clears a
+    /// bit the `f64` tests would keep for the same directions (module docs).
+    pub fn octant_masks(
+        &self,
+        graph: &EdgeGraph,
+        shape: &LightShape,
+        parent: &Aabb,
+        slots: &[u32],
+        which: impl Iterator<Item = usize> + Clone,
+        masks: &mut [u8],
+    ) {
+        let Some(boxes) = self.lane_boxes(shape, parent) else {
+            for k in which {
+                masks[k] = f64_mask(graph, shape, self.edges[slots[k] as usize], parent);
+            }
+            return;
+        };
+        #[cfg(all(target_arch = "x86_64", feature = "std"))]
+        if crate::simd::avx_available() {
+            let test = |record: &[f32], octants: &Octants8, silhouette: bool, wedge: bool| {
+                #[allow(unsafe_code)]
+                // SAFETY: the processor runs AVX (checked above).
+                unsafe {
+                    crate::simd::avx::edge_octants8(record, octants, silhouette, wedge)
+                }
+            };
+            self.lane_masks(graph, shape, parent, &boxes, slots, which, masks, test);
+            return;
+        }
+        self.lane_masks(
+            graph,
+            shape,
+            parent,
+            &boxes,
+            slots,
+            which,
+            masks,
+            edge_octants,
+        );
+    }
+
+    /// [`Self::octant_masks`] in lanes, each edge through `test` (the
+    /// portable [`edge_octants`] or its AVX twin).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn lane_masks(
+        &self,
+        graph: &EdgeGraph,
+        shape: &LightShape,
+        parent: &Aabb,
+        octants: &Octants8,
+        slots: &[u32],
+        which: impl Iterator<Item = usize> + Clone,
+        masks: &mut [u8],
+        test: impl Fn(&[f32], &Octants8, bool, bool) -> u8,
+    ) {
+        // The records are scattered: ask for the next ones ahead.
+        let mut ahead = which.clone().skip(RECORDS_AHEAD);
+        for k in which {
+            if let Some(next) = ahead.next() {
+                let at = slots[next] as usize * self.stride;
+                for line in (0..self.stride).step_by(16) {
+                    prefetch(&self.records, at + line);
+                }
+            }
+            let slot = slots[k] as usize;
+            let e = self.edges[slot];
+            let fallback = self.fallback[slot];
+            let record = &self.records[slot * self.stride..][..self.stride];
+            masks[k] = if fallback == 0 {
+                test(record, octants, true, true)
+            } else {
+                // Either test in f64 where its bounds could not be kept in f32.
+                let edge = &graph.edges[e as usize];
+                let silhouette = if fallback & SILHOUETTE_F64 == 0 {
+                    test(record, octants, true, false)
+                } else {
+                    octants_seeing_silhouette(graph, edge, parent)
+                };
+                if silhouette == 0 || fallback & WEDGE_F64 == 0 {
+                    silhouette & test(record, octants, false, true)
+                } else {
+                    let [a, b] = [edge.a, edge.b].map(|v| graph.positions[v as usize].as_dvec3());
+                    silhouette & octants_meeting_wedge(shape, a, b, parent)
+                }
+            };
+        }
+    }
+
+    /// The octants' lane data, or `None` when the box is beyond the lanes'
+    /// range.
+    fn lane_boxes(&self, shape: &LightShape, parent: &Aabb) -> Option<Octants8> {
+        let (pc, ph) = (parent.center(), parent.half());
+        let magnitude = pc.abs().max_element() + ph.max_element();
+        // (NaN fails too.)
+        if !self.lanes || magnitude.partial_cmp(&LANE_RANGE) != Some(core::cmp::Ordering::Less) {
+            return None;
+        }
+        let q = 0.5 * ph;
+        // Each octant's highest point above, and lowest below, the light's
+        // first vertex along its normal (f64, rounded up).
+        let n = shape.normal;
+        let rad = n.abs().dot(q);
+        let mut above = [0.0f32; LANES];
+        let mut below = [0.0f32; LANES];
+        for i in 0..LANES {
+            let c = pc + DVec3::new(SIGN[0][i].into(), SIGN[1][i].into(), SIGN[2][i].into()) * q;
+            let mid = n.dot(c - self.light_base);
+            above[i] = up((mid + rad).max(0.0));
+            below[i] = up((-(mid - rad)).max(0.0));
+        }
+        let centre = pc.as_vec3().to_array();
+        let quarter = [q.x as f32, q.y as f32, q.z as f32];
+        // Magnitudes of everything a comparison sums: the box's projection
+        // (at most 3 |c| + 3 |h| for a unit direction), the edge's and the
+        // light's (at most 3 scale).
+        let margin = REL * up(3.0 * magnitude + 3.0 * self.scale) + up(self.slack);
+        Some(Octants8 {
+            axis_mid: core::array::from_fn(|axis| {
+                core::array::from_fn(|i| centre[axis] + SIGN[axis][i] * quarter[axis])
+            }),
+            above,
+            below,
+            centre,
+            quarter,
+            margin,
+        })
+    }
+}
+
+/// Records requested this many edges ahead of the one tested.
+const RECORDS_AHEAD: usize = 4;
+
+/// Each octant's centre projected on `n`, and the octants' common radius.
+#[inline(always)]
+fn project(n: &[f32], octants: &Octants8) -> (Lanes, f32) {
+    let t: [f32; 3] = core::array::from_fn(|j| n[j] * octants.quarter[j]);
+    let base = n[0] * octants.centre[0] + n[1] * octants.centre[1] + n[2] * octants.centre[2];
+    let mid =
+        core::array::from_fn(|i| base + SIGN[0][i] * t[0] + SIGN[1][i] * t[1] + SIGN[2][i] * t[2]);
+    (mid, t[0].abs() + t[1].abs() + t[2].abs())
+}
+
+/// The eight-octant tests of one edge (record layout
+/// [`crate::simd::edge_record`]): the octants that may see it as a
+/// silhouette (all eight unless `silhouette`) and that may meet its wedge (all
+/// eight unless `wedge`). The portable twin of
+/// [`crate::simd::avx::edge_octants8`].
+fn edge_octants(record: &[f32], octants: &Octants8, silhouette: bool, wedge: bool) -> u8 {
+    let mut keep = 0xFF;
+    if silhouette {
+        keep = silhouette_lanes(record, octants);
+        if keep == 0 {
+            return 0;
+        }
+    }
+    if wedge {
+        keep &= wedge_lanes(record, octants);
+    }
+    keep
+}
+
+/// The wedge test over the eight octants: each direction's extent of the
+/// wedge, `[min - reach fall, max + reach climb]` (the climbs' rounding folded
+/// in), against each octant's projection `[mid - rad, mid + rad]`, with the
+/// margin on both.
+#[inline(always)]
+fn wedge_lanes(record: &[f32], octants: &Octants8) -> u8 {
+    let (side, inverse) = (record[SIDE], record[INVERSE]);
+    let reach: Lanes = if side > 0.0 {
+        core::array::from_fn(|i| octants.above[i] * inverse)
+    } else if side < 0.0 {
+        core::array::from_fn(|i| octants.below[i] * inverse)
+    } else {
+        [f32::MAX; LANES]
+    };
+    let mut separated = [false; LANES];
+    let mut separate = |bounds: &[f32], mid: &Lanes, rad: f32| {
+        let (top, bottom) = (bounds[1] + octants.margin, bounds[0] - octants.margin);
+        let (climb, fall) = (bounds[2], bounds[3]);
+        for i in 0..LANES {
+            // `reach` may be f32::MAX: times a zero climb it is 0, times any
+            // other +inf (never NaN).
+            let hi = top + reach[i] * climb;
+            let lo = bottom - reach[i] * fall;
+            separated[i] |= (mid[i] - rad > hi) | (mid[i] + rad < lo);
+        }
+    };
+    for axis in 0..3 {
+        let bounds = &record[AXES + 4 * axis..][..4];
+        separate(bounds, &octants.axis_mid[axis], octants.quarter[axis]);
+    }
+    for d in 0..record[COUNT] as usize {
+        let slot = &record[DIRECTIONS + DIRECTION * d..][..DIRECTION];
+        let (mid, rad) = project(&slot[..3], octants);
+        separate(&slot[3..], &mid, rad);
+    }
+    let mut mask = 0u8;
+    for (i, &s) in separated.iter().enumerate() {
+        mask |= u8::from(!s) << i;
+    }
+    mask
+}
+
+/// The silhouette-region test over the eight octants: an octant strictly on
+/// one side of both adjacent planes has the constant weight (±1 per plane);
+/// it is dropped when the two cancel.
+#[inline(always)]
+fn silhouette_lanes(record: &[f32], octants: &Octants8) -> u8 {
+    let mut weight = [0i32; LANES];
+    let mut open = [false; LANES];
+    for j in 0..2 {
+        let plane = &record[PLANES + 4 * j..][..4];
+        let (mid, rad) = project(&plane[..3], octants);
+        for i in 0..LANES {
+            let m = mid[i] - plane[3];
+            let above = m - rad > octants.margin;
+            let below = m + rad < -octants.margin;
+            weight[i] += i32::from(above) - i32::from(below);
+            open[i] |= !(above | below);
+        }
+    }
+    let mut mask = 0u8;
+    for i in 0..LANES {
+        mask |= u8::from(open[i] || weight[i] != 0) << i;
+    }
+    mask
+}
+
+/// Most vertices of a part of the light: the light's, plus one per cut.
+const PART_VERTICES: usize = super::MAX_LIGHT_VERTICES + 2;
+
+/// A convex polygon of at most [`PART_VERTICES`] points, on the stack.
+#[derive(Clone, Copy)]
+struct Polygon {
+    points: [DVec3; PART_VERTICES],
+    len: usize,
+}
+
+impl Default for Polygon {
+    fn default() -> Self {
+        Polygon {
+            points: [DVec3::ZERO; PART_VERTICES],
+            len: 0,
+        }
+    }
+}
+
+impl Polygon {
+    fn points(&self) -> &[DVec3] {
+        &self.points[..self.len]
+    }
+
+    /// Sutherland–Hodgman: `poly` cut to `f(x) >= 0` for the affine `f` (at
+    /// most one more point than `poly`), into `self`.
+    fn clip(&mut self, poly: &[DVec3], f: impl Fn(DVec3) -> f64) {
+        self.len = 0;
+        for i in 0..poly.len() {
+            let (p, q) = (poly[i], poly[(i + 1) % poly.len()]);
+            let (fp, fq) = (f(p), f(q));
+            if fp >= 0.0 {
+                self.points[self.len] = p;
+                self.len += 1;
+            }
+            if (fp >= 0.0) != (fq >= 0.0) {
+                self.points[self.len] = p + (q - p) * (fp / (fp - fq));
+                self.len += 1;
+            }
+        }
+    }
+}
+
+/// Which part of the light an edge's wedge is bounded with.
+enum Part {
+    /// No point of the light sees the edge as a silhouette.
+    None,
+    /// One convex piece does (written to the caller's polygon).
+    Piece,
+    /// The whole light (two pieces, another adjacency, or degenerate planes).
+    Whole,
+}
+
+/// [`super::hemicube::silhouette_pieces`] without allocation: the grown light
+/// `region` clipped by both adjacent triangles' planes one way or the other,
+/// with the same slack (same arithmetic, so the same pieces).
+fn silhouette_part(
+    graph: &EdgeGraph,
+    edge: &Edge,
+    region: &[DVec3],
+    tol: f64,
+    scale: f64,
+    piece: &mut Polygon,
+) -> Part {
+    let third = graph.third_of(edge);
+    if third.len() != 2 {
+        return Part::Whole;
+    }
+    let at = |i: u32| graph.positions[i as usize].as_dvec3();
+    let (a, b) = (at(edge.a), at(edge.b));
+    let plane_slack = SLACK * scale.max(a.abs().max(b.abs()).max_element()) + tol;
+    let normals = [third[0], third[1]].map(|v| (b - a).cross(at(v) - a).normalize());
+    if !normals.iter().all(|m| m.is_finite()) {
+        return Part::Whole;
+    }
+    // Where every vertex of the region is strictly outside one of the two
+    // half-planes of a side, that side's piece is empty (the clip keeps no
+    // vertex and meets no crossing): the common case, decided without
+    // clipping.
+    let mut outside = [[true; 2]; 2];
+    for &l in region {
+        for (j, n) in normals.iter().enumerate() {
+            let d = n.dot(l - a);
+            outside[0][j] &= d + plane_slack < 0.0;
+            outside[1][j] &= -d + plane_slack < 0.0;
+        }
+    }
+    let mut found = 0;
+    let mut once = Polygon::default();
+    for (k, side) in [1.0, -1.0].into_iter().enumerate() {
+        if outside[k][0] || outside[k][1] {
+            continue;
+        }
+        once.clip(region, |l| side * normals[0].dot(l - a) + plane_slack);
+        let mut twice = Polygon::default();
+        twice.clip(once.points(), |l| {
+            side * normals[1].dot(l - a) + plane_slack
+        });
+        if twice.len > 0 {
+            found += 1;
+            *piece = twice;
+        }
+    }
+    match found {
+        0 => Part::None,
+        1 => Part::Piece,
+        _ => Part::Whole,
+    }
+}
+
+/// The `f64` tests of [`super::wedge`] for one edge and the octants of `parent`.
+fn f64_mask(graph: &EdgeGraph, shape: &LightShape, e: u32, parent: &Aabb) -> u8 {
+    let edge = &graph.edges[e as usize];
+    let mask = octants_seeing_silhouette(graph, edge, parent);
+    if mask == 0 {
+        return 0;
+    }
+    let [a, b] = [edge.a, edge.b].map(|v| graph.positions[v as usize].as_dvec3());
+    mask & octants_meeting_wedge(shape, a, b, parent)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::SplitMix64;
+    use super::*;
+    use glam::Vec3;
+
+    /// The lanes against the `f64` tests of [`super::super::wedge`] with the
+    /// same part of the light, on random edges (pairs of triangles, lone
+    /// triangles), lights and boxes, some far from the origin: the lanes never
+    /// clear an octant the `f64` tests keep (both conservative, the lanes with
+    /// wider margins and a subset of the directions), and they clear most of
+    /// what the `f64` tests clear.
+    #[test]
+    fn lanes_keep_every_octant_the_f64_tests_keep() {
+        let mut rng = SplitMix64::new(7);
+        let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
+        let (mut f64_cleared, mut both_cleared, mut edges_tested) = (0usize, 0usize, 0usize);
+        for round in 0..600 {
+            let offset = if round % 3 == 0 {
+                DVec3::new(r(-1e3, 1e3), r(-1e3, 1e3), r(-1e3, 1e3))
+            } else {
+                DVec3::ZERO
+            };
+            let mut v = || (DVec3::new(r(-1.0, 1.0), r(-1.0, 1.0), r(0.5, 2.0)) + offset).as_vec3();
+            let (a, b, c, d) = (v(), v(), v(), v());
+            let triangles: Vec<[Vec3; 3]> = if round % 5 == 0 {
+                alloc::vec![[a, b, c]]
+            } else {
+                alloc::vec![[a, b, c], [b, a, d]]
+            };
+            let graph = EdgeGraph::new(triangles.into_iter());
+            let (z, tilt, size) = (r(2.5, 4.0), r(-1.0, 1.0), r(0.05, 1.0));
+            let sides = if round % 2 == 0 { 4 } else { 6 };
+            let vertices: Vec<DVec3> = (0..sides)
+                .map(|i| {
+                    let angle = core::f64::consts::TAU * i as f64 / sides as f64;
+                    let (x, y) = (size * angle.cos(), size * angle.sin());
+                    (DVec3::new(x, y, z + x * tilt) + offset)
+                        .as_vec3()
+                        .as_dvec3()
+                })
+                .collect();
+            let shape = LightShape {
+                vertices,
+                normal: DVec3::new(-tilt, 0.0, 1.0).normalize(),
+                tolerance: 1e-6 * (1.0 + offset.abs().max_element()),
+            };
+            let potential: Vec<u32> = (0..graph.edges.len() as u32).collect();
+            let bounds = EdgeBounds::new(&graph, &shape, &potential);
+            let lo = DVec3::new(r(-3.0, 1.0), r(-3.0, 1.0), r(-1.0, 1.5)) + offset;
+            let parent = Aabb {
+                min: lo,
+                max: lo + DVec3::splat(r(0.01, 3.0)),
+            };
+            let slots: Vec<u32> = (0..bounds.edges().len() as u32).collect();
+            let mut masks = alloc::vec![0u8; slots.len()];
+            bounds.octant_masks(&graph, &shape, &parent, &slots, 0..slots.len(), &mut masks);
+            // The same part of the light the bounds were made with.
+            let k = shape.vertices.len();
+            let origin = shape.vertices.iter().fold(DVec3::ZERO, |s, v| s + *v) / k as f64;
+            let light_scale = shape
+                .vertices
+                .iter()
+                .fold(origin.abs().max_element(), |m, v| {
+                    m.max(v.abs().max_element())
+                });
+            let piece_tol = shape.tolerance + PIECE_SLACK * light_scale;
+            let region = grown_light(&shape, origin, piece_tol);
+            for (slot, &e) in bounds.edges().iter().enumerate() {
+                let edge = &graph.edges[e as usize];
+                let mut piece = Polygon::default();
+                let part =
+                    silhouette_part(&graph, edge, &region, piece_tol, light_scale, &mut piece);
+                let light = match part {
+                    Part::None => unreachable!("slots hold only edges with a part"),
+                    Part::Piece => LightShape {
+                        vertices: piece.points().to_vec(),
+                        normal: shape.normal,
+                        tolerance: piece_tol,
+                    },
+                    Part::Whole => shape.clone(),
+                };
+                let [pa, pb] = [edge.a, edge.b].map(|v| graph.positions[v as usize].as_dvec3());
+                let reference = octants_seeing_silhouette(&graph, edge, &parent)
+                    & octants_meeting_wedge(&light, pa, pb, &parent);
+                assert_eq!(
+                    masks[slot] & reference,
+                    reference,
+                    "round {round} edge {e}: lanes {:08b} drop an octant of {reference:08b}",
+                    masks[slot]
+                );
+                f64_cleared += (!reference).count_ones() as usize;
+                both_cleared += (!masks[slot]).count_ones() as usize;
+                edges_tested += 1;
+            }
+        }
+        // Not vacuous: many edges, many cleared octants, and the lanes clear
+        // nearly what the f64 tests (more directions, tighter margins) clear.
+        assert!(edges_tested > 1000, "{edges_tested}");
+        assert!(f64_cleared > 2000, "{f64_cleared}");
+        assert!(
+            both_cleared * 100 >= 90 * f64_cleared,
+            "lanes clear {both_cleared} of {f64_cleared}"
+        );
+    }
+
+    /// The AVX kernel gives the portable twin's bits on every edge, box and
+    /// combination of the two tests (where the processor runs AVX).
+    #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    #[test]
+    fn avx_octants_equal_the_portable_ones() {
+        if !crate::simd::avx_available() {
+            return;
+        }
+        let mut rng = SplitMix64::new(21);
+        let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
+        let mut compared = 0usize;
+        for round in 0..300 {
+            let mut v = || Vec3::new(r(-1.0, 1.0) as f32, r(-1.0, 1.0) as f32, r(0.3, 2.0) as f32);
+            let (a, b, c, d) = (v(), v(), v(), v());
+            let graph = EdgeGraph::new([[a, b, c], [b, a, d]].into_iter());
+            let (z, tilt, size) = (r(2.5, 4.0), r(-1.0, 1.0), r(0.05, 1.0));
+            let shape = LightShape {
+                vertices: [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                    .iter()
+                    .map(|&(x, y): &(f64, f64)| {
+                        DVec3::new(size * x, size * y, z + size * x * tilt)
+                            .as_vec3()
+                            .as_dvec3()
+                    })
+                    .collect(),
+                normal: DVec3::new(-tilt, 0.0, 1.0).normalize(),
+                tolerance: 1e-6,
+            };
+            let potential: Vec<u32> = (0..graph.edges.len() as u32).collect();
+            let bounds = EdgeBounds::new(&graph, &shape, &potential);
+            let lo = DVec3::new(r(-3.0, 1.0), r(-3.0, 1.0), r(-1.0, 3.0));
+            let parent = Aabb {
+                min: lo,
+                max: lo + DVec3::splat(r(0.01, 3.0)),
+            };
+            let octants = bounds.lane_boxes(&shape, &parent).expect("in range");
+            for slot in 0..bounds.edges().len() {
+                let record = &bounds.records[slot * bounds.stride..][..bounds.stride];
+                for (silhouette, wedge) in [(true, true), (true, false), (false, true)] {
+                    let portable = edge_octants(record, &octants, silhouette, wedge);
+                    #[allow(unsafe_code)]
+                    // SAFETY: the processor runs AVX (checked above).
+                    let avx = unsafe {
+                        crate::simd::avx::edge_octants8(record, &octants, silhouette, wedge)
+                    };
+                    assert_eq!(portable, avx, "round {round} slot {slot}");
+                    compared += 1;
+                }
+            }
+        }
+        assert!(compared > 1000, "{compared}");
+    }
+
+    /// The allocation-free pieces are those of the hemicube's function.
+    #[test]
+    fn silhouette_part_matches_silhouette_pieces() {
+        let mut rng = SplitMix64::new(3);
+        let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
+        let mut seen = [0usize; 3];
+        for _ in 0..500 {
+            let mut v = || Vec3::new(r(-1.0, 1.0) as f32, r(-1.0, 1.0) as f32, r(0.0, 2.5) as f32);
+            let (a, b, c, d) = (v(), v(), v(), v());
+            let graph = EdgeGraph::new([[a, b, c], [b, a, d]].into_iter());
+            let shape = LightShape {
+                vertices: [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                    .iter()
+                    .map(|&(x, y): &(f64, f64)| DVec3::new(0.5 * x, 0.5 * y, 3.0))
+                    .collect(),
+                normal: DVec3::Z,
+                tolerance: 1e-6,
+            };
+            let region = grown_light(&shape, DVec3::new(0.0, 0.0, 3.0), 1e-6);
+            for edge in &graph.edges {
+                let mut piece = Polygon::default();
+                let part = silhouette_part(&graph, edge, &region, 1e-6, 3.0, &mut piece);
+                let pieces =
+                    super::super::hemicube::silhouette_pieces(&graph, edge, &region, 1e-6, 3.0);
+                match (part, pieces) {
+                    (Part::Whole, None) => seen[2] += 1,
+                    (Part::None, Some(p)) if p.is_empty() => seen[0] += 1,
+                    (Part::Piece, Some(p)) if p.len() == 1 => {
+                        assert_eq!(piece.points(), &p[0][..]);
+                        seen[1] += 1;
+                    }
+                    (Part::Whole, Some(p)) if p.len() == 2 => seen[2] += 1,
+                    (_, p) => panic!("part and pieces differ: {p:?}"),
+                }
+            }
+        }
+        assert!(seen.iter().all(|&n| n > 50), "{seen:?}");
+    }
+}
