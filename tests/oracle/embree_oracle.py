@@ -272,7 +272,107 @@ class Caster:
         return count
 
 
+FRAME_MAGIC = b"ANTF"
+BITS_MAGIC = b"ANTB"
+# Receivers per batch of a frame: keeps the arrays of one batch near 100 MB.
+FRAME_BATCH_RAYS = 1 << 20
+
+
+def read_frame(path):
+    data, receivers, samples = _read_header(path, FRAME_MAGIC, "frame")
+    _check_size(path, "frame", data, 16 + 12 * (receivers + samples))
+    points = np.frombuffer(data, dtype="<f4", count=3 * (receivers + samples), offset=16)
+    points = points.reshape(receivers + samples, 3)
+    if len(points) and not np.isfinite(points).all():
+        raise InputError(f"frame file {path}: a receiver or sample is not finite")
+    return (np.ascontiguousarray(points[:receivers], dtype=np.float32),
+            np.ascontiguousarray(points[receivers:], dtype=np.float32))
+
+
+def frame(argv):
+    """The shadow rays of a frame: every receiver to every light sample.
+
+    Times what a user of Embree pays per frame on one core: the scene's
+    creation and commit (a first one-ray query commits it) plus an occlusion
+    query of every ray (origin p, direction s - p, [0, 1], Embree's own
+    interval), the arrays of each batch made beforehand and not timed; the
+    fastest of --passes frames, each with a new scene. Writes the occlusion
+    bits (bit i of receiver r's words: ray to sample i not occluded)."""
+    ap = argparse.ArgumentParser(prog="embree_oracle.py frame", description=frame.__doc__)
+    ap.add_argument("mesh")
+    ap.add_argument("frame")
+    ap.add_argument("out")
+    ap.add_argument("--passes", type=int, default=1, metavar="N")
+    args = ap.parse_args(argv)
+    try:
+        verts, tris = read_mesh(args.mesh)
+        receivers, samples = read_frame(args.frame)
+    except InputError as e:
+        print(f"embree_oracle: error: {e}", file=sys.stderr)
+        return 2
+    # One core, the build included: Embree's task scheduler (TBB) sizes its
+    # pool from the process's CPU affinity, so pin before it starts.
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+    try:
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+    except ImportError as e:
+        print(f"embree_oracle: error: cannot import embreex ({e}); "
+              f"run tests/oracle/setup_venv.sh and use its python (target/pyenv/bin/python)",
+              file=sys.stderr)
+        return 1
+    import time
+    n, m = len(receivers), len(samples)
+    words = (m + 63) // 64
+    per_batch = max(1, FRAME_BATCH_RAYS // max(m, 1))
+    batches = []
+    for start in range(0, n, per_batch):
+        p = receivers[start:start + per_batch]
+        origins = np.ascontiguousarray(np.repeat(p, m, axis=0))
+        dirs = np.ascontiguousarray((samples[None, :, :] - p[:, None, :]).reshape(-1, 3))
+        batches.append((origins, dirs.astype(np.float32)))
+    one = (np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
+    best = (float("inf"), 0.0, 0.0)
+    visible = None
+    for _ in range(max(1, args.passes)):
+        started = time.perf_counter()
+        scene = rtcore_scene.EmbreeScene(robust=True)
+        if len(verts) and len(tris):
+            mesh = TriangleMesh(scene, verts, tris)  # noqa: F841 (kept alive)
+        scene.run(one[0], one[1], dists=np.ones(1, np.float32), query="OCCLUDED")
+        build = time.perf_counter() - started
+        rays = 0.0
+        answers = []
+        for origins, dirs in batches:
+            tfar = np.ones(len(origins), np.float32)
+            started = time.perf_counter()
+            occ = scene.run(origins, dirs, dists=tfar, query="OCCLUDED")
+            rays += time.perf_counter() - started
+            answers.append(occ != 0)
+        if build + rays < best[0]:
+            best = (build + rays, build, rays)
+        visible = np.concatenate(answers) if answers else np.zeros(0, bool)
+        del scene
+    bits = np.zeros((n, words * 64), bool)
+    bits[:, :m] = visible.reshape(n, m)
+    # Little-endian bit order in little-endian words: bit i of word w is
+    # sample 64 w + i.
+    packed = np.packbits(bits, axis=1, bitorder="little")
+    header = BITS_MAGIC + struct.pack("<III", VERSION, n, m)
+    timing = struct.pack("<dd", best[1], best[2])
+    tmp = args.out + ".tmp"
+    with open(tmp, "wb") as f:
+        f.write(header + timing + packed.tobytes())
+    os.replace(tmp, args.out)
+    return 0
+
+
 def main(argv=None):
+    if argv is None:
+        argv = sys.argv[1:]
+    if argv and argv[0] == "frame":
+        return frame(argv[1:])
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("mesh")
     ap.add_argument("rays")

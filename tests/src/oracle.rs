@@ -208,6 +208,119 @@ pub fn try_cast(
     })
 }
 
+/// Embree's frame: every receiver's shadow rays to every light sample.
+#[derive(Clone, Debug)]
+pub struct FrameRun {
+    /// Seconds to create and commit the scene (one core), in the fastest frame.
+    pub build_seconds: f64,
+    /// Seconds of the occlusion queries of every ray (one core), in the fastest
+    /// frame.
+    pub rays_seconds: f64,
+    /// Per receiver `ceil(samples / 64)` words; bit `i`: the ray to sample `i`
+    /// is not occluded (Embree's closed interval `[0, 1]` along `s - p`).
+    pub visible: Vec<u64>,
+}
+
+impl FrameRun {
+    /// What the frame costs: the scene's build plus every ray.
+    pub fn seconds(&self) -> f64 {
+        self.build_seconds + self.rays_seconds
+    }
+}
+
+/// Runs Embree on a frame (`embree_oracle.py frame`): builds the scene of
+/// `(positions, indices)` and casts the shadow ray of every (receiver,
+/// sample) pair on one core, the fastest of `passes` frames each with a new
+/// scene. An error says what failed and how to set the oracle up.
+pub fn try_frame(
+    positions: &[[f32; 3]],
+    indices: &[u32],
+    receivers: &[glam::Vec3],
+    samples: &[glam::Vec3],
+    passes: u32,
+) -> Result<FrameRun, String> {
+    let python = python();
+    if !python.exists() {
+        return Err(format!(
+            "Embree oracle interpreter {} does not exist. {SETUP_HINT}",
+            python.display()
+        ));
+    }
+    let mesh = Mesh {
+        positions: positions.to_vec(),
+        indices: indices.to_vec(),
+    };
+    let mut frame = header(b"ANTF", 1, receivers.len() as u32, samples.len() as u32);
+    for p in receivers.iter().chain(samples) {
+        for c in p.to_array() {
+            frame.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    let paths = ["py", "mesh", "frame", "bits"].map(scratch_path);
+    let [script, mesh_path, frame_path, out_path] = &paths;
+    let cleanup = || {
+        for path in &paths {
+            let _ = std::fs::remove_file(path);
+        }
+    };
+    let written = [
+        (script, ORACLE_SCRIPT.as_bytes().to_vec()),
+        (mesh_path, mesh_bytes(&mesh)),
+        (frame_path, frame),
+    ]
+    .into_iter()
+    .try_for_each(|(path, bytes)| {
+        std::fs::File::create(path)
+            .and_then(|mut f| f.write_all(&bytes))
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))
+    });
+    if let Err(e) = written {
+        cleanup();
+        return Err(e);
+    }
+    let output = Command::new(&python)
+        .arg(script)
+        .arg("frame")
+        .args([mesh_path, frame_path, out_path])
+        .arg("--passes")
+        .arg(passes.max(1).to_string())
+        .output();
+    let result = std::fs::read(out_path);
+    cleanup();
+    let output =
+        output.map_err(|e| format!("cannot run {}: {e}. {SETUP_HINT}", python.display()))?;
+    if !output.status.success() {
+        return Err(format!(
+            "Embree oracle failed ({}): {}\n{SETUP_HINT}",
+            output.status,
+            String::from_utf8_lossy(&output.stderr)
+        ));
+    }
+    let bytes = result.map_err(|e| format!("oracle wrote no frame result: {e}"))?;
+    let words = samples.len().div_ceil(64);
+    let expected = 32 + 8 * words * receivers.len();
+    if bytes.len() != expected
+        || &bytes[0..4] != b"ANTB"
+        || u32_at(&bytes, 4) != 1
+        || u32_at(&bytes, 8) as usize != receivers.len()
+        || u32_at(&bytes, 12) as usize != samples.len()
+    {
+        return Err(format!(
+            "oracle frame result: bad header or {} bytes (expected {expected})",
+            bytes.len()
+        ));
+    }
+    let f64_at = |at: usize| f64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+    Ok(FrameRun {
+        build_seconds: f64_at(16),
+        rays_seconds: f64_at(24),
+        visible: bytes[32..]
+            .chunks_exact(8)
+            .map(|w| u64::from_le_bytes(w.try_into().unwrap()))
+            .collect(),
+    })
+}
+
 fn parse_result(bytes: &[u8], rays: usize) -> Result<Vec<OracleHit>, String> {
     if bytes.len() < 16 || &bytes[0..4] != b"ANTO" || u32_at(bytes, 4) != 1 {
         return Err("oracle result has a bad header".into());

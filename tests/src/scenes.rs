@@ -207,40 +207,10 @@ impl FloorScene {
         floor_grid: usize,
         mesh_points: usize,
     ) -> FloorScene {
-        let (lo, hi) = positions.iter().fold(
-            (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY),
-            |(lo, hi), p| {
-                let p = Vec3::from(*p).as_dvec3();
-                (lo.min(p), hi.max(p))
-            },
-        );
-        let scale = 1.0 / (hi - lo).max_element().max(1e-30);
-        let shift = glam::DVec3::new(
-            -(lo.x + hi.x) * 0.5,
-            -lo.y + f64::from(FLOOR_GAP) / scale,
-            -(lo.z + hi.z) * 0.5,
-        );
-        let mut occluders = Mesh {
-            positions: positions
-                .iter()
-                .map(|p| {
-                    ((Vec3::from(*p).as_dvec3() + shift) * scale)
-                        .as_vec3()
-                        .to_array()
-                })
-                .collect(),
-            indices: indices.to_vec(),
-        };
+        let mut occluders = normalised_over_floor(positions, indices);
         let mesh_triangles = indices.len() / 3;
-        let normals = area_weighted_normals(&occluders);
+        let mesh_receivers = receivers_on_mesh(&occluders, mesh_points);
         let vertices = occluders.positions.len();
-        let step = (vertices as f64 / mesh_points.max(1) as f64).max(1.0);
-        let mesh_receivers = (0..mesh_points.min(vertices))
-            .map(|k| (k as f64 * step) as usize)
-            .filter_map(|v| {
-                normals[v].map(|n| Vec3::from(occluders.positions[v]) + n * MESH_RECEIVER_OFFSET)
-            })
-            .collect();
         let base = vertices as u32;
         let h = FLOOR_HALF_SIDE;
         occluders
@@ -262,18 +232,7 @@ impl FloorScene {
                 Vec3::new(at(k % n), 0.0, at(k / n))
             })
             .collect();
-        let angle = orientation.degrees().to_radians();
-        let toward = glam::DVec3::new(0.0, angle.cos(), angle.sin());
-        let centre = glam::DVec3::new(0.0, 0.5, 0.0) + toward * LIGHT_DISTANCE;
-        let u = glam::DVec3::X * f64::from(LIGHT_HALF_SIDE);
-        let v = glam::DVec3::new(0.0, -angle.sin(), angle.cos()) * f64::from(LIGHT_HALF_SIDE);
-        let light = [
-            centre - u - v,
-            centre + u - v,
-            centre + u + v,
-            centre - u + v,
-        ]
-        .map(|c| c.as_vec3());
+        let light = quad_light(orientation, LIGHT_DISTANCE, f64::from(LIGHT_HALF_SIDE));
         FloorScene {
             occluders,
             mesh_triangles,
@@ -310,4 +269,167 @@ pub fn area_weighted_normals(mesh: &Mesh) -> Vec<Option<Vec3>> {
             (n != glam::DVec3::ZERO).then(|| n.as_vec3())
         })
         .collect()
+}
+
+/// Side of a [`GroundScene`]'s quad light as a fraction of the mesh's largest
+/// extent.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightSize {
+    /// A quarter of the extent: sharp shadows, narrow penumbrae.
+    Small,
+    /// Four fifths of the extent: wide penumbrae, many silhouettes per receiver.
+    Large,
+}
+
+impl LightSize {
+    /// Both sizes, small first.
+    pub const ALL: [LightSize; 2] = [LightSize::Small, LightSize::Large];
+
+    /// The side over the mesh's largest extent.
+    pub fn fraction(self) -> f64 {
+        match self {
+            LightSize::Small => 0.25,
+            LightSize::Large => 0.8,
+        }
+    }
+
+    /// A short name for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightSize::Small => "1/4",
+            LightSize::Large => "4/5",
+        }
+    }
+}
+
+/// Distance from a [`GroundScene`]'s aim point (`(0, 0.5, 0)`) to its light's
+/// centre, in mesh extents.
+pub const GROUND_LIGHT_DISTANCE: f64 = 2.5;
+/// Half the side of a [`GroundScene`]'s square of ground receivers, in mesh
+/// extents.
+pub const GROUND_HALF_SIDE: f32 = 1.5;
+
+/// A frame as a user lays it out: the mesh scaled to a largest extent of 1,
+/// centred over the origin with its bottom [`FLOOR_GAP`] above the ground `y =
+/// 0`, and a square quad light [`GROUND_LIGHT_DISTANCE`] from the mesh's centre
+/// in one of the [`LightOrientation`]s. Unlike [`FloorScene`] the ground is not
+/// an occluder: it is only where the receivers are (a W × W grid over
+/// `[-GROUND_HALF_SIDE, GROUND_HALF_SIDE]²`, reaching well beyond the mesh and
+/// the light), so a structure fitted to the occluders and the light does not
+/// cover it. Receivers on the mesh as in [`FloorScene`].
+#[derive(Clone, Debug)]
+pub struct GroundScene {
+    /// The normalised mesh (the only occluders).
+    pub occluders: Mesh,
+    /// The light's four corners, in order around the quad.
+    pub light: [Vec3; 4],
+    /// Receivers on the ground.
+    pub ground_receivers: Vec<Vec3>,
+    /// Receivers just off the mesh.
+    pub mesh_receivers: Vec<Vec3>,
+}
+
+impl GroundScene {
+    /// Builds the scene with a `ground_grid × ground_grid` grid of ground
+    /// receivers and up to `mesh_points` mesh receivers.
+    pub fn new(
+        positions: &[[f32; 3]],
+        indices: &[u32],
+        orientation: LightOrientation,
+        size: LightSize,
+        ground_grid: usize,
+        mesh_points: usize,
+    ) -> GroundScene {
+        let occluders = normalised_over_floor(positions, indices);
+        let mesh_receivers = receivers_on_mesh(&occluders, mesh_points);
+        let n = ground_grid.max(1);
+        let h = GROUND_HALF_SIDE;
+        let at = |i: usize| {
+            if n == 1 {
+                0.0
+            } else {
+                -h + 2.0 * h * i as f32 / (n - 1) as f32
+            }
+        };
+        let ground_receivers = (0..n * n)
+            .map(|k| Vec3::new(at(k % n), 0.0, at(k / n)))
+            .collect();
+        let light = quad_light(orientation, GROUND_LIGHT_DISTANCE, 0.5 * size.fraction());
+        GroundScene {
+            occluders,
+            light,
+            ground_receivers,
+            mesh_receivers,
+        }
+    }
+
+    /// Every receiver: the ground's, then the mesh's.
+    pub fn receivers(&self) -> Vec<Vec3> {
+        self.ground_receivers
+            .iter()
+            .chain(&self.mesh_receivers)
+            .copied()
+            .collect()
+    }
+}
+
+/// The mesh scaled to a largest extent of 1, centred over the origin in x and
+/// z, its bottom [`FLOOR_GAP`] above `y = 0`.
+fn normalised_over_floor(positions: &[[f32; 3]], indices: &[u32]) -> Mesh {
+    let (lo, hi) = positions.iter().fold(
+        (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY),
+        |(lo, hi), p| {
+            let p = Vec3::from(*p).as_dvec3();
+            (lo.min(p), hi.max(p))
+        },
+    );
+    let scale = 1.0 / (hi - lo).max_element().max(1e-30);
+    let shift = glam::DVec3::new(
+        -(lo.x + hi.x) * 0.5,
+        -lo.y + f64::from(FLOOR_GAP) / scale,
+        -(lo.z + hi.z) * 0.5,
+    );
+    Mesh {
+        positions: positions
+            .iter()
+            .map(|p| {
+                ((Vec3::from(*p).as_dvec3() + shift) * scale)
+                    .as_vec3()
+                    .to_array()
+            })
+            .collect(),
+        indices: indices.to_vec(),
+    }
+}
+
+/// Up to `count` vertices spread evenly over the vertex order, lifted by
+/// [`MESH_RECEIVER_OFFSET`] along their area-weighted normals (vertices whose
+/// normals cancel are skipped).
+fn receivers_on_mesh(mesh: &Mesh, count: usize) -> Vec<Vec3> {
+    let normals = area_weighted_normals(mesh);
+    let vertices = mesh.positions.len();
+    let step = (vertices as f64 / count.max(1) as f64).max(1.0);
+    (0..count.min(vertices))
+        .map(|k| (k as f64 * step) as usize)
+        .filter_map(|v| {
+            normals[v].map(|n| Vec3::from(mesh.positions[v]) + n * MESH_RECEIVER_OFFSET)
+        })
+        .collect()
+}
+
+/// A square light of half side `half_side` facing the aim point `(0, 0.5, 0)`
+/// from `distance` away in `orientation` (turned about the x axis).
+fn quad_light(orientation: LightOrientation, distance: f64, half_side: f64) -> [Vec3; 4] {
+    let angle = orientation.degrees().to_radians();
+    let toward = glam::DVec3::new(0.0, angle.cos(), angle.sin());
+    let centre = glam::DVec3::new(0.0, 0.5, 0.0) + toward * distance;
+    let u = glam::DVec3::X * half_side;
+    let v = glam::DVec3::new(0.0, -angle.sin(), angle.cos()) * half_side;
+    [
+        centre - u - v,
+        centre + u - v,
+        centre + u + v,
+        centre - u + v,
+    ]
+    .map(|c| c.as_vec3())
 }
