@@ -531,8 +531,8 @@ typedef struct antumbra_ssv_options {
    */
   uint32_t parallel;
   /**
-   * 0 (the default): the hierarchy's root box is the bounds of the occluders
-   * and the light, grown by half their size on every side. 1: it is
+   * 0 (the default): the hierarchy's root box is a cube about the bounds of
+   * the occluders and the light, twice their largest extent on a side. 1: it is
    * `[root_min, root_max]`. Either way a hint: receivers outside the root
    * box go to shells of boxes around it as fine as the root's own nodes,
    * at about the same cost as inside.

@@ -12,6 +12,10 @@ pub const BUNNY_OBJ: &str = include_str!("../../tests/data/bunny.obj");
 /// The Utah teapot (npm `teapot@1.0.0`): 792 vertices, 992 triangles, open, +Y up.
 pub const TEAPOT_OBJ: &str = include_str!("../../tests/data/teapot.obj");
 
+/// The Stanford armadillo (Debian `libcgal-demo` 5.5.1): 26,002 vertices, 52,000
+/// triangles, closed, +Y up; the large mesh of the benchmarks.
+pub const ARMADILLO_OBJ: &str = include_str!("../../tests/data/armadillo.obj");
+
 /// Blender's `sunrise.exr` studio light: 1024×512 equirectangular HDR, a low sun.
 pub const SUNRISE_EXR: &[u8] = include_bytes!("../../tests/data/sunrise.exr");
 
@@ -23,6 +27,11 @@ pub fn bunny() -> Result<TriangleMesh> {
 /// The built-in teapot.
 pub fn teapot() -> Result<TriangleMesh> {
     TriangleMesh::parse_obj_str("built-in teapot", TEAPOT_OBJ)
+}
+
+/// The built-in armadillo.
+pub fn armadillo() -> Result<TriangleMesh> {
+    TriangleMesh::parse_obj_str("built-in armadillo", ARMADILLO_OBJ)
 }
 
 /// The built-in sunrise environment map.
@@ -38,5 +47,7 @@ mod tests {
         assert_eq!((bunny.vertex_count(), bunny.triangle_count()), (1839, 3674));
         let teapot = super::teapot().unwrap();
         assert_eq!((teapot.vertex_count(), teapot.triangle_count()), (792, 992));
+        let armadillo = super::armadillo().unwrap();
+        assert_eq!(armadillo.triangle_count(), 52000);
     }
 }

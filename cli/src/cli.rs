@@ -426,19 +426,47 @@ pub struct VerifySsvArgs {
 /// Arguments of `antumbra bench ssv`.
 #[derive(Debug, Args)]
 pub struct BenchSsvArgs {
-    /// Mesh to put over the floor (Wavefront OBJ, +Y up) [default: the built-in bunny].
+    /// Mesh to put over the floor (Wavefront OBJ, +Y up); may be given more than
+    /// once with --frame [default: the built-in bunny; with --frame the
+    /// built-in bunny and armadillo].
     #[arg(long, value_name = "FILE.obj")]
-    pub mesh: Option<PathBuf>,
+    pub mesh: Vec<PathBuf>,
 
-    /// Floor receivers: an N × N grid over [-1.5, 1.5]².
+    /// Per-frame figures instead: a W × W ground of receivers reaching well
+    /// beyond the mesh (not an occluder) plus receivers on the mesh, quad lights
+    /// of side 1/4 and 4/5 of the mesh's extent, level, tilted 45° and at the
+    /// side; per row the cold frame (creation and every query: what a scene
+    /// whose light or objects move pays each frame), the warm frame (the
+    /// queries again), Embree's frame (scene build and every shadow ray) and the
+    /// hemicube's cold frame, all on one core, as ratios measured in the same
+    /// run, with candidates per query, nodes, memory and the bits checked
+    /// against Embree.
+    #[arg(long)]
+    pub frame: bool,
+
+    /// With --frame: ground receivers, a W × W grid over ±1.5 mesh extents.
+    #[arg(long, value_name = "W", default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=2048))]
+    pub ground: u32,
+
+    /// With --frame: time each frame this many times and keep the fastest.
+    #[arg(long, value_name = "P", default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=100))]
+    pub passes: u32,
+
+    /// With --frame: skip the hemicube's frame.
+    #[arg(long)]
+    pub no_hemicube: bool,
+
+    /// Floor receivers: an N × N grid over [-1.5, 1.5]² (not with --frame).
     #[arg(long, value_name = "N", default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub floor_grid: u32,
 
-    /// Mesh receivers (vertices spread evenly over the vertex order).
-    #[arg(long, value_name = "N", default_value_t = 100, value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
-    pub mesh_points: u32,
+    /// Mesh receivers (vertices spread evenly over the vertex order) [default:
+    /// 100; 4096 with --frame].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=1_000_000))]
+    pub mesh_points: Option<u32>,
 
-    /// Time each warm figure over at least this many milliseconds.
+    /// Time each warm figure over at least this many milliseconds (not with
+    /// --frame).
     #[arg(long, value_name = "MS", default_value_t = 150)]
     pub min_time: u64,
 
@@ -455,7 +483,8 @@ pub struct BenchSsvArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=24))]
     pub max_depth: Option<u32>,
 
-    /// Only these sample counts (comma-separated) [default: 16,64,256,1024].
+    /// Only these sample counts (comma-separated) [default: 16,64,256,1024; with
+    /// --frame the first one, default 256].
     #[arg(long, value_name = "N,N,...", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub samples: Vec<u32>,
 }

@@ -171,7 +171,6 @@ pub fn compare_with_embree(
     receivers: &[Vec3],
 ) -> Result<Comparison, String> {
     let samples = ssv.samples();
-    let words = ssv.words_per_receiver();
     let bits = library_bits(ssv, receivers)?;
     let rays = shadow_rays(receivers, samples);
     let embree = try_cast(
@@ -180,6 +179,90 @@ pub fn compare_with_embree(
         &rays,
         OracleOptions::default(),
     )?;
+    let n = samples.len();
+    let embree_visible = pack(receivers.len(), n, |k| !embree.hits[k].occluded);
+    let hit = |k: usize| embree.hits[k].triangle;
+    Ok(classify(
+        occluders,
+        receivers,
+        samples,
+        (&bits, &embree_visible),
+        &hit,
+    ))
+}
+
+/// Bits `visible(r * samples + i)` packed as the library packs them,
+/// `ceil(samples / 64)` words per receiver.
+pub fn pack(receivers: usize, samples: usize, visible: impl Fn(usize) -> bool) -> Vec<u64> {
+    let words = samples.div_ceil(64);
+    let mut bits = vec![0u64; receivers * words];
+    for r in 0..receivers {
+        for i in 0..samples {
+            if visible(r * samples + i) {
+                bits[r * words + i / 64] |= 1 << (i % 64);
+            }
+        }
+    }
+    bits
+}
+
+/// Compares the library's bits with Embree's from a frame
+/// ([`crate::oracle::try_frame`]: visible bits, no hit triangles): the
+/// mismatches are decided by the exact segment test, and the rays of those the
+/// exact test finds unblocked are cast again through the oracle for the
+/// triangle Embree hit.
+pub fn compare_frame(
+    occluders: &Mesh,
+    receivers: &[Vec3],
+    samples: &[Vec3],
+    library: &[u64],
+    embree_visible: &[u64],
+) -> Result<Comparison, String> {
+    let words = samples.len().div_ceil(64);
+    let n = samples.len();
+    let differing: Vec<usize> = (0..receivers.len() * n)
+        .filter(|&k| bit(library, words, k / n, k % n) != bit(embree_visible, words, k / n, k % n))
+        .collect();
+    let rays: Vec<Ray> = differing
+        .iter()
+        .map(|&k| Ray::new(receivers[k / n], samples[k % n] - receivers[k / n], 1.0))
+        .collect();
+    let hits = if rays.is_empty() {
+        Vec::new()
+    } else {
+        try_cast(
+            &occluders.positions,
+            &occluders.indices,
+            &rays,
+            OracleOptions::default(),
+        )?
+        .hits
+    };
+    let hit = |k: usize| {
+        differing
+            .binary_search(&k)
+            .map_or(u32::MAX, |at| hits[at].triangle)
+    };
+    Ok(classify(
+        occluders,
+        receivers,
+        samples,
+        (library, embree_visible),
+        &hit,
+    ))
+}
+
+/// The mismatches between the library's and Embree's bits, each decided by
+/// the exact segment test against every occluder; `hit(k)` names the triangle
+/// Embree's ray `k` (`r * samples + i`) hit, if known.
+fn classify(
+    occluders: &Mesh,
+    receivers: &[Vec3],
+    samples: &[Vec3],
+    (bits, embree_visible): (&[u64], &[u64]),
+    hit: &(dyn Fn(usize) -> u32 + Sync),
+) -> Comparison {
+    let words = samples.len().div_ceil(64);
     let view = occluders.view();
     let triangles: Vec<[Vec3; 3]> = (0..view.triangle_count())
         .map(|t| view.triangle(t))
@@ -192,9 +275,12 @@ pub fn compare_with_embree(
         .flatten()
         .fold(1e-30f64, |m, &c| m.max(f64::from(c).abs()));
     let n = samples.len();
-    let mismatches = (0..receivers.len() * n)
-        .filter(|&k| bit(&bits, words, k / n, k % n) == embree.hits[k].occluded)
-        .map(|k| {
+    let differing: Vec<usize> = (0..receivers.len() * n)
+        .filter(|&k| bit(bits, words, k / n, k % n) != bit(embree_visible, words, k / n, k % n))
+        .collect();
+    let mismatches = differing
+        .par_iter()
+        .map(|&k| {
             let (r, i) = (k / n, k % n);
             let (p, s) = (receivers[r], samples[i]);
             let blocking: Vec<usize> = (0..triangles.len())
@@ -203,9 +289,9 @@ pub fn compare_with_embree(
                     segment_meets_triangle(p, s, a, b, c)
                 })
                 .collect();
-            let hit = embree.hits[k].triangle;
-            let candidates: Vec<usize> = if blocking.is_empty() && hit != u32::MAX {
-                vec![hit as usize]
+            let embree_hit = hit(k);
+            let candidates: Vec<usize> = if blocking.is_empty() && embree_hit != u32::MAX {
+                vec![embree_hit as usize]
             } else {
                 blocking.clone()
             };
@@ -223,7 +309,7 @@ pub fn compare_with_embree(
                 sample: i,
                 point: p,
                 target: s,
-                library: bit(&bits, words, r, i),
+                library: bit(bits, words, r, i),
                 exact: blocking.is_empty(),
                 edge_distance,
                 triangle,
@@ -231,61 +317,11 @@ pub fn compare_with_embree(
         })
         .collect();
     let visible_bits = bits.iter().map(|w| u64::from(w.count_ones())).sum();
-    Ok(Comparison {
+    Comparison {
         receivers: receivers.len(),
         bits: (receivers.len() * n) as u64,
         visible_bits,
         mismatches,
         scale,
-    })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn edge_distance_is_measured_in_the_triangle_plane() {
-        let triangle = [Vec3::ZERO, Vec3::X, Vec3::Y];
-        // Through (0.25, 0.25) from above: 0.25 from the two legs.
-        let d = edge_distance(
-            Vec3::new(0.25, 0.25, 1.0),
-            Vec3::new(0.25, 0.25, -1.0),
-            triangle,
-        );
-        assert!((d - 0.25).abs() < 1e-12, "{d}");
-        // Slanted, crossing the plane at (0.5, 0.1): 0.1 from the edge y = 0.
-        let d = edge_distance(
-            Vec3::new(0.0, 0.1, 1.0),
-            Vec3::new(1.0, 0.1, -1.0),
-            triangle,
-        );
-        assert!((d - 0.1).abs() < 1e-7, "{d}");
-        // Parallel to the plane.
-        let d = edge_distance(Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), triangle);
-        assert!(d.is_infinite());
-    }
-
-    #[test]
-    fn a_mismatch_is_grazing_only_near_an_edge_and_when_the_library_is_exact() {
-        let m = Mismatch {
-            receiver: 0,
-            sample: 0,
-            point: Vec3::ZERO,
-            target: Vec3::Y,
-            library: true,
-            exact: true,
-            edge_distance: 1e-7,
-            triangle: Some(0),
-        };
-        assert!(m.is_grazing(1.0));
-        assert!(
-            !Mismatch {
-                edge_distance: 1e-3,
-                ..m.clone()
-            }
-            .is_grazing(1.0)
-        );
-        assert!(!Mismatch { exact: false, ..m }.is_grazing(1.0));
     }
 }

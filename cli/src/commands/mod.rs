@@ -7,6 +7,7 @@ mod demo;
 mod hemi;
 mod render;
 mod ssv;
+mod ssv_frame;
 mod verify;
 
 use std::path::{Path, PathBuf};

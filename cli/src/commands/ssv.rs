@@ -32,7 +32,7 @@ const SAMPLE_COUNTS: [usize; 4] = [16, 64, 256, 1024];
 /// Mismatches described one per line.
 const SHOWN_MISMATCHES: usize = 10;
 
-fn load(mesh: &Option<std::path::PathBuf>) -> Result<TriangleMesh> {
+fn load(mesh: Option<&std::path::PathBuf>) -> Result<TriangleMesh> {
     match mesh {
         Some(path) => TriangleMesh::load_obj(path),
         None => builtin::bunny(),
@@ -55,7 +55,7 @@ fn build(
 
 /// Runs `antumbra verify ssv`.
 pub fn run_verify(args: &VerifySsvArgs) -> Result<()> {
-    let mesh = load(&args.mesh)?;
+    let mesh = load(args.mesh.as_ref())?;
     let bar = progress::bar(
         LightOrientation::ALL.len() as u64,
         "verify ssv",
@@ -221,7 +221,11 @@ fn kib(bytes: usize) -> String {
 
 /// Runs `antumbra bench ssv`.
 pub fn run_bench(args: &BenchSsvArgs) -> Result<()> {
-    let mesh = load(&args.mesh)?;
+    if args.frame {
+        return super::ssv_frame::run(args);
+    }
+    let mesh = load(args.mesh.first())?;
+    let mesh_points = args.mesh_points.unwrap_or(100);
     let min_time = Duration::from_millis(args.min_time);
     let orientations = LightOrientation::ALL;
     let counts: Vec<usize> = if args.samples.is_empty() {
@@ -256,7 +260,7 @@ pub fn run_bench(args: &BenchSsvArgs) -> Result<()> {
             mesh.indices(),
             orientation,
             args.floor_grid as usize,
-            args.mesh_points as usize,
+            mesh_points as usize,
         );
         let receivers = scene.receivers();
         let count = receivers.len().max(1) as f64;

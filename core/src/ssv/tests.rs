@@ -1346,3 +1346,56 @@ fn receivers_beyond_the_root_get_exact_bits_without_falling_back() {
         );
     }
 }
+
+/// Receivers whose pyramid to the light misses the occluders' box are
+/// answered without a walk or a ray; near the shadow's edge, where the pyramid
+/// just grazes the box or the object, the bits are still the oracle's. The
+/// light is slanted and large, the object a thin open sheet (no symmetry to
+/// hide a wrong plane orientation).
+#[test]
+fn receivers_outside_the_shadow_pyramid_are_lit_without_a_ray() {
+    let mut soup = grid(6, 3, |u, v| {
+        Vec3::new(0.8 * u - 0.3, 0.5 * v - 0.2, 1.0 + 0.3 * u * v)
+    });
+    soup.append(&sphere(Vec3::new(0.6, 0.4, 1.4), 0.15, 6));
+    let light = LightPolygon::new(&[
+        Vec3::new(-0.4, -0.3, 3.0),
+        Vec3::new(0.7, -0.2, 3.3),
+        Vec3::new(0.6, 0.5, 3.4),
+        Vec3::new(-0.5, 0.4, 3.1),
+    ])
+    .unwrap();
+    let samples = light.samples(64, SamplePattern::Jittered, 4);
+    let tris = soup.triangles();
+    let mut receivers = receivers_box(
+        Vec3::new(-4.0, -4.0, -0.5),
+        Vec3::new(4.0, 4.0, 0.5),
+        400,
+        13,
+    );
+    // And a ring hugging the occluders' box just below it.
+    for k in 0..64 {
+        let a = core::f32::consts::TAU * k as f32 / 64.0;
+        receivers.push(Vec3::new(0.2 + 0.9 * a.cos(), 0.2 + 0.9 * a.sin(), 0.9));
+    }
+    let mut counts = [0usize; 2];
+    for structure in [
+        Structure::Hierarchy,
+        Structure::Hemicube,
+        Structure::BruteForce,
+    ] {
+        let ss = build(&soup, &light, &samples, structure);
+        for (r, &p) in receivers.iter().enumerate() {
+            let mut bits = [0u64; 1];
+            let info = ss.query_detailed(p, &mut bits).unwrap();
+            assert_eq!(
+                bits.to_vec(),
+                oracle(&tris, p, &samples),
+                "{structure:?}: receiver {r} at {p:?}"
+            );
+            counts[usize::from(info.rays == 0)] += 1;
+        }
+    }
+    // Both paths are taken often.
+    assert!(counts[0] > 150 && counts[1] > 300, "{counts:?}");
+}
