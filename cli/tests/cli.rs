@@ -457,6 +457,46 @@ fn bench_ssv_reports_every_structure_and_orientation() {
 }
 
 #[test]
+fn bench_ssv_frame_reports_every_row_and_the_worst_of_each_figure() {
+    let mesh = data("teapot.obj");
+    let output = antumbra(&[
+        "bench",
+        "ssv",
+        "--frame",
+        "--mesh",
+        mesh.as_str(),
+        "--ground",
+        "12",
+        "--mesh-points",
+        "4",
+        "--samples",
+        "64",
+        "--passes",
+        "1",
+        "--no-embree",
+    ]);
+    assert_success(&output);
+    let text = stdout(&output);
+    for size in ["1/4", "4/5"] {
+        for orientation in ["horizontal", "tilted 45°", "side 80°"] {
+            assert!(
+                text.lines()
+                    .any(|l| l.trim_start().starts_with(size) && l.contains(orientation)),
+                "no row {size} {orientation} in:\n{text}"
+            );
+        }
+    }
+    for needle in [
+        "cold frame / warm frame: worst ",
+        "hemicube's cold frame / hierarchy's cold frame: worst ",
+        "ground candidates / with a root fitted to the receivers: worst ",
+        "against the hemicube 0 rows differ",
+    ] {
+        assert!(text.contains(needle), "no {needle:?} in:\n{text}");
+    }
+}
+
+#[test]
 fn bench_hemi_reports_ratios_against_the_bvh() {
     let output = antumbra(&[
         "bench",
