@@ -221,7 +221,7 @@ pub(crate) fn edge_octants8(
     let splat = |x: f32| _mm256_set1_ps(x);
     let sign = [load(&SIGN[0]), load(&SIGN[1]), load(&SIGN[2])];
     // Projections of the octants' centres on `n`, and their common radius.
-    let project = |n: &[f32]| {
+    let project = |n: &[f32; 3]| {
         let t = [
             n[0] * octants.quarter[0],
             n[1] * octants.quarter[1],
@@ -245,9 +245,8 @@ pub(crate) fn edge_octants8(
         let one = splat(1.0);
         let mut weight = _mm256_setzero_ps();
         let mut open = _mm256_setzero_ps();
-        for j in 0..2 {
-            let plane = &record[PLANES + 4 * j..][..4];
-            let (mid, rad) = project(&plane[..3]);
+        for plane in record[PLANES..PLANES + 8].chunks_exact(4) {
+            let (mid, rad) = project(&[plane[0], plane[1], plane[2]]);
             let m = _mm256_sub_ps(mid, splat(plane[3]));
             let above = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(m, splat(rad)), margin);
             let below = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(m, splat(rad)), minus_margin);
@@ -273,24 +272,24 @@ pub(crate) fn edge_octants8(
         } else {
             splat(f32::MAX)
         };
-        let mut separated = _mm256_setzero_ps();
-        let mut separate = |bounds: &[f32], mid: __m256, rad: f32| {
-            let (top, bottom) = (bounds[1] + octants.margin, bounds[0] - octants.margin);
+        let margin = octants.margin;
+        let separate = |bounds: &[f32], mid: __m256, rad: f32| {
+            let (top, bottom) = (bounds[1] + margin, bounds[0] - margin);
             let hi = _mm256_add_ps(splat(top), _mm256_mul_ps(reach, splat(bounds[2])));
             let lo = _mm256_sub_ps(splat(bottom), _mm256_mul_ps(reach, splat(bounds[3])));
             let over = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(mid, splat(rad)), hi);
             let under = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(mid, splat(rad)), lo);
-            separated = _mm256_or_ps(separated, _mm256_or_ps(over, under));
+            _mm256_or_ps(over, under)
         };
-        for axis in 0..3 {
-            let bounds = &record[AXES + 4 * axis..][..4];
-            separate(bounds, load(&octants.axis_mid[axis]), octants.quarter[axis]);
+        let mut separated = _mm256_setzero_ps();
+        for (axis, bounds) in record[AXES..AXES + 12].chunks_exact(4).enumerate() {
+            let mid = load(&octants.axis_mid[axis]);
+            separated = _mm256_or_ps(separated, separate(bounds, mid, octants.quarter[axis]));
         }
         let count = record[COUNT] as usize;
-        for d in 0..count {
-            let slot = &record[DIRECTIONS + DIRECTION * d..][..DIRECTION];
-            let (mid, rad) = project(&slot[..3]);
-            separate(&slot[3..], mid, rad);
+        for slot in record[DIRECTIONS..].chunks_exact(DIRECTION).take(count) {
+            let (mid, rad) = project(&[slot[0], slot[1], slot[2]]);
+            separated = _mm256_or_ps(separated, separate(&slot[3..7], mid, rad));
         }
         keep &= !(_mm256_movemask_ps(separated) as u8);
     }

@@ -483,14 +483,13 @@ fn wedge_lanes(record: &[f32], octants: &Octants8) -> u8 {
             separated[i] |= (mid[i] - rad > hi) | (mid[i] + rad < lo);
         }
     };
-    for axis in 0..3 {
-        let bounds = &record[AXES + 4 * axis..][..4];
+    for (axis, bounds) in record[AXES..AXES + 12].chunks_exact(4).enumerate() {
         separate(bounds, &octants.axis_mid[axis], octants.quarter[axis]);
     }
-    for d in 0..record[COUNT] as usize {
-        let slot = &record[DIRECTIONS + DIRECTION * d..][..DIRECTION];
+    let count = record[COUNT] as usize;
+    for slot in record[DIRECTIONS..].chunks_exact(DIRECTION).take(count) {
         let (mid, rad) = project(&slot[..3], octants);
-        separate(&slot[3..], &mid, rad);
+        separate(&slot[3..7], &mid, rad);
     }
     let mut mask = 0u8;
     for (i, &s) in separated.iter().enumerate() {
@@ -506,8 +505,7 @@ fn wedge_lanes(record: &[f32], octants: &Octants8) -> u8 {
 fn silhouette_lanes(record: &[f32], octants: &Octants8) -> u8 {
     let mut weight = [0i32; LANES];
     let mut open = [false; LANES];
-    for j in 0..2 {
-        let plane = &record[PLANES + 4 * j..][..4];
+    for plane in record[PLANES..PLANES + 8].chunks_exact(4) {
         let (mid, rad) = project(&plane[..3], octants);
         for i in 0..LANES {
             let m = mid[i] - plane[3];
