@@ -523,11 +523,13 @@ typedef struct antumbra_ssv_options {
    */
   uint32_t hemicube_resolution;
   /**
-   * 0 (the default): `antumbra_ssv_query` runs on the calling thread. 1: the
-   * points of one query call, and the building of the hierarchy's nodes they
-   * need, are split across the library's worker threads (a rayon pool of one
-   * thread per core, started on first use and kept for the life of the
-   * process). The bits are identical either way.
+   * 0 (the default): `antumbra_ssv_create` and `antumbra_ssv_query` run on
+   * the calling thread. 1: creation builds the reference ray's BVH and the
+   * structure side by side, and the points of one query call, and the
+   * building of the hierarchy's nodes they need, are split across the
+   * library's worker threads (a rayon pool of one thread per core, started
+   * on first use and kept for the life of the process). The bits are
+   * identical either way.
    */
   uint32_t parallel;
   /**

@@ -86,11 +86,13 @@ pub struct antumbra_ssv_options {
     pub max_depth: u32,
     /// Hemicube: cells per cube face side, 1 to 1024; default 64.
     pub hemicube_resolution: u32,
-    /// 0 (the default): `antumbra_ssv_query` runs on the calling thread. 1: the
-    /// points of one query call, and the building of the hierarchy's nodes they
-    /// need, are split across the library's worker threads (a rayon pool of one
-    /// thread per core, started on first use and kept for the life of the
-    /// process). The bits are identical either way.
+    /// 0 (the default): `antumbra_ssv_create` and `antumbra_ssv_query` run on
+    /// the calling thread. 1: creation builds the reference ray's BVH and the
+    /// structure side by side, and the points of one query call, and the
+    /// building of the hierarchy's nodes they need, are split across the
+    /// library's worker threads (a rayon pool of one thread per core, started
+    /// on first use and kept for the life of the process). The bits are
+    /// identical either way.
     pub parallel: u32,
     /// 0 (the default): the hierarchy's root box is a cube about the bounds of
     /// the occluders and the light, twice their largest extent on a side. 1: it is
@@ -275,6 +277,7 @@ fn check_options(options: &antumbra_ssv_options) -> Result<(SsvOptions, bool), E
             leaf_edges: options.leaf_edges,
             max_depth: options.max_depth,
             root_bounds,
+            parallel,
             hemicube_resolution: options.hemicube_resolution,
         },
         parallel,

@@ -11,7 +11,9 @@
 //! - warm: the same queries again on the same handle (a static scene seen
 //!   again);
 //! - Embree: building its scene and casting every shadow ray (one core);
-//! - hemicube: the 2005-style structure's cold frame.
+//! - hemicube: the 2005-style structure's cold frame;
+//! - and, apart, the hierarchy's cold frame on every core (creation with
+//!   `SsvOptions::parallel`, one `query_batch`).
 //!
 //! Every hierarchy bit is checked against the hemicube's (both exact: they must
 //! be equal) and against Embree's (mismatches classified by the exact segment
@@ -54,12 +56,41 @@ struct Frame {
     bytes: usize,
 }
 
+/// The fastest of `passes` cold frames on every core: creation with
+/// `SsvOptions::parallel` and one `query_batch` (rayon).
+fn parallel_cold(
+    scene: &GroundScene,
+    light: &LightPolygon,
+    samples: &[Vec3],
+    receivers: &[Vec3],
+    options: SsvOptions,
+    passes: u32,
+) -> Result<Duration> {
+    let options = SsvOptions {
+        parallel: true,
+        ..options
+    };
+    let mut best = Duration::MAX;
+    for _ in 0..passes.max(1) {
+        let started = Instant::now();
+        let ssv = SoftShadows::new(&scene.occluders.view(), light.clone(), samples, options)
+            .map_err(|e| Error::msg(format!("cannot prepare the soft shadows: {e}")))?;
+        let mut bits = vec![0u64; receivers.len() * ssv.words_per_receiver()];
+        ssv.query_batch(receivers, &mut bits, None)
+            .map_err(|e| Error::msg(format!("query failed: {e}")))?;
+        best = best.min(started.elapsed());
+    }
+    Ok(best)
+}
+
 /// One row of the table.
 struct Row {
     mesh: String,
     size: LightSize,
     orientation: LightOrientation,
     hierarchy: Frame,
+    /// The hierarchy's cold frame on every core.
+    parallel_cold: Duration,
     hemicube: Option<Frame>,
     /// Build and rays.
     embree: Option<(Duration, Duration)>,
@@ -249,6 +280,7 @@ fn row(
     let light = LightPolygon::new(&scene.light).map_err(|e| Error::msg(e.to_string()))?;
     let samples = light.samples(samples_per_light, SamplePattern::Jittered, SAMPLE_SEED);
     let hierarchy = frames(&scene, &light, &samples, &receivers, options, args.passes)?;
+    let parallel_cold = parallel_cold(&scene, &light, &samples, &receivers, options, args.passes)?;
     let fitted = fitted_ground_candidates(&scene, &light, &samples, &receivers, options)?;
     let hemicube = if args.no_hemicube {
         None
@@ -299,6 +331,7 @@ fn row(
         size,
         orientation,
         hierarchy,
+        parallel_cold,
         hemicube,
         embree,
         comparison,
@@ -321,11 +354,12 @@ fn print_tables(meshes: &[TriangleMesh], rows: &[Row]) {
         println!();
         println!("{}", chunk[0].mesh);
         println!(
-            "{:>5} {:<11} | {:>9} {:>9} {:>9} {:>9} {:>9} | {:>9} {:>11} {:>13} | {:>10} {:>16} | {:>7} {:>8} | bits vs Embree",
+            "{:>5} {:<11} | {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} | {:>9} {:>11} {:>13} | {:>10} {:>16} | {:>7} {:>8} | bits vs Embree",
             "light",
             "",
             "cold ms",
             "warm ms",
+            &format!("{}-thread", rayon::current_num_threads()),
             "Embree ms",
             "(build)",
             "hemicube",
@@ -365,11 +399,12 @@ fn print_tables(meshes: &[TriangleMesh], rows: &[Row]) {
                 (None, _) => "-".into(),
             };
             println!(
-                "{:>5} {:<11} | {:>9.1} {:>9.1} {:>9} {:>9} {:>9} | {:>8.2}x {:>11} {:>13} | {:>10.1} {:>7.1} ({:>6.1}) | {:>7} {:>8} | {bits}",
+                "{:>5} {:<11} | {:>9.1} {:>9.1} {:>9.1} {:>9} {:>9} {:>9} | {:>8.2}x {:>11} {:>13} | {:>10.1} {:>7.1} ({:>6.1}) | {:>7} {:>8} | {bits}",
                 r.size.name(),
                 r.orientation.name(),
                 ms(h.cold),
                 ms(h.warm),
+                ms(r.parallel_cold),
                 opt_ms(embree),
                 opt_ms(r.embree.map(|(b, _)| b)),
                 opt_ms(hemicube),

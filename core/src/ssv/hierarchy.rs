@@ -8,8 +8,8 @@
 //! the node's box, so a query that walks to the leaf holding its point and runs
 //! the exact tests on the leaf's list gets exactly the brute-force bits.
 //!
-//! Space beyond the root. The root box `B₀` is a hint (by default the occluders
-//! and the light, grown by half their size). A receiver outside it goes to the
+//! Space beyond the root. The root box `B₀` is a hint (by default a cube twice
+//! the size of the occluders and the light). A receiver outside it goes to the
 //! first of the boxes `B_k` (`B₀`'s centre, `2^k` times its half-extent) that
 //! holds it; `B_k` is cut into 4 × 4 × 4 cells, the inner eight of which make
 //! `B_{k-1}`, and each of the 56 outer cells (as large as an octant of
@@ -18,19 +18,23 @@
 //! a query can name is covered by a node as fine as its surroundings need:
 //! a receiver never falls back to every edge, wherever the caller puts it
 //! (shells reach every finite `f32` point). Cost: one test of every potential
-//! edge per cell that receives queries (a ground twice the root's width touches
-//! 12 cells of the first shell).
+//! edge per cell that receives queries.
 //!
 //! When a node splits. Splitting a node of `L` edges tests each against the
-//! eight octants (a few tens of nanoseconds per edge in lanes); a query through
-//! it tests `L` candidates. So a node splits once it has served
-//! [`SPLIT_AFTER`] queries (the classic rent-or-buy rule: the split costs about
-//! what those queries cost, and a node few receivers reach is not refined for
-//! them), when it holds more than `leaf_edges` edges and is above the depth
-//! limit, and keeps its children only when they pay: the children's mean list
-//! must be at most [`SPLIT_GAIN`] of the node's, else the node stays a leaf for
-//! good. Children's lists are written when a query first enters them (a floor of
-//! receivers enters four of every eight), from one octant mask per parent edge.
+//! eight octants (about 90 ns per edge in AVX lanes); a query through it tests
+//! `L` candidates (a few tens of nanoseconds each that are not silhouettes).
+//! So a node is split where enough receivers are to pay for it: a batch
+//! ([`Hierarchy::prepare`]) splits it when [`BATCH_SPLIT`] of its receivers
+//! fall in it, before any of them is answered; receivers queried alone split
+//! it once it has served [`SPLIT_AFTER`] queries (the rent-or-buy rule: the
+//! split costs about what those queries cost). A split needs more than
+//! `leaf_edges` edges and a level left above the depth limit, and the children
+//! are kept only when they pay: their mean list must be at most
+//! [`SPLIT_GAIN`] of the node's, else the node stays a leaf for good (a sample
+//! of [`SAMPLED_EDGES`] edges refuses most such splits before the rest are
+//! tested). Children's lists are written when a query first enters them (a
+//! ground of receivers enters four of every eight), from one octant mask per
+//! parent edge.
 //!
 //! Threads: every lazily made part (a split decision, a child, a shell, a cell)
 //! is a once-cell. With `std` a `OnceLock`: concurrent queries that need the

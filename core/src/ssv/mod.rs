@@ -115,20 +115,11 @@
 //! decision exact instead, over every triangle whose box meets the segment
 //! (rare: linear in the triangles).
 //!
-//! Measured (`cargo bench -p antumbra-core --features bvh --bench ssv`, one
-//! thread of a shared, loaded 2-core VM, N = 256, medians of 5 interleaved
-//! passes; the ratios are per pass): on the scene of `c_examples/soft_shadows.c`
-//! (torus and sphere over a floor, 2,562 triangles, 4,096 floor receivers) the
-//! hierarchy takes 2.8–3.5 µs per receiver over light tips 0.17, 0.7 and
-//! 1.4 rad (12–20 candidate edges per query, 1,553–2,281 nodes, 0.5–0.65 MiB,
-//! built lazily in the first pass), 19–22× faster than tracing the 256 rays
-//! with `BvhScene`, 4.1–8.4× faster than the hemicube; on the bunny over a floor
-//! (3,676 triangles, 4,096 receivers) 1.7–2.9 µs (9–17 candidates, ~4,000
-//! nodes, 1.3–1.4 MiB), 17–28× the rays and 4.6–10× the hemicube; on a
-//! 7,040-triangle bumpy sphere (256 penumbra receivers) 9–27 µs (35–54
-//! candidates, 1.5–1.8 MiB; the 27 µs passes were the loaded ones: 8.9× the
-//! rays there, 26× in the quieter pass), 1.7–11× the hemicube. All structures
-//! gave identical bits on every bench scene.
+//! Cost: a receiver whose pyramid to the light misses the occluders' box is
+//! answered at once; any other costs a walk, the exact sweep of its candidate
+//! edges (most of the time: a fixed part per silhouette edge whose wedge holds
+//! it) and one reference ray. Per-frame figures against Embree and the
+//! hemicube: `antumbra bench ssv --frame` (README, docs/performance.md).
 //!
 //! Queries allocate nothing: per-sample counters live on the stack (at most
 //! [`MAX_SAMPLES`] samples, 4 KiB of stack per query), beside the record of
@@ -228,6 +219,10 @@ pub struct SsvOptions {
     /// once). Default: a cube about the bounds of the occluders and the light,
     /// twice their largest extent on a side.
     pub root_bounds: Option<[Vec3; 2]>,
+    /// Build the reference caster and the structure side by side on rayon's
+    /// threads (with the `parallel` feature; ignored without it). The result
+    /// is the same either way (default false).
+    pub parallel: bool,
     /// Hemicube: cells per face side (default 64: on the benchmark scene it
     /// lists 22–29% fewer candidates than 32 in under 1 MB; 128 saves another
     /// 15–20% for 3.4× the memory, about the hierarchy's).
@@ -241,6 +236,7 @@ impl Default for SsvOptions {
             leaf_edges: 16,
             max_depth: 12,
             root_bounds: None,
+            parallel: false,
             hemicube_resolution: 64,
         }
     }
@@ -399,6 +395,31 @@ impl Caster {
                 best
             }
         }
+    }
+}
+
+/// The default root box: a cube about the bounds of the occluders and the
+/// light, twice their largest extent on a side.
+fn default_root(occluders: &MeshView<'_>, light: &LightPolygon) -> Aabb {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for &v in occluders.indices() {
+        let p = occluders.position(v as usize).as_dvec3();
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    for v in light.vertices() {
+        lo = lo.min(v.as_dvec3());
+        hi = hi.max(v.as_dvec3());
+    }
+    // A cube about the bounds' centre, half again their largest extent on
+    // every side: octree cells then stay cubes (a tall root over a
+    // ground made tall, thin cells that the lists shrank slowly in).
+    let centre = 0.5 * (lo + hi);
+    let half = (hi - lo).max_element().max(1e-30);
+    Aabb {
+        min: centre - DVec3::splat(half),
+        max: centre + DVec3::splat(half),
     }
 }
 
@@ -606,12 +627,48 @@ impl SoftShadows {
         let potential: Vec<u32> = (0..graph.edges.len() as u32)
             .filter(|&e| !graph.is_flat(&graph.edges[e as usize]))
             .collect();
-        let caster = Self::build_caster(&graph)?;
         let shape = LightShape {
             vertices: light.vertices().iter().map(|v| v.as_dvec3()).collect(),
             normal: plane_normal,
             tolerance,
         };
+        // The reference caster and the structure, side by side on rayon's
+        // threads with `options.parallel`.
+        let structure = || -> (Option<Hierarchy>, Option<Box<Hemicube>>) {
+            match options.structure {
+                Structure::Hierarchy => {
+                    let root = match options.root_bounds {
+                        Some([lo, hi]) => Aabb {
+                            min: lo.as_dvec3(),
+                            max: hi.as_dvec3(),
+                        },
+                        None => default_root(occluders, &light),
+                    };
+                    let hierarchy = Hierarchy::new(&graph, &shape, &potential, root, options);
+                    (Some(hierarchy), None)
+                }
+                Structure::Hemicube => {
+                    let hemicube = Hemicube::new(
+                        &graph,
+                        &shape,
+                        &potential,
+                        light.centroid().as_dvec3(),
+                        options.hemicube_resolution as usize,
+                    );
+                    (None, Some(Box::new(hemicube)))
+                }
+                Structure::BruteForce | Structure::RayTrace => (None, None),
+            }
+        };
+        #[cfg(feature = "parallel")]
+        let (caster, (hierarchy, hemicube)) = if options.parallel {
+            rayon::join(|| Self::build_caster(&graph), structure)
+        } else {
+            (Self::build_caster(&graph), structure())
+        };
+        #[cfg(not(feature = "parallel"))]
+        let (caster, (hierarchy, hemicube)) = (Self::build_caster(&graph), structure());
+        let caster = caster?;
         // Angular order of the samples about the centroid (receiver-independent).
         let angle_radius = 1e-3 * f64::from(light.diameter());
         let mut keyed: Vec<(f64, u32)> = Vec::with_capacity(samples.len());
@@ -667,7 +724,7 @@ impl SoftShadows {
         let band_sides = plane_sides(&band, samples, words);
         let near_planes = near_light.iter().map(AxisPlane::of).collect();
         let band_planes = band.iter().map(AxisPlane::of).collect();
-        let mut this = SoftShadows {
+        let this = SoftShadows {
             occluder_box: occluder_lo
                 .cmple(occluder_hi)
                 .all()
@@ -708,63 +765,12 @@ impl SoftShadows {
             plane_normal,
             plane_point,
             band_half_width,
-            hierarchy: None,
-            hemicube: None,
+            hierarchy,
+            hemicube,
             queries: AtomicUsize::new(0),
             candidates: AtomicUsize::new(0),
         };
-        match options.structure {
-            Structure::Hierarchy => {
-                let root = match options.root_bounds {
-                    Some([lo, hi]) => Aabb {
-                        min: lo.as_dvec3(),
-                        max: hi.as_dvec3(),
-                    },
-                    None => this.default_root(occluders),
-                };
-                this.hierarchy = Some(Hierarchy::new(
-                    &this.graph,
-                    &this.shape,
-                    &this.potential,
-                    root,
-                    options,
-                ));
-            }
-            Structure::Hemicube => {
-                this.hemicube = Some(Box::new(Hemicube::new(
-                    &this.graph,
-                    &this.shape,
-                    &this.potential,
-                    this.centroid.as_dvec3(),
-                    options.hemicube_resolution as usize,
-                )));
-            }
-            Structure::BruteForce | Structure::RayTrace => {}
-        }
         Ok(this)
-    }
-
-    fn default_root(&self, occluders: &MeshView<'_>) -> Aabb {
-        let mut lo = DVec3::splat(f64::INFINITY);
-        let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for &v in occluders.indices() {
-            let p = occluders.position(v as usize).as_dvec3();
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-        for v in self.light.vertices() {
-            lo = lo.min(v.as_dvec3());
-            hi = hi.max(v.as_dvec3());
-        }
-        // A cube about the bounds' centre, half again their largest extent on
-        // every side: octree cells then stay cubes (a tall root over a
-        // ground made tall, thin cells that the lists shrank slowly in).
-        let centre = 0.5 * (lo + hi);
-        let half = (hi - lo).max_element().max(1e-30);
-        Aabb {
-            min: centre - DVec3::splat(half),
-            max: centre + DVec3::splat(half),
-        }
     }
 
     fn build_caster(graph: &EdgeGraph) -> Result<Caster, SsvError> {

@@ -1399,3 +1399,36 @@ fn receivers_outside_the_shadow_pyramid_are_lit_without_a_ray() {
     // Both paths are taken often.
     assert!(counts[0] > 150 && counts[1] > 300, "{counts:?}");
 }
+
+/// Creation on rayon's threads (`SsvOptions::parallel`) and a batch built in
+/// parallel give the sequential bits.
+#[cfg(feature = "parallel")]
+#[test]
+fn parallel_creation_and_batches_give_the_sequential_bits() {
+    let mut soup = torus(Vec3::new(0.0, 0.0, 1.0), 1.0, 0.3, 12);
+    soup.append(&sphere(Vec3::new(0.3, 0.2, 1.8), 0.3, 8));
+    let light = quad_light(Vec3::new(0.2, 0.0, 4.0), 0.8);
+    let samples = light.samples(128, SamplePattern::Jittered, 6);
+    let receivers = receivers_box(
+        Vec3::new(-4.0, -4.0, 0.0),
+        Vec3::new(4.0, 4.0, 0.3),
+        3000,
+        2,
+    );
+    let bits = |parallel: bool, structure: Structure| {
+        let options = SsvOptions {
+            structure,
+            parallel,
+            ..SsvOptions::default()
+        };
+        let ss = SoftShadows::new(&soup.view(), light.clone(), &samples, options).unwrap();
+        let mut bits = vec![0u64; receivers.len() * ss.words_per_receiver()];
+        ss.query_batch(&receivers, &mut bits, None).unwrap();
+        bits
+    };
+    let serial = bits(false, Structure::BruteForce);
+    assert_eq!(bits(true, Structure::Hierarchy), serial);
+    assert_eq!(bits(false, Structure::Hierarchy), serial);
+    assert_eq!(bits(true, Structure::Hemicube), serial);
+    assert!(serial.iter().any(|&w| w != 0) && serial.iter().any(|&w| w != !0));
+}
