@@ -443,7 +443,7 @@ int main(int argc, char **argv)
 
     antumbra_ssv_options_init(&options);
     if (antumbra_last_error_message()[0] != '\0' || options.structure != ANTUMBRA_SSV_STRUCTURE_HIERARCHY ||
-        options.leaf_edges != 32 || options.max_depth != 12 || options.hemicube_resolution != 64 ||
+        options.leaf_edges != 16 || options.max_depth != 12 || options.hemicube_resolution != 64 ||
         options.parallel != 0 || options.use_root_bounds != 0) {
         fail("antumbra_ssv_options_init did not write the documented defaults");
     }
