@@ -1,9 +1,11 @@
 # Antumbra: the two commands of the README.
 #   make demo   the main job: render the demo pictures with built-in data
-#   make test   every check: fmt, clippy, cargo tests, no_std build, header,
-#               C examples (static, shared, valgrind, sanitizers), Embree cross-checks,
-#               the C ABI from Python (ctypes) against Embree
+#   make test   every check: fmt, clippy, API docs, cargo tests, no_std build, header,
+#               C examples (static, shared, valgrind, sanitizers), install with CMake
+#               and pkg-config consumers, Embree cross-checks, the C ABI from Python
+#               (ctypes) against Embree
 # Each `test` step is also a target of its own (make clippy, make c-examples, ...).
+# Also: make install PREFIX=/usr/local [DESTDIR=...]   make docs
 
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
@@ -19,9 +21,12 @@ export PROPTEST_RNG_SEED ?= 20261122
 # Root installs system packages directly; anyone else goes through sudo.
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
-TEST_STEPS := fmt clippy doc no-std cargo-test header oracle-selfcheck embree c-examples python-abi
+TEST_STEPS := fmt clippy docs no-std cargo-test header oracle-selfcheck embree c-examples \
+              install-check python-abi
+PREFIX ?= /usr/local
+DESTDIR ?=
 
-.PHONY: demo test deps toolchain system-packages pyenv $(TEST_STEPS) clean
+.PHONY: demo test deps toolchain system-packages pyenv install doc c-docs $(TEST_STEPS) clean
 
 demo:
 	$(CARGO) run --release -p antumbra-cli -- demo
@@ -45,10 +50,12 @@ toolchain:
 
 system-packages:
 	@missing=""; \
-	for tool in valgrind gcc g++ python3; do command -v $$tool >/dev/null || missing="$$missing $$tool"; done; \
+	for tool in valgrind gcc g++ python3 cmake doxygen pkg-config; do \
+	  command -v $$tool >/dev/null || missing="$$missing $$tool"; done; \
 	if [ -n "$$missing" ]; then \
 	  echo "installing:$$missing"; \
-	  $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq $$(echo $$missing | sed 's/python3/python3 python3-venv/'); \
+	  $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq \
+	    $$(echo $$missing | sed -e 's/python3/python3 python3-venv/' -e 's/pkg-config/pkgconf/'); \
 	fi
 
 pyenv:
@@ -63,10 +70,26 @@ clippy:
 	$(CARGO) clippy -p antumbra-core --no-default-features -- -D warnings
 	$(CARGO) clippy -p antumbra-core --all-features --all-targets -- -D warnings
 
-# Every public item documented, and no broken intra-doc links (the ffi docs are
-# also the C reference).
+# The API references, warnings as errors: rustdoc for the crates (every public item
+# documented, no broken intra-doc links) into target/doc, and Doxygen for the C
+# header (whose comments come from the ffi crate's docs) into target/doc/c/html.
+docs: doc c-docs
+
 doc:
 	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --workspace --no-deps --exclude antumbra-cli
+
+c-docs:
+	mkdir -p $(TARGET_DIR)/doc/c
+	( cat docs/api/Doxyfile; echo "OUTPUT_DIRECTORY = $(TARGET_DIR)/doc/c" ) | doxygen -
+	@echo "C API reference: $(TARGET_DIR)/doc/c/html/index.html"
+
+# Installs the C library, header, pkg-config and CMake package under $(DESTDIR)$(PREFIX).
+install:
+	PREFIX="$(PREFIX)" DESTDIR="$(DESTDIR)" CARGO="$(CARGO)" tools/install.sh
+
+# Installs into a temporary prefix and builds and runs the CMake and pkg-config consumers.
+install-check:
+	CARGO="$(CARGO)" tools/check_install.sh
 
 no-std:
 	$(CARGO) build -p antumbra-core --no-default-features --target $(NO_STD_TARGET)

@@ -1,11 +1,14 @@
-/*
- * antumbra.h: the C API of Antumbra, physically-based shadows and lighting.
+/**
+ * @file antumbra.h
+ * @brief The C API of Antumbra, physically-based shadows and lighting.
  *
  * Conventions: every fallible function returns antumbra_result (0 = OK) and writes
  * its outputs only on success; antumbra_last_error_message() explains a failure.
  * (NULL, 0) is an empty array; (NULL, n > 0) is ANTUMBRA_RESULT_NULL_ARGUMENT.
  * Queries on a const handle may run on many threads at once.
- * Before 1.0 there is no ABI stability promise.
+ * Versioning: ANTUMBRA_VERSION and antumbra_version(); before 1.0 a minor release
+ * may change the ABI (the shared library's soname carries the minor version),
+ * from 1.0 on only a major release may (CHANGELOG.md).
  * Licensed MIT OR Apache-2.0.
  */
 
@@ -23,11 +26,15 @@
 /** Packs a version as returned by antumbra_version(). */
 #define ANTUMBRA_MAKE_VERSION(major, minor, patch) \
     ((uint32_t)(((uint32_t)(major) << 16) | ((uint32_t)(minor) << 8) | (uint32_t)(patch)))
-/** Version of this header (from the crate version). */
+/** Major version of this header; a new major version may change the ABI (from 1.0 on). */
 #define ANTUMBRA_VERSION_MAJOR 0
+/** Minor version of this header; before 1.0 a new minor version may change the ABI. */
 #define ANTUMBRA_VERSION_MINOR 1
+/** Patch version of this header; never changes the ABI. */
 #define ANTUMBRA_VERSION_PATCH 0
+/** Version of this header as a string, e.g. "0.1.0"; compare antumbra_version_string(). */
 #define ANTUMBRA_VERSION_STRING "0.1.0"
+/** Version of this header, packed as antumbra_version() returns the library's. */
 #define ANTUMBRA_VERSION \
     ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR, ANTUMBRA_VERSION_PATCH)
 

@@ -20,11 +20,15 @@ fn after_includes() -> String {
 /** Packs a version as returned by antumbra_version(). */
 #define ANTUMBRA_MAKE_VERSION(major, minor, patch) \
     ((uint32_t)(((uint32_t)(major) << 16) | ((uint32_t)(minor) << 8) | (uint32_t)(patch)))
-/** Version of this header (from the crate version). */
+/** Major version of this header; a new major version may change the ABI (from 1.0 on). */
 #define ANTUMBRA_VERSION_MAJOR {major}
+/** Minor version of this header; before 1.0 a new minor version may change the ABI. */
 #define ANTUMBRA_VERSION_MINOR {minor}
+/** Patch version of this header; never changes the ABI. */
 #define ANTUMBRA_VERSION_PATCH {patch}
+/** Version of this header as a string, e.g. "0.1.0"; compare antumbra_version_string(). */
 #define ANTUMBRA_VERSION_STRING "{major}.{minor}.{patch}"
+/** Version of this header, packed as antumbra_version() returns the library's. */
 #define ANTUMBRA_VERSION \
     ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR, ANTUMBRA_VERSION_PATCH)
 
