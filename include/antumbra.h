@@ -650,8 +650,16 @@ typedef struct antumbra_transfer_options {
    */
   uint32_t grid;
   /**
-   * Stratified rays per vertex and pass, 1 to `ANTUMBRA_TRANSFER_MAX_RAYS`.
-   * The Monte Carlo error falls as 1/sqrt(rays). Default 256.
+   * Rays per vertex and pass, 1 to `ANTUMBRA_TRANSFER_MAX_RAYS`. Default 256.
+   * How they are spread over the vertex's hemisphere, so that the noise can be
+   * predicted: the unit square is stratified (a jittered s × s grid with
+   * s = floor(sqrt(rays)), the remaining rays − s² points uniformly random), then
+   * mapped **cosine-weighted** (concentric disk, lifted) for the diffuse kind and
+   * **uniformly** over the solid angle for glossy SH and MRT, whose projections
+   * weigh every direction alike. Each vertex, pass and seed has its own random
+   * stream. Monte Carlo error falls as 1/sqrt(rays) or faster: about 1/rays^0.8
+   * for diffuse transfer on a closed mesh, where stratification helps most; a
+   * square number of rays stratifies fully.
    */
   uint32_t rays;
   /**
@@ -680,7 +688,9 @@ typedef struct antumbra_transfer_options {
   float albedo;
   /**
    * Ray origins are moved this far along the normal (mesh units, finite, >= 0)
-   * against self-intersection. Default 1e-4.
+   * against self-intersection. Default 1e-4, meant for meshes about a unit in
+   * size: scale it with yours (about 1e-4 of the bounding-box diagonal). The
+   * CLI's `antumbra bake --ray-offset` is this same distance with this default.
    */
   float ray_offset;
   /**

@@ -236,6 +236,12 @@ pub struct BakeArgs {
     #[arg(long, value_name = "AX,AY", value_delimiter = ',')]
     pub ward: Option<Vec<f32>>,
 
+    /// Move ray origins this far along the vertex normal, in mesh units (the C
+    /// API's `ray_offset`, with its default): keeps rays off the vertex's own
+    /// triangles. Scale it with the mesh: about 1e-4 of its size.
+    #[arg(long, value_name = "D", default_value_t = 1e-4, value_parser = parse_ray_offset)]
+    pub ray_offset: f32,
+
     /// Seed of the bake's random numbers.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub seed: u64,
@@ -532,6 +538,16 @@ pub struct VerifyRaycastArgs {
     pub seed: u64,
 }
 
+/// `--ray-offset`: a finite distance of 0 or more, as the C API's `ray_offset`.
+fn parse_ray_offset(text: &str) -> Result<f32, String> {
+    let value: f32 = text.parse().map_err(|e| format!("{e}"))?;
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(format!("{value} is not a finite distance of 0 or more"))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -540,5 +556,16 @@ mod tests {
     #[test]
     fn command_line_definition_is_consistent() {
         Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn bake_ray_offset_defaults_to_the_libraries_default() {
+        let cli = Cli::try_parse_from(["antumbra", "bake", "--mesh", "m.obj", "-o", "x"]).unwrap();
+        let Command::Bake(args) = cli.command else {
+            panic!("not a bake");
+        };
+        assert_eq!(args.ray_offset, crate::prt::default_ray_offset());
+        assert!(parse_ray_offset("-1").is_err());
+        assert!(parse_ray_offset("nan").is_err());
     }
 }

@@ -6,8 +6,9 @@
 //! - Normals are the area-weighted vertex normals (`antumbra_core::hemi::vertex_normals`,
 //!   as everywhere in the CLI); a vertex with none (only degenerate triangles around
 //!   it) gets +Y, since the engine needs a unit normal at every vertex.
-//! - Ray origins are pushed off the surface by [`OFFSET_OF_DIAGONAL`] of the
-//!   bounding-box diagonal, like `bake --kind ao`.
+//! - Ray origins are pushed off the surface by `BakeConfig::ray_offset`, in mesh
+//!   units: the one meaning of the C API's `ray_offset` and core's
+//!   `BakeOptions::ray_offset`, with the same default ([`default_ray_offset`]).
 //! - The lighting is the map's SH projection windowed with the Hann window of
 //!   `crate::hemi_shading::hann_window` (against the ringing of a bright sun; see
 //!   that module), optionally rotated about +Y.
@@ -29,8 +30,12 @@ use crate::error::{Error, Result};
 use crate::mesh::TriangleMesh;
 use crate::raster::Framebuffer;
 
-/// Ray origin offset along the normal, as a fraction of the bounding-box diagonal.
-pub const OFFSET_OF_DIAGONAL: f32 = 1e-4;
+/// The default offset of ray origins along the normal, in mesh units: core's (and
+/// so the C API's) default, so that a bake with default options is the same bake
+/// through the CLI, the crate and the C library.
+pub fn default_ray_offset() -> f32 {
+    BakeOptions::new(Measurement::Diffuse).ray_offset
+}
 
 /// Which transfer to bake.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -109,6 +114,8 @@ pub struct BakeConfig {
     pub brdf: BrdfChoice,
     /// Seed of the engine's random streams.
     pub seed: u64,
+    /// Ray origins move this far along the normal, in mesh units.
+    pub ray_offset: f32,
 }
 
 /// A bake's result and cost.
@@ -129,9 +136,9 @@ pub fn unit_normals(mesh: &TriangleMesh) -> Vec<Vec3> {
         .collect()
 }
 
-/// The core options of a bake of `mesh` with `config`, without a progress report
+/// The core options of a bake with `config`, without a progress report
 /// (the bake, and `bench transfer` enumerating the bake's rays, share them).
-pub fn bake_options<'a>(mesh: &TriangleMesh, config: &'a BakeConfig) -> BakeOptions<'a> {
+pub fn bake_options(config: &BakeConfig) -> BakeOptions<'_> {
     let measurement = match config.kind {
         Kind::Diffuse => Measurement::Diffuse,
         Kind::GlossySh => Measurement::GlossySh,
@@ -145,7 +152,7 @@ pub fn bake_options<'a>(mesh: &TriangleMesh, config: &'a BakeConfig) -> BakeOpti
         rays: config.rays,
         bounces: config.bounces,
         albedo: config.albedo,
-        ray_offset: OFFSET_OF_DIAGONAL * mesh.bounds().diagonal(),
+        ray_offset: config.ray_offset,
         seed: config.seed,
         ..BakeOptions::new(measurement)
     }
@@ -169,7 +176,7 @@ pub fn bake_mesh(
     };
     let options = BakeOptions {
         progress: Some(&progress),
-        ..bake_options(mesh, config)
+        ..bake_options(config)
     };
     let started = Instant::now();
     let set = if serial {
@@ -310,6 +317,7 @@ mod tests {
             albedo: 0.5,
             brdf: BrdfChoice::phong(8.0).unwrap(),
             seed: 1,
+            ray_offset: default_ray_offset(),
         };
         let baked = bake_mesh(&tetra, &config, true, None).unwrap();
         assert_eq!(baked.set.block_len(), 16 * 9);

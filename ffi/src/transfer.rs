@@ -86,8 +86,16 @@ pub struct antumbra_transfer_options {
     /// MRT nodes per side of the hemispherical grid, 2 to
     /// `ANTUMBRA_TRANSFER_MAX_GRID`; ignored by the other kinds. Default 8.
     pub grid: u32,
-    /// Stratified rays per vertex and pass, 1 to `ANTUMBRA_TRANSFER_MAX_RAYS`.
-    /// The Monte Carlo error falls as 1/sqrt(rays). Default 256.
+    /// Rays per vertex and pass, 1 to `ANTUMBRA_TRANSFER_MAX_RAYS`. Default 256.
+    /// How they are spread over the vertex's hemisphere, so that the noise can be
+    /// predicted: the unit square is stratified (a jittered s × s grid with
+    /// s = floor(sqrt(rays)), the remaining rays − s² points uniformly random), then
+    /// mapped **cosine-weighted** (concentric disk, lifted) for the diffuse kind and
+    /// **uniformly** over the solid angle for glossy SH and MRT, whose projections
+    /// weigh every direction alike. Each vertex, pass and seed has its own random
+    /// stream. Monte Carlo error falls as 1/sqrt(rays) or faster: about 1/rays^0.8
+    /// for diffuse transfer on a closed mesh, where stratification helps most; a
+    /// square number of rays stratifies fully.
     pub rays: u32,
     /// Diffuse interreflection bounces, 0 (shadowed direct light only, the
     /// default) to `ANTUMBRA_TRANSFER_MAX_BOUNCES`.
@@ -104,7 +112,9 @@ pub struct antumbra_transfer_options {
     /// Diffuse albedo of the scene for the bounces, in [0, 1). Default 0.5.
     pub albedo: f32,
     /// Ray origins are moved this far along the normal (mesh units, finite, >= 0)
-    /// against self-intersection. Default 1e-4.
+    /// against self-intersection. Default 1e-4, meant for meshes about a unit in
+    /// size: scale it with yours (about 1e-4 of the bounding-box diagonal). The
+    /// CLI's `antumbra bake --ray-offset` is this same distance with this default.
     pub ray_offset: f32,
     /// Must be 0 (keeps the seed 8-byte aligned without hidden padding).
     pub reserved: u32,

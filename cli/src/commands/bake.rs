@@ -17,10 +17,6 @@ use crate::prt;
 use crate::render::ambient_ray_escapes;
 use crate::sampling::{R2Sequence, SampleRng, hash_seed};
 
-/// Offset of ray origins along the vertex normal, relative to the bounding-box
-/// diagonal: keeps rays from hitting the vertex's own triangles at t ≈ 0.
-const ORIGIN_OFFSET: f32 = 1e-4;
-
 /// Seed of the bake's random numbers.
 const SEED: u64 = 0xBA;
 
@@ -37,7 +33,7 @@ pub fn run(args: &BakeArgs) -> Result<()> {
     let started = Instant::now();
     let mesh = TriangleMesh::load_obj(&args.mesh)?;
     let max_distance = args.max_distance.unwrap_or(f32::INFINITY);
-    let visibility = bake_visibility(&mesh, args.rays, max_distance);
+    let visibility = bake_visibility(&mesh, args.rays, max_distance, args.ray_offset);
     let normals = mesh.vertex_normals();
     let csv = args
         .out
@@ -114,6 +110,7 @@ fn run_transfer(args: &BakeArgs) -> Result<()> {
         albedo: args.albedo,
         brdf,
         seed: args.seed,
+        ray_offset: args.ray_offset,
     };
     let mesh = TriangleMesh::load_obj(&args.mesh)?;
     let passes = mesh.vertex_count() as u64 * u64::from(args.bounces + 1);
@@ -190,12 +187,18 @@ fn run_transfer(args: &BakeArgs) -> Result<()> {
 }
 
 /// Fraction of `rays` cosine-weighted rays per vertex that escape within
-/// `max_distance`. Vertices with no defined normal (only degenerate triangles
-/// around them) get 1.
-pub fn bake_visibility(mesh: &TriangleMesh, rays: u32, max_distance: f32) -> Vec<f32> {
+/// `max_distance`, from origins `ray_offset` (mesh units) along the normal, which
+/// keeps rays from hitting the vertex's own triangles at t ≈ 0. Vertices with no
+/// defined normal (only degenerate triangles around them) get 1.
+pub fn bake_visibility(
+    mesh: &TriangleMesh,
+    rays: u32,
+    max_distance: f32,
+    ray_offset: f32,
+) -> Vec<f32> {
     let bvh = BvhScene::new(&mesh.view()).expect("TriangleMesh keeps coordinates in range");
     let normals = mesh.vertex_normals();
-    let offset = ORIGIN_OFFSET * mesh.bounds().diagonal();
+    let offset = ray_offset;
     let bar = progress::bar(mesh.vertex_count() as u64, "baking", "vertices");
     let visibility = mesh
         .positions()
@@ -273,7 +276,7 @@ mod tests {
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
         )
         .unwrap();
-        let visibility = bake_visibility(&tetra, 64, f32::INFINITY);
+        let visibility = bake_visibility(&tetra, 64, f32::INFINITY, prt::default_ray_offset());
         assert!(visibility.iter().all(|&v| v == 1.0), "{visibility:?}");
         let text = format_text(&tetra, 64, f32::INFINITY, &visibility);
         assert_eq!(text.lines().count(), 5);
@@ -293,7 +296,7 @@ mod tests {
     fn concave_vertices_are_darker() {
         // The bunny's mean visibility is well below 1 and every value is in range.
         let bunny = crate::builtin::bunny().unwrap();
-        let visibility = bake_visibility(&bunny, 32, f32::INFINITY);
+        let visibility = bake_visibility(&bunny, 32, f32::INFINITY, prt::default_ray_offset());
         assert!(visibility.iter().all(|v| (0.0..=1.0).contains(v)));
         let mean = visibility.iter().sum::<f32>() / visibility.len() as f32;
         assert!(mean > 0.5 && mean < 0.98, "{mean}");

@@ -96,6 +96,7 @@ fn config(kind: Kind, bands: u32, args: &BenchTransferArgs) -> Result<BakeConfig
         albedo: 0.5,
         brdf: BrdfChoice::phong(EXPONENT)?,
         seed: SEED,
+        ray_offset: prt::default_ray_offset(),
     })
 }
 
@@ -230,7 +231,7 @@ fn ray_throughput(mesh: &TriangleMesh, args: &BenchTransferArgs, min_time: Durat
 /// the bake itself uses (`prt::bake_options`).
 fn the_bakes_rays(mesh: &TriangleMesh, config: &BakeConfig) -> Result<Vec<Ray>> {
     let normals = prt::unit_normals(mesh);
-    let options = prt::bake_options(mesh, config);
+    let options = prt::bake_options(config);
     // Reserved fallibly: `--rays` up to 65,536 on a large mesh is more rays than
     // memory holds, which must be an error, not an abort.
     let count = mesh

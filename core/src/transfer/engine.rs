@@ -91,8 +91,9 @@ fn validate(
     Ok((options.bands * options.bands) as usize)
 }
 
-/// What [`bake`] accepts as a normal.
-fn unit_normal(n: Vec3) -> bool {
+/// What [`bake`] accepts as a normal, and so what a bake file's loader accepts: every
+/// set a bake makes can be saved and loaded again.
+pub(super) fn unit_normal(n: Vec3) -> bool {
     n.is_finite() && (n.length() - 1.0).abs() < 1e-3
 }
 

@@ -382,8 +382,7 @@ impl TransferSet {
         let positions = to_vec3(take(3 * v, "positions")?);
         let normals = to_vec3(take(3 * v, "normals")?);
         for (i, n) in normals.iter().enumerate() {
-            let len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-            if (len2 - 1.0).abs() >= 2e-3 {
+            if !super::engine::unit_normal(glam::Vec3::from(*n)) {
                 return Err(FormatError::Value {
                     field: "normals",
                     index: i as u64,

@@ -777,6 +777,23 @@ fn bakes_are_deterministic_for_a_seed() {
 }
 
 #[test]
+fn every_normal_a_bake_accepts_loads_again() {
+    let scene = ground_and_box();
+    let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
+    let caster = BruteForceCaster::new(mesh);
+    // Lengths just inside the bake's tolerance (|length - 1| < 1e-3): the floats
+    // below 1.001, whose squares a loader testing |length² - 1| < 2e-3 refused.
+    let mut normals = scene.normals.clone();
+    for (i, n) in normals.iter_mut().enumerate() {
+        let ulps_below = 1 + (i % 4) as u32;
+        *n *= f32::from_bits(1.001f32.to_bits() - ulps_below);
+    }
+    let opts = options(Measurement::Diffuse, 2, 4);
+    let set = bake(&mesh, &normals, &caster, &opts).unwrap();
+    assert_eq!(TransferSet::from_bytes(&set.to_bytes()).unwrap(), set);
+}
+
+#[test]
 fn parallel_and_serial_bakes_agree_bit_for_bit() {
     let scene = ground_and_box();
     let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();

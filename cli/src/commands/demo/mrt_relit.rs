@@ -62,6 +62,7 @@ fn render(context: &DemoContext) -> Result<(image::RgbImage, String)> {
             albedo: 0.5,
             brdf: BrdfChoice::phong(EXPONENT)?,
             seed: 3,
+            ray_offset: prt::default_ray_offset(),
         })
     };
     let diffuse = prt::bake_mesh(&bunny, &config(Kind::Diffuse)?, false, None)?;
