@@ -5,7 +5,7 @@
 #               and pkg-config consumers, Embree cross-checks, the C ABI from Python
 #               (ctypes) against Embree
 # Each `test` step is also a target of its own (make clippy, make c-examples, ...).
-# Also: make install PREFIX=/usr/local [DESTDIR=...]   make docs
+# Also: make install PREFIX=/usr/local [DESTDIR=...]   make docs   make perf
 
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
@@ -26,7 +26,7 @@ TEST_STEPS := fmt clippy docs no-std cargo-test header oracle-selfcheck embree c
 PREFIX ?= /usr/local
 DESTDIR ?=
 
-.PHONY: demo test deps toolchain system-packages pyenv install doc c-docs $(TEST_STEPS) clean
+.PHONY: demo test deps toolchain system-packages pyenv install doc c-docs perf $(TEST_STEPS) clean
 
 demo:
 	$(CARGO) run --release -p antumbra-cli -- demo
@@ -120,6 +120,17 @@ c-examples:
 python-abi:
 	$(CARGO) build --release -p antumbra-ffi
 	$(ANTUMBRA_ORACLE_PYTHON) tests/oracle/test_ctypes_abi.py $(TARGET_DIR)/release/libantumbra.so
+
+# Every table of docs/performance.md (minutes; one core per figure, ratios against
+# baselines in the same run). Not part of `test`: timings are not assertions.
+ANTUMBRA := $(TARGET_DIR)/release/antumbra
+perf: pyenv
+	$(CARGO) build --release -p antumbra-cli
+	$(ANTUMBRA) bench raycast
+	$(ANTUMBRA) bench hemi
+	$(ANTUMBRA) bench hemi --mesh tests/data/armadillo.obj
+	$(ANTUMBRA) bench ssv --frame --passes 2
+	$(ANTUMBRA) bench transfer --bands 4,5,6,7
 
 clean:
 	$(CARGO) clean
