@@ -10,10 +10,10 @@
 //!   1, 2 and 3 (`antumbra_core::sh::phong_factor`), so 9 coefficients would cut it
 //!   down to a quadratic, a far wider lobe than exponent 32. The shadowed transfer
 //!   vectors carry band-3 content too (a crevice's horizon), which 9 coefficients
-//!   would drop. The price is small: a receiver's mask costs 50–200 µs, the
-//!   16-coefficient transfer, rotation and shading about a microsecond more than
-//!   with 9. (Side by side, the windowed diffuse pictures with 9 and 16 are hard to
-//!   tell apart; the glossy highlights are tighter with 16.)
+//!   would drop. The price is small: the 16-coefficient transfer, rotation and
+//!   shading cost little next to the receiver's mask. (Side by side, the windowed
+//!   diffuse pictures with 9 and 16 are hard to tell apart; the glossy highlights
+//!   are tighter with 16.)
 //! - The sky is windowed ([`hann_window`], 1, 0.90, 0.65, 0.35 per band). The
 //!   sunrise's sun is thousands of times brighter than the sky, and its band-limited
 //!   projection rings: unwindowed, the 16-coefficient radiance is negative in 53 %
@@ -29,13 +29,13 @@
 //!   ([`cluster_vertices`]) with cells of [`FAR_CELL_OF_DIAGONAL`] = 1/30 of the
 //!   diagonal; the near radius is [`NEAR_RADIUS_OF_DIAGONAL`] = 1/10 of it, three
 //!   cells, so the coarse surface never stands in for the receiver's own
-//!   neighbourhood. Measured on the bunny (diffuse + glossy under the sunrise,
-//!   exact masks, luminance relative to the mean): cells of 1/25 give 1,272
-//!   triangles and a mean difference from the full mesh of 0.42 % (p90 0.83 %)
-//!   at twice the speed; 1/40 gives 2,700 triangles, 0.16 %, 1.2 times the speed.
-//!   On the armadillo (52,000 triangles) 1/40 gives 3,106 triangles, 0.80 % (p90
-//!   2 %), about ten times the speed. 1/30 sits between: 1,718 triangles for the
-//!   bunny.
+//!   neighbourhood. Coarser cells make a cheaper far mesh and a larger error. On
+//!   the bunny (diffuse + glossy under the sunrise, exact masks, luminance
+//!   relative to the mean) cells of 1/25 give 1,272 triangles and a mean
+//!   difference from the full mesh of 0.42 % (p90 0.83 %); 1/40 gives 2,700
+//!   triangles, 0.16 %. On the armadillo (52,000 triangles) 1/40 gives 3,106
+//!   triangles, 0.80 % (p90 2 %). 1/30 sits between: 1,718 triangles for the
+//!   bunny. Speed with and without the far mesh: `antumbra bench hemi`.
 //! - Vertices move by a twist ([`Twist`]), a function of the rest position: the
 //!   far mesh's vertices, each the mean rest position of the full vertices merged
 //!   into it, are moved by the same function of their own rest positions, so both

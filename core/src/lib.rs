@@ -4,7 +4,7 @@
 //! engines. This crate is always `#![no_std]` + `alloc`, so it builds for
 //! microcontrollers (`thumbv7em-none-eabihf`) as well as for desktop engines.
 //!
-//! What is here today:
+//! Modules:
 //!
 //! - [`geom`]: validated triangle-mesh views ([`MeshView`]) over caller-owned,
 //!   possibly strided vertex data, and the receiver frame ([`Frame`]) every

@@ -102,7 +102,7 @@ fn camera_for(bounds: &crate::bounds::Bounds, width: usize, height: usize) -> Ca
 const RELIGHT_SUPERSAMPLING: usize = 3;
 
 /// Most framebuffer samples a relit picture may take (16 bytes each, so 1 GiB):
-/// `--size 8192` at 3×3 samples per pixel took 13 GB.
+/// `--size 8192` at 3×3 samples per pixel would take 13 GB.
 const RELIGHT_SAMPLE_BUDGET: usize = 1 << 26;
 
 /// The supersampling of a relit picture of `width` × `height` pixels: the most,

@@ -51,29 +51,21 @@
 //! counts equal the unclustered loop's (tests below, and `classify_four`'s
 //! against `TriangleCone::new` and the per-cell predicate).
 //!
-//! Measured (`antumbra bench hemi`, 400 vertex receivers, one thread of a 2-core
-//! VM shared with other builds, two runs, each beside the code before the
-//! chunks): on the bunny, clustered exact 29.7–31.3 µs per receiver (51–52
-//! before), table 46.6–48.5 (63–65), against 80–89 µs for Embree tracing the
-//! same 812 directions: 2.7–2.8× less time (1.6× before); the goal is
-//! 10×. On the armadillo (18,178 of 52,000 triangles rasterized per receiver)
-//! clustered exact takes 964 µs against Embree's 152 (one run): it needs the
-//! far mesh. Where the bunny's 30 µs go (stages cut off one at a time, best of
-//! 60 repetitions): 3.8 µs moving the vertices of the clusters not below the
-//! horizon into the frame (about 1,000),
-//! 1.7 µs culling their 1,240 triangles, about 13.5 µs classifying the 566
-//! above the horizon (about 125 vector operations per triangle: crosses,
-//! culling, three square roots and a division, the proven box, the 4 × 2
-//! windows) and about 10 µs for the rest one at a time (the 63 larger boxes,
-//! ORing the windows in, wide cones). Only about 72 of the 566 cones set any
-//! cell; 270 have no cell center in their proven box.
+//! Cost per receiver: moving the vertices of the clusters not below the horizon
+//! into the frame, culling their triangles, classifying those above the horizon
+//! (about 125 vector operations per triangle: crosses, culling, three square
+//! roots and a division, the proven box, the 4 × 2 windows; the largest part),
+//! and the rest one at a time (larger boxes, ORing the windows in, wide cones).
+//! Most cones above the horizon set no cell, and many have no cell center in
+//! their proven box. On a large mesh a receiver still sees a large share of the
+//! triangles above its horizon, which is what the far mesh is for. Figures:
+//! `antumbra bench hemi`.
 //!
 //! The far mesh (the bunny by vertex clustering on a 12³ grid, 902 triangles;
 //! near radius a tenth of the diagonal) changes the bunny's transfer vectors by
-//! 0.65 % on average (p90 2 %, max 7.5 %; `tests/tests/hemi_lod.rs`). A whole
-//! frame (every vertex, diffuse + glossy, 16 coefficients, clusters, exact;
-//! `antumbra bench hemi`): the bunny at 15.1–16.1 frames per second on one core
-//! (9.1–9.7 before the chunks), 20.9–21.4 with the far mesh (13.8–14.2).
+//! 0.65 % on average (p90 2 %, max 7.5 %; `tests/tests/hemi_lod.rs`). Whole-frame
+//! rates (every vertex, diffuse + glossy, with and without the far mesh) are
+//! printed by `antumbra bench hemi`.
 //!
 //! Invariants: everything per receiver is on the stack; the batch functions
 //! allocate nothing; they are safe to call from many threads at once (the scene is
@@ -261,8 +253,8 @@ struct Chunk {
 
 impl TriangleClusters {
     /// Triangles per cluster of the default grouping. On the bunny and the bumpy
-    /// sphere 16, 32 and 64 are within 5 % of each other (16 and 32 best), see
-    /// `lod_receiver_*` in `core/benches/hemi.rs`; 32 needs half the boxes of 16.
+    /// sphere 16, 32 and 64 cost about the same (`lod_receiver_*` in
+    /// `core/benches/hemi.rs`); 32 needs half the boxes of 16.
     pub const DEFAULT_SIZE: usize = 32;
 
     /// Groups the triangles of `mesh` into clusters of `triangles_per_cluster`

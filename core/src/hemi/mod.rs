@@ -28,29 +28,19 @@
 //! agree on every cell; the default table on 99.955 % (bunny), 99.974 % (teapot),
 //! 99.966 % (armadillo) and 99.866 % (soup).
 //!
-//! Cost (`cargo bench -p antumbra-core --features bvh --bench hemi`, one thread of
-//! a 2-core VM, 3,712-triangle bumpy sphere): about 120 ns per triangle
-//! rasterized exactly, 88 ns with the default table and 38 ns from the pure table
-//! (no exact edges); per receiver 109 µs exact, 89 µs with the default table and
-//! 60 µs with the pure one, against 238 µs for tracing the same 812 rays with
-//! [`BvhScene`](crate::raycast) (figures from before exact quality's proven
-//! boxes). Exact quality now decides most small cones from a cell box proven
-//! from the corners (or, for tiny cones, the rounded normals) alone, scaling
-//! the normals only when a cell center is within reach and testing the box's
-//! cells four at a time (see `TriangleCone::mask_exact`): on the bunny
-//! (`antumbra bench hemi`, 400 receivers, one thread, quiet machine) about
-//! 66 µs per receiver exact (was 107–109) and 74 µs with the table, 62 µs exact
-//! with 32-triangle clusters, against about 200 µs for the BVH and 80 µs for
-//! Embree. Per rasterized cone the proven box costs about 45 ns (a square
-//! root and a division per corner triple, latency-bound); the culling of the
-//! triangles below the horizon about 3 ns each. Since then both loops cull and
-//! box four cones at a time (`classify_four`, the same bits as one at a time):
-//! [`rasterize_receiver`] after moving each triangle's corners into the frame,
-//! the clustered loop of the batch functions ([`scene_mask`],
-//! [`TriangleClusters`]) after moving each vertex of a chunk once. On the
-//! bunny that is 47–48 µs per receiver exact without clusters and 30–31 µs
-//! with them, 2.7–2.8× less than Embree (figures and where the time goes in
-//! the `lod` module).
+//! Cost: per receiver, every triangle is read and culled against the horizon,
+//! and those above it are rasterized. Exact quality decides most small cones
+//! from a cell box proven from the corners (or, for tiny cones, the rounded
+//! normals) alone, scaling the normals only when a cell center is within reach
+//! and testing the box's cells four at a time (see `TriangleCone::mask_exact`).
+//! The proven box costs a square root and a division per corner triple and is
+//! latency-bound, so both loops cull and box four cones at a time
+//! (`classify_four`, the same bits as one at a time): [`rasterize_receiver`]
+//! after moving each triangle's corners into the frame, the clustered loop of
+//! the batch functions ([`scene_mask`], [`TriangleClusters`]) after moving each
+//! vertex of a chunk once (where the time goes: the `lod` module). Figures
+//! against the BVH and Embree: `antumbra bench hemi` and `cargo bench -p
+//! antumbra-core --features bvh --bench hemi`.
 //!
 //! Integration and shading (the rest of the paper's pipeline):
 //! [`TransferTable`] turns a mask into a local SH transfer vector with exact
@@ -145,7 +135,9 @@ pub enum Quality<'t> {
     /// predicate ([`half_space_mask`]).
     #[default]
     Exact,
-    /// Looked up in a precomputed table: a few wrong cells per edge, much faster.
+    /// Looked up in a precomputed table: a few wrong cells per edge. Not faster
+    /// than `Exact` on typical meshes, whose short edges it rasterizes exactly
+    /// anyway (`antumbra bench hemi` compares them).
     Table(&'t HalfSpaceTable),
 }
 

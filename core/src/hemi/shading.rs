@@ -21,10 +21,10 @@
 //!
 //! with `W_k(c)` the exact cell integrals of [`TransferTable`] and the lobe taken at
 //! the cell's center direction `d_c` ([`PhongLobe`]). Then, like the diffuse
-//! transfer, it is rotated to world space and dotted with the lighting. The
-//! alternative, evaluating the lighting at every cell (rotate the lighting into the
-//! local frame once, then `3N` multiply-adds per cell), costs three times the
-//! multiply-adds of this form (`N` per cell) and was not pursued.
+//! transfer, it is rotated to world space and dotted with the lighting. This
+//! form takes `N` multiply-adds per cell; evaluating the lighting at every cell
+//! (rotate the lighting into the local frame once, then `3N` per cell) would take
+//! three times as many.
 //!
 //! Accuracy: the lobe is sampled at cell centers, so the 32×32 grid (cells about
 //! 3.6° wide at the pole, stretched towards the horizon) limits the exponent it

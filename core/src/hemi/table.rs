@@ -24,9 +24,8 @@
 //! is then mapped back: rows reversed when `g.y < 0` (a shuffle in the fused AND
 //! loop), bits reversed when `g.x < 0`, complemented when `g = -m`. x86-64 has
 //! no bit-reverse instruction, and reversing at lookup time (about 20 SSE2
-//! operations per four rows) cost more than the memory saved (measured: 15–25 %
-//! slower per receiver with the pure table), so each mask is stored next to its
-//! bit-reversed copy: `n (n + 1) × 128` bytes. The octant holds a quarter of a
+//! operations per four rows) costs more than the memory saved, so each mask is
+//! stored next to its bit-reversed copy: `n (n + 1) × 128` bytes. The octant holds a quarter of a
 //! half sphere's normals, so with the copies the table takes half the memory of
 //! a half-sphere table of the same density. Entry `(k, l)` is at `2 (l (2n - l +
 //! 1) / 2 + k)`, its mirror next.
@@ -249,23 +248,22 @@ impl HalfSpaceTable {
     /// 2 MiB (with the bit-reversed copies); `max_error` 0.0167 rad, exact edges
     /// below 6.6° and above 13.4°.
     ///
-    /// Measured (one thread of the 2-core VM; `cargo test -p antumbra-core --lib
+    /// Accuracy by size (`cargo test -p antumbra-core --lib
     /// table_size_versus_wrong_cells -- --nocapture` for the wrong cells of 20,000
     /// random half-space masks against [`half_space_mask`], of 812 cells; `cargo
     /// test -p antumbra-tests --test embree_hemi -- --nocapture` for the agreement
     /// with Embree, 300 vertex receivers per mesh, in the order bunny / teapot /
-    /// armadillo / 5,000-triangle soup; µs per bunny receiver with the default
-    /// rule and with the pure table, exact 111 µs, from the same receivers' loop):
+    /// armadillo / 5,000-triangle soup):
     ///
-    /// | n   | memory  | max error | wrong cells mean / max | exact edges  | pure table: agreement %         | default rule: agreement %          | µs default / pure |
-    /// |-----|---------|-----------|------------------------|--------------|---------------------------------|------------------------------------|-------------------|
-    /// | 32  | 132 KiB | 0.0684    | 6.75 / 26              | all          | 98.62 / 99.11 / 84.09 / 96.78   | 100 / 100 / 100 / 100              | 79 / 67           |
-    /// | 45  | 259 KiB | 0.0482    | 4.71 / 19              | all          | 99.08 / 99.48 / 89.23 / 97.65   | 100 / 100 / 100 / 100              | 79 / 68           |
-    /// | 64  | 520 KiB | 0.0337    | 3.29 / 16              | all          | 99.47 / 99.69 / 93.25 / 98.28   | 100 / 100 / 100 / 100              | 79 / 68           |
-    /// | 91  | 1 MiB   | 0.0236    | 2.30 / 16              | < 9.4°, > 9.5° | 99.67 / 99.80 / 95.81 / 98.71 | 99.997 / 99.999 / 99.9996 / 99.997 | 80 / 70           |
-    /// | 128 | 2 MiB   | 0.0167    | 1.64 / 11              | < 6.6°, > 13.4° | 99.79 / 99.87 / 97.49 / 99.08 | 99.955 / 99.974 / 99.966 / 99.866 | 86 / 74          |
-    /// | 181 | 4 MiB   | 0.0118    | 1.16 / 10              | < 4.7°, > 19.0° | 99.88 / 99.93 / 98.58 / 99.36 | 99.943 / 99.970 / 99.950 / 99.805 | 94 / 82          |
-    /// | 256 | 8 MiB   | 0.0083    | 0.80 / 8               | < 3.3°, > 27.0° | 99.91 / 99.95 / 99.20 / 99.53 | 99.940 / 99.967 / 99.950 / 99.769 | 110 / 102        |
+    /// | n   | memory  | max error | wrong cells mean / max | exact edges  | pure table: agreement %         | default rule: agreement %          |
+    /// |-----|---------|-----------|------------------------|--------------|---------------------------------|------------------------------------|
+    /// | 32  | 132 KiB | 0.0684    | 6.75 / 26              | all          | 98.62 / 99.11 / 84.09 / 96.78   | 100 / 100 / 100 / 100              |
+    /// | 45  | 259 KiB | 0.0482    | 4.71 / 19              | all          | 99.08 / 99.48 / 89.23 / 97.65   | 100 / 100 / 100 / 100              |
+    /// | 64  | 520 KiB | 0.0337    | 3.29 / 16              | all          | 99.47 / 99.69 / 93.25 / 98.28   | 100 / 100 / 100 / 100              |
+    /// | 91  | 1 MiB   | 0.0236    | 2.30 / 16              | < 9.4°, > 9.5° | 99.67 / 99.80 / 95.81 / 98.71 | 99.997 / 99.999 / 99.9996 / 99.997 |
+    /// | 128 | 2 MiB   | 0.0167    | 1.64 / 11              | < 6.6°, > 13.4° | 99.79 / 99.87 / 97.49 / 99.08 | 99.955 / 99.974 / 99.966 / 99.866 |
+    /// | 181 | 4 MiB   | 0.0118    | 1.16 / 10              | < 4.7°, > 19.0° | 99.88 / 99.93 / 98.58 / 99.36 | 99.943 / 99.970 / 99.950 / 99.805 |
+    /// | 256 | 8 MiB   | 0.0083    | 0.80 / 8               | < 3.3°, > 27.0° | 99.91 / 99.95 / 99.20 / 99.53 | 99.940 / 99.967 / 99.950 / 99.769 |
     ///
     /// Wrong cells per mask halve when the memory quadruples (they lie in a band
     /// along the plane as wide as the error). The pure table needs 8 MiB to pass
@@ -312,7 +310,7 @@ impl HalfSpaceTable {
                 masks.push(mask);
                 // The u mirror, the mask of (-k, l, n-1-k-l), stored alongside:
                 // x86-64 has no bit-reverse instruction, and reversing rows at
-                // lookup time cost more than the extra memory (measured).
+                // lookup time costs more than the extra memory.
                 masks.push(HemiMask {
                     rows: mask.rows.map(u32::reverse_bits),
                 });

@@ -862,7 +862,7 @@ fn batched_receiver_loop_is_the_one_triangle_loop() {
 /// A square of side 20 s at height s above the receiver at the origin: corners
 /// about 1e-19 away for s = 1e-20 made `(a×b)·c` underflow to zero, and the
 /// triangles were culled as degenerate while the rays still hit them (beyond
-/// about 7e12 it overflowed). The corners are now moved into a frame scaled
+/// about 7e12 it overflowed). The corners are moved into a frame scaled
 /// by a power of two per receiver.
 #[test]
 fn meshes_of_extreme_size_rasterize_like_rays() {

@@ -56,32 +56,26 @@
 //! World space: a local vector `T` is turned into world coefficients by the SH
 //! rotation of the frame matrix `[t b n]` ([`TransferRotation`]), after which
 //! diffuse shading is `(albedo/π) Σ_k T_k l_k` per colour channel ([`shade_diffuse`])
-//! with `l` the world-space SH coefficients of incident radiance. The alternative,
-//! rotating the three lighting channels into the local frame, costs the same per
-//! vertex within the bench's noise (129 vs 126 ns at 9 coefficients, 643 vs 636 ns
-//! at 16): building the band matrices of the rotation dominates, not applying them.
-//! Rotating the transfer is kept because it is one vector for diffuse and two with
-//! glossy, against three lighting channels, and because world-space transfer
+//! with `l` the world-space SH coefficients of incident radiance. Rotating the
+//! three lighting channels into the local frame instead would cost about the same
+//! per vertex (building the band matrices of the rotation dominates, not applying
+//! them); the transfer is rotated because it is one vector for diffuse and two
+//! with glossy, against three lighting channels, and because world-space transfer
 //! vectors are what callers store.
 //!
-//! Measured (`cargo bench -p antumbra-core --features bvh --bench hemi --
-//! transfer`, one thread of a 2-core VM; per mask; "receivers" = exact masks of
-//! vertex receivers on a bumpy sphere, 137 of 812 cells occluded on average,
-//! "half planes" = random half-space masks, 406 on average):
-//!
-//! | method                   | memory, N = 9 / 16   | ns, N = 9 receivers / half planes | N = 16       |
-//! |--------------------------|----------------------|-----------------------------------|--------------|
-//! | per-cell sum (`Cells`)   | 39 KB / 70 KB        | 98 / 222                          | 95 / 251     |
-//! | byte LUT                 | + 1.18 MB / 2.10 MB  | 45 / 59                           | 47 / 66      |
-//! | nibble LUT               | + 74 KB / 131 KB     | 62 / 86                           | 67 / 106     |
-//! | downsampled 8×8          | (in the table)       | 31 / 39                           | 30 / 39      |
+//! Memory at N = 9 / 16: the per-cell sum's table 39 KB / 70 KB (the
+//! downsampled mode's block integrals included); the byte LUT adds 1.18 MB /
+//! 2.10 MB, the nibble LUT 74 KB / 131 KB. Per mask the per-cell sum reads the
+//! fewer of the occluded and unoccluded cells, the LUTs one entry per non-zero
+//! chunk, the downsampled mode 64 coverage values (figures: `cargo bench -p
+//! antumbra-core --features bvh --bench hemi -- transfer`).
 //!
 //! The choice: the per-cell sum ([`TransferMethod::Cells`]) is the recommended
-//! method. Every method costs a fraction of a microsecond, against
-//! 50–120 µs for the receiver's mask itself, so the byte LUT saves at most 0.2 %
-//! of a receiver's time while its 1–2 MB compete in cache with the 2 MiB half-space
-//! table. The LUT is there for callers who integrate masks produced elsewhere in
-//! bulk. Building a table takes 4.8 ms (N = 9) and 6.7 ms (N = 16).
+//! method. Every method costs a small fraction of the receiver's mask itself, so
+//! the byte LUT saves little of a receiver's time while its 1–2 MB compete in
+//! cache with the 2 MiB half-space table. The LUT is there for callers who
+//! integrate masks produced elsewhere in bulk. Building a table takes a few
+//! milliseconds.
 //!
 //! Invariants: tables are built once and only read afterwards (share them between
 //! threads); every per-receiver operation is allocation-free and works on
@@ -321,9 +315,8 @@ impl<const N: usize> TransferTable<N> {
 /// lookups per mask; 4-bit chunks ([`TransferLut::with_chunk_bits`]) need 16×
 /// less memory (74, 131, 205 KB) and at most 256 lookups. The result equals
 /// [`TransferTable::transfer`] up to `f32` rounding of the pre-summed entries.
-/// Measured: 45–66 ns per mask with bytes and 62–106 ns with nibbles, against
-/// 95–251 ns for the per-cell sum (table in the module docs of `hemi::transfer`,
-/// `core/src/hemi/transfer.rs`).
+/// Both chunk sizes are cheaper per mask than the per-cell sum, bytes more so
+/// (costs in the module docs of `hemi::transfer`, `core/src/hemi/transfer.rs`).
 #[derive(Clone, PartialEq)]
 pub struct TransferLut<const N: usize> {
     table: TransferTable<N>,

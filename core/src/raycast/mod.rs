@@ -189,8 +189,8 @@ impl PreparedRay {
     /// [`Self::intersect`] with the permuted axes `[kx, ky, kz]` (`self.axes`).
     /// The corners are indexed as arrays: an array indexed by a run-time axis is a
     /// load, a `Vec3` so indexed a chain of branches per coordinate (and one copy
-    /// of the test per permutation, the previous cure, still paid an
-    /// unpredictable branch per ray).
+    /// of the test per permutation would still pay an unpredictable branch per
+    /// ray).
     #[inline(always)]
     fn intersect_in(
         &self,

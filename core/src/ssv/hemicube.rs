@@ -41,18 +41,11 @@
 //!
 //! Resolution: [`SsvOptions::hemicube_resolution`](super::SsvOptions) cells per
 //! face side, default 64. Finer cells cut the lists towards the wedges that
-//! really hold the receiver's whole direction line, at memory growing as the
-//! square. Measured on the bench's bumpy-sphere scene (`core/benches/ssv.rs`
-//! as of commit fe4cd60, which swept the resolution): 16², 32², 64², 128² cells
-//! gave 405, 273, 213, 182 candidates per query at light tilt 0 (137 KiB to
-//! 3 MB) and 182, 108, 77, 62 at tilt 1.4. A coarser default would make the baseline slower than it needs
-//! to be, a finer one spends more memory than the 2006 hierarchy it is
-//! compared with.
-//!
-//! Before this rasterisation the structure listed an edge on a whole face
-//! whenever its cone only partly faced it, and on the bounding rectangle of
-//! the generators' projections otherwise, with no silhouette-region cut:
-//! 994–2,459 candidates per query and 53–71 MB on the benchmark scene.
+//! really hold the receiver's whole direction line, with diminishing returns,
+//! at memory growing as the square. A coarser default would make the baseline
+//! slower than it needs to be, a finer one spends more memory than the 2006
+//! hierarchy it is compared with (candidates per query and memory: `cargo
+//! bench -p antumbra-core --features bvh --bench ssv`).
 
 use alloc::vec;
 use alloc::vec::Vec;

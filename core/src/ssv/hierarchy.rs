@@ -599,9 +599,8 @@ const POSITIONS_AHEAD: usize = 4;
 /// Visits the edges of `slots` (`of_slot` maps a slot to its edge) in order, asking the cache ahead of time for what each
 /// visit reads first: a leaf's candidates are scattered over the mesh, and
 /// the chain edge record → endpoint positions is two dependent misses per
-/// candidate (measured with `perf`: the largest single stall of a query).
-/// The second stage reads only records the first one requested. (Requesting
-/// the third vertices' positions as well measured no better.)
+/// candidate (the largest single stall of a query). The second stage reads
+/// only records the first one requested.
 #[inline(always)]
 fn visit_prefetched(graph: &EdgeGraph, of_slot: &[u32], slots: &[u32], mut visit: impl FnMut(u32)) {
     for (i, &slot) in slots.iter().enumerate() {

@@ -172,8 +172,8 @@ pub const MAX_SAMPLES: usize = 1024;
 const COMMON_SAMPLES: usize = 256;
 
 /// Runs `f` on `n` zeroed counters on the stack (`n <= MAX_SAMPLES`). Only
-/// what is used is zeroed: clearing all of [`MAX_SAMPLES`] (4 KiB) took about
-/// 2 % of a bunny query at 256 samples.
+/// what is used is zeroed: clearing all of [`MAX_SAMPLES`] (4 KiB) would be a
+/// noticeable share of a query at 256 samples.
 #[inline(always)]
 fn with_counters<R>(n: usize, f: impl FnOnce(&mut [i32]) -> R) -> R {
     if n <= COMMON_SAMPLES {
@@ -916,7 +916,7 @@ impl SoftShadows {
             }
             // Counters are in angular order, bits in the caller's: gathered
             // branch-free through the inverse order (a scattered, branchy
-            // store per sample took 40 % of a query of a lit receiver).
+            // store per sample costs far more on a lit receiver).
             for (w, word) in bits.iter_mut().enumerate() {
                 let rank = &self.rank[64 * w..(64 * w + 64).min(n)];
                 *word = rank.iter().enumerate().fold(0u64, |acc, (j, &k)| {

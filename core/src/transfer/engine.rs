@@ -527,11 +527,10 @@ fn gather_n<C: RayCaster + ?Sized, const N: usize>(
 mod tests {
     use super::*;
 
-    /// The CLI review's MRT bake at grid 64 and 8 bands on 25,600 vertices
-    /// (26.8 GB) aborted on the allocation; the buffers are now reserved
-    /// fallibly. A size that overflows, or that no allocator can give, is an
-    /// error (a real out-of-memory depends on the machine, so it is not
-    /// provoked here).
+    /// An MRT bake at grid 64 and 8 bands on 25,600 vertices needs 26.8 GB, so
+    /// the buffers are reserved fallibly: a size that overflows, or that no
+    /// allocator can give, is an error (a real out-of-memory depends on the
+    /// machine, so it is not provoked here).
     #[test]
     fn buffers_too_large_to_allocate_are_an_error() {
         assert_eq!(zeros(None), Err(BakeError::TooLarge { bytes: u64::MAX }));

@@ -83,7 +83,7 @@
 //! [`format`]) validates everything and never panics or allocates more than the
 //! input's length allows.
 //!
-//! ## Measured
+//! ## Accuracy and cost
 //!
 //! Accuracy (`cargo test -p antumbra-core --all-features --lib transfer -- --nocapture`):
 //!
@@ -106,44 +106,18 @@
 //!   K = 16, 0 at K = 32 (the data's rank); memory `4 (D (K + 1) + V K)` bytes
 //!   ([`TransferSet::pca_levels`]).
 //!
-//! Cost (`cargo bench -p antumbra-core --features bvh --bench transfer`, one thread
-//! of a shared 2-core Xeon VM, divan medians, ns per vertex, RGB; the batch is
-//! [`TransferSet::shade`] over a 2,112-vertex mesh with its per-call work, the
-//! kernels are the per-vertex functions with frames and views precomputed, data in
-//! cache (32 vertices) / streamed (2,048)):
-//!
-//! | 4 / 5 / 6 bands                     | batch `shade`      | kernel, in cache   | kernel, streamed    |
-//! |-------------------------------------|--------------------|--------------------|---------------------|
-//! | diffuse PRT                         | 7.8 / 12.5 / 16.4  | 7.7 / 12.0 / 17.1  | 7.5 / 11.6 / 16.9   |
-//! | glossy SH, view-first `(Tᵀw)·l`     | 20.7 / 40.9 / 88.2 | 30.8 / 64.2 / 99.6 | 32.6 / 106 / 214    |
-//! | glossy SH, textbook `T·l`           |                    | 170 / 383 / 771    | 170 / 422 / 870     |
-//! | MRT 12×12                           | 10.3 / 13.1 / 13.9 | 32.3 / 37.2 / 38.9 | 36.8 / 59.2 / 77.5  |
-//! | MRT from PCA, K = 4                 | 13.9 / 14.4 / 14.8 | 31.6 (5 bands)     |                     |
-//!
-//! Through the batch entry, MRT is 2.0× / 3.1× / 6.3× cheaper per vertex than the
-//! view-first glossy SH transfer at 4 / 5 / 6 bands (PCA K = 4: 1.5× / 2.8× /
-//! 6.0×), and 29× cheaper than the textbook form at 5 bands; the design's 5×
-//! holds from 6 bands on, not at 5. Per vertex, MRT's cost is not its `7n`
-//! multiply-adds but a fixed part: the view's tap (frame, hemi-octahedral cell:
-//! ~13 ns alone in a loop) and four rows read at view-dependent places (14 KB
-//! per vertex at 12×12 and 25 coefficients, so streamed from memory). The batch
-//! computes the taps of 32 vertices before reading rows, which overlaps those
-//! chains; the single-vertex kernel cannot (37 ns in cache). Per frame, PCA adds
-//! `K + 1` products of a `G² × n` matrix with the lighting: 4.4 µs at K = 4
-//! (12×12, 25 coefficients). Bake (`bake/*`, 4,096-triangle bumpy sphere, 3 bands,
-//! one thread): 1.43 M occlusion rays/s (0 bounces), 1.48 M rays/s with one
-//! closest-hit bounce (SH work included); before the fixed-band gather 1.13 M and
-//! 1.09 M in the same session. `antumbra bench transfer` casts exactly the
-//! bake's rays ([`bake_rays`]) through obvhs and Embree: on the built-in bunny,
-//! 64 rays per vertex, one thread, three runs gave bake / obvhs alone 0.89, 0.91,
-//! 0.89 (the bake loop's own cost is ~10 % of its time) and bake / Embree 0.54,
-//! 0.57 and 0.29 (e.g. 1.76 M vs 1.93 M vs 3.11 M rays/s; Embree is timed in its
-//! own process, so the shared machine's load hits the two differently). Later
-//! (2026-12-01), with each BVH leaf's triangles tested in lanes and the bake
-//! timed as the fastest of as many passes per round as Embree, three runs gave
-//! bake / Embree 0.53, 0.58 and 0.62 on the bunny (e.g. 3.45 M vs 5.58 M rays/s)
-//! and 0.59 on the armadillo: within the 2× goal. Compare figures only within
-//! one run.
+//! Cost: glossy SH grows as `n²` multiply-adds per vertex and MRT as `7n`, so
+//! MRT gains with every band. MRT's per-vertex cost is dominated by a fixed part
+//! rather than its multiply-adds: the view's tap (frame, hemi-octahedral cell)
+//! and four rows read at view-dependent places (14 KB per vertex at 12×12 and 25
+//! coefficients, so streamed from memory). The batch ([`TransferSet::shade`])
+//! computes the taps of 32 vertices before reading rows, to overlap those
+//! chains; the single-vertex kernel cannot. Per frame, PCA adds `K + 1` products
+//! of a `G² × n` matrix with the lighting. A bake's time is mostly its rays, cast
+//! through the caster it is given. Figures: `cargo bench -p antumbra-core
+//! --features bvh --bench transfer` (kernels and batch shading, bake) and
+//! `antumbra bench transfer` (the bake against obvhs and Embree casting the same
+//! rays, [`bake_rays`]).
 
 mod engine;
 pub mod format;

@@ -325,7 +325,7 @@ mod tests {
     fn taps_are_scale_invariant_and_finite_for_every_finite_view() {
         // A view whose |x| + |y| + z overflows f32 gave no tap (zero radiance),
         // and one shorter than the smallest normal float NaN weights (1/|v|
-        // overflowed, and 0 · ∞ is NaN): both now take the f64 map.
+        // overflowed, and 0 · ∞ is NaN): both take the f64 map.
         let unit = mrt_tap(8, Vec3::new(1.0, 0.25, 1.0)).unwrap();
         // Powers of two, so the direction is exact (2^-147 · 0.25 is the
         // smallest subnormal); 2^127 overflows the sum.

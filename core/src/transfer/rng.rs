@@ -32,7 +32,7 @@ pub(crate) struct Stratified {
     /// `1 / side`, once per vertex rather than once per point.
     inverse_side: f32,
     /// Column and row of the next grid point, `next % side` and `next / side`
-    /// kept by counting (an integer division per point was measurable in bakes).
+    /// kept by counting (an integer division per point costs measurably in bakes).
     column: u32,
     row: u32,
 }

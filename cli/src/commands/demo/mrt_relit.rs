@@ -23,10 +23,10 @@ use crate::error::{Error, Result};
 use crate::picture::HdrImage;
 use crate::prt::{self, BakeConfig, BrdfChoice, Kind};
 
-/// Rays per vertex of both bakes: few, the demo must stay quick (about a second
-/// for both in release on 2 cores); the bake's noise is then a few percent (the
-/// `embree_transfer` test measures 2.7 % relative RMS for the diffuse transfer at
-/// 256 rays; at 64 rays, 8 %, the glaze looked blotchy).
+/// Rays per vertex of both bakes: few, the demo must stay quick; the bake's
+/// noise is then a few percent (the `embree_transfer` test measures 2.7 %
+/// relative RMS for the diffuse transfer at 256 rays; at 64 rays the error is
+/// about 8 % and the glaze looks blotchy).
 const RAYS: u32 = 256;
 
 /// Rotation of the sky about +Y in each frame, degrees.
