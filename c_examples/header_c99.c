@@ -118,7 +118,7 @@ extern const struct antumbra_hemi_options antumbra_header_c99_hemi_options;
 const antumbra_hemi_options antumbra_header_c99_hemi_options = {ANTUMBRA_HEMI_QUALITY_EXACT, 0, 0.0f, 0, NULL};
 extern const struct antumbra_hemi_shading_options antumbra_header_c99_hemi_shading_options;
 const antumbra_hemi_shading_options antumbra_header_c99_hemi_shading_options = {
-    {ANTUMBRA_HEMI_QUALITY_EXACT, 0, 0.0f, 0, NULL}, 3, ANTUMBRA_HEMI_METHOD_CELLS, ANTUMBRA_HEMI_SPACE_WORLD, 1.0f};
+    {ANTUMBRA_HEMI_QUALITY_EXACT, 0, 0.0f, 0, NULL}, 3, ANTUMBRA_HEMI_METHOD_CELLS, ANTUMBRA_HEMI_SPACE_WORLD, 1.0f, 0, 0};
 extern const struct antumbra_hemi_material antumbra_header_c99_hemi_material;
 const antumbra_hemi_material antumbra_header_c99_hemi_material = {
     {1.0f, 1.0f, 1.0f}, {0.0f, 0.0f, 0.0f}, 16.0f, {0.0f, 0.0f, 0.0f}, NULL, NULL};

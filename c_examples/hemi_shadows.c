@@ -5,8 +5,9 @@
  *
  * A torus with an elliptical cross-section is generated here and deformed on the
  * C side every frame (the cross-section twists along the ring, the ring breathes
- * and waves), as a skinned or simulated mesh would be; a coarser torus, deformed
- * the same way, stands in for it beyond a near radius (the far mesh). Per frame:
+ * and waves), as a skinned or simulated mesh would be. Beyond a near radius a far
+ * mesh stands in for it, which the library makes from the rest pose (the
+ * far_triangles option) and moves with the positions passed every frame. Per frame:
  *
  *   - antumbra_hemi_rasterize gives the 32x32 visibility mask above every vertex,
  *     from which this program computes ambient visibility and decides which
@@ -55,14 +56,9 @@
 #define TRIANGLE_COUNT (2 * RINGS * SIDES)
 #define FRAMES 3
 
-/* The far mesh: the same torus, a third of the rings and half the sides. */
-#define FAR_RINGS 16
-#define FAR_SIDES 8
-#define FAR_VERTEX_COUNT (FAR_RINGS * FAR_SIDES)
-#define FAR_TRIANGLE_COUNT (2 * FAR_RINGS * FAR_SIDES)
-/* Occluders within this distance of a vertex come from the full mesh: about two
- * far-mesh edges along the ring (0.39 each), more than the tube's width. */
-#define NEAR_RADIUS 0.8f
+/* The far mesh the library makes: about a sixth of the triangles. The near radius
+ * is the library's rule for its own far mesh (near_radius left at +INFINITY). */
+#define FAR_TRIANGLES 256
 
 /* SH lighting: 5 bands (25 coefficients per channel), enough for a glossy lobe. */
 #define SH_BANDS 5
@@ -170,11 +166,6 @@ typedef struct mesh {
     float normals[3 * VERTEX_COUNT];
     uint32_t indices[3 * TRIANGLE_COUNT];
 } mesh;
-
-typedef struct far_mesh {
-    float positions[3 * FAR_VERTEX_COUNT];
-    uint32_t indices[3 * FAR_TRIANGLE_COUNT];
-} far_mesh;
 
 static uint32_t torus_index(int rings, int sides, int ring, int side)
 {
@@ -599,11 +590,10 @@ typedef struct shaded {
 } shaded;
 
 static double shade_timed(antumbra_hemi_shader *shader, const antumbra_mesh_view *view, const mesh *m,
-                          const antumbra_mesh_view *far_view, const float *sky_sh,
-                          const antumbra_hemi_material *material, shaded *out, const char *what)
+                          const float *sky_sh, const antumbra_hemi_material *material, shaded *out, const char *what)
 {
     const double start = now_ms();
-    check(antumbra_hemi_shader_shade(shader, view, m->normals, far_view, sky_sh, material, out->rgb, out->diffuse,
+    check(antumbra_hemi_shader_shade(shader, view, m->normals, NULL, sky_sh, material, out->rgb, out->diffuse,
                                      out->glossy),
           what);
     return now_ms() - start;
@@ -929,22 +919,21 @@ int main(int argc, char **argv)
     antumbra_hemi_mask *exact = checked_malloc(VERTEX_COUNT * sizeof *exact);
     antumbra_hemi_mask *table = checked_malloc(VERTEX_COUNT * sizeof *table);
     antumbra_hemi_mask *own_table = checked_malloc(VERTEX_COUNT * sizeof *own_table);
-    far_mesh *far = checked_malloc(sizeof *far);
     shaded *full = checked_malloc(sizeof *full);
     shaded *lod = checked_malloc(sizeof *lod);
     antumbra_hemi_table *handle = NULL;
-    antumbra_hemi_shader *shader = NULL;
+    antumbra_hemi_shader *shader = NULL, *full_shader = NULL;
     antumbra_hemi_options options;
     antumbra_hemi_shading_options shading_options;
     antumbra_hemi_material material;
-    antumbra_mesh_view view, far_view;
+    antumbra_mesh_view view;
     float sky_sh[3 * SH_COEFFS];
     double table_agreement = 0.0, ms_far_total = 0.0, ms_full_total = 0.0;
     int frame, covered;
 
     check_version();
-    printf("hemi_shadows: antumbra %s, torus of %d vertices and %d triangles (far mesh: %d and %d), %d frames\n",
-           antumbra_version_string(), VERTEX_COUNT, TRIANGLE_COUNT, FAR_VERTEX_COUNT, FAR_TRIANGLE_COUNT, FRAMES);
+    printf("hemi_shadows: antumbra %s, torus of %d vertices and %d triangles (far mesh: about %d), %d frames\n",
+           antumbra_version_string(), VERTEX_COUNT, TRIANGLE_COUNT, FAR_TRIANGLES, FRAMES);
 
     load_cells(c);
     check_sky_sh(c);
@@ -975,22 +964,17 @@ int main(int argc, char **argv)
         }
     }
 
-    /* One shader for the whole animation, created from the rest pose with the
-     * far mesh; every frame passes the current positions. */
-    build_torus_indices(far->indices, FAR_RINGS, FAR_SIDES);
-    far_view.positions = far->positions;
-    far_view.vertex_count = FAR_VERTEX_COUNT;
-    far_view.position_stride = 0;
-    far_view.indices = far->indices;
-    far_view.triangle_count = FAR_TRIANGLE_COUNT;
+    /* Two shaders for the whole animation, created from the rest pose: one with
+     * the library's far mesh, one with the full mesh everywhere (to compare);
+     * every frame passes the current positions. */
     antumbra_hemi_shading_options_init(&shading_options);
     if (antumbra_last_error_message()[0] != '\0' || memcmp(&shading_options.raster, &options, sizeof options) != 0 ||
         shading_options.bands != 3 || shading_options.method != ANTUMBRA_HEMI_METHOD_CELLS ||
-        shading_options.space != ANTUMBRA_HEMI_SPACE_WORLD || shading_options.near_radius != INFINITY) {
+        shading_options.space != ANTUMBRA_HEMI_SPACE_WORLD || shading_options.near_radius != INFINITY ||
+        shading_options.far_triangles != 0 || shading_options.reserved != 0) {
         fail("antumbra_hemi_shading_options_init did not write the documented defaults");
     }
     shading_options.bands = SH_BANDS;
-    shading_options.near_radius = NEAR_RADIUS;
     antumbra_hemi_material_init(&material);
     if (antumbra_last_error_message()[0] != '\0' || material.albedo[0] != 1.0f || material.specular[0] != 0.0f ||
         material.exponent != 16.0f || material.vertex_albedo != NULL || material.view_directions != NULL) {
@@ -1001,9 +985,11 @@ int main(int argc, char **argv)
     material.exponent = GLOSSY_EXPONENT;
     store3(material.eye, CAMERA_EYE);
     deform(m, 0.0f);
-    deform_torus(far->positions, FAR_RINGS, FAR_SIDES, 0.0f);
-    check(antumbra_hemi_shader_create(&view, &far_view, &shading_options, &shader), "antumbra_hemi_shader_create");
-    if (shader == NULL) {
+    check(antumbra_hemi_shader_create(&view, NULL, &shading_options, &full_shader), "antumbra_hemi_shader_create");
+    shading_options.far_triangles = FAR_TRIANGLES;
+    check(antumbra_hemi_shader_create(&view, NULL, &shading_options, &shader),
+          "antumbra_hemi_shader_create (far_triangles)");
+    if (shader == NULL || full_shader == NULL) {
         fail("antumbra_hemi_shader_create returned OK and a NULL shader");
     }
 
@@ -1014,7 +1000,6 @@ int main(int argc, char **argv)
         int v;
 
         deform(m, time);
-        deform_torus(far->positions, FAR_RINGS, FAR_SIDES, time);
         compute_normals(m);
         ms = rasterize_timed(&view, m, &options, exact, "antumbra_hemi_rasterize (exact)");
         read_masks(m, c, exact, sun, s);
@@ -1038,9 +1023,9 @@ int main(int argc, char **argv)
         }
 
         /* Shaded under the sky, diffuse + glossy, on this thread. */
-        ms_far = shade_timed(shader, &view, m, &far_view, sky_sh, &material, lod,
+        ms_far = shade_timed(shader, &view, m, sky_sh, &material, lod,
                              "antumbra_hemi_shader_shade (far mesh)");
-        ms_full = shade_timed(shader, &view, m, NULL, sky_sh, &material, full,
+        ms_full = shade_timed(full_shader, &view, m, sky_sh, &material, full,
                               "antumbra_hemi_shader_shade (full mesh)");
         ms_far_total += ms_far;
         ms_full_total += ms_full;
@@ -1051,7 +1036,7 @@ int main(int argc, char **argv)
         check_plausible(frame, m, exact, s, lod, "far mesh");
         compare_far(frame, full, lod);
         if (frame == 0) {
-            check_transfer(shader, &view, m, sky_sh, full, s);
+            check_transfer(full_shader, &view, m, sky_sh, full, s);
         }
     }
     printf("hemi_shadows: shading every vertex on one thread: %.2f ms per frame (%.1f us per vertex) with the far "
@@ -1059,6 +1044,7 @@ int main(int argc, char **argv)
            ms_far_total / FRAMES, 1e3 * ms_far_total / FRAMES / VERTEX_COUNT, ms_full_total / FRAMES,
            1e3 * ms_full_total / FRAMES / VERTEX_COUNT);
     antumbra_hemi_shader_destroy(shader);
+    antumbra_hemi_shader_destroy(full_shader);
 
     /* The last frame again with the table quality: the library's shared table on
      * its worker threads, and a table of our own (same resolution) on this thread;
@@ -1099,7 +1085,6 @@ int main(int argc, char **argv)
 
     free(lod);
     free(full);
-    free(far);
     free(own_table);
     free(table);
     free(exact);

@@ -73,12 +73,14 @@ _Static_assert(offsetof(antumbra_hemi_options, table) == 16, "hemi_options.table
 _Static_assert(sizeof(antumbra_hemi_options) == 16 + sizeof(void *), "hemi_options size");
 _Static_assert(alignof(antumbra_hemi_options) == alignof(void *), "hemi_options alignment");
 
-/* ---- antumbra_hemi_shading_options: the raster options, then four 4-byte fields ---- */
+/* ---- antumbra_hemi_shading_options: the raster options, then six 4-byte fields ---- */
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, raster, antumbra_hemi_options), "raster type");
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, bands, uint32_t), "bands type");
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, method, uint32_t), "method type");
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, space, uint32_t), "space type");
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, near_radius, float), "near_radius type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, far_triangles, uint32_t), "far_triangles type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, reserved, uint32_t), "reserved type");
 _Static_assert(offsetof(antumbra_hemi_shading_options, raster) == 0, "shading_options.raster offset");
 _Static_assert(offsetof(antumbra_hemi_shading_options, bands) == sizeof(antumbra_hemi_options),
                "shading_options.bands offset");
@@ -88,7 +90,11 @@ _Static_assert(offsetof(antumbra_hemi_shading_options, space) == sizeof(antumbra
                "shading_options.space offset");
 _Static_assert(offsetof(antumbra_hemi_shading_options, near_radius) == sizeof(antumbra_hemi_options) + 12,
                "shading_options.near_radius offset");
-_Static_assert(sizeof(antumbra_hemi_shading_options) == sizeof(antumbra_hemi_options) + 16, "shading_options size");
+_Static_assert(offsetof(antumbra_hemi_shading_options, far_triangles) == sizeof(antumbra_hemi_options) + 16,
+               "shading_options.far_triangles offset");
+_Static_assert(offsetof(antumbra_hemi_shading_options, reserved) == sizeof(antumbra_hemi_options) + 20,
+               "shading_options.reserved offset");
+_Static_assert(sizeof(antumbra_hemi_shading_options) == sizeof(antumbra_hemi_options) + 24, "shading_options size");
 _Static_assert(alignof(antumbra_hemi_shading_options) == alignof(void *), "shading_options alignment");
 
 /* ---- antumbra_hemi_material: ten floats, then two pointers ---- */
@@ -263,7 +269,8 @@ _Static_assert(sizeof(antumbra_hemi_options) == 24, "LP64 hemi_options size");
 _Static_assert(alignof(antumbra_hemi_options) == 8, "LP64 hemi_options alignment");
 _Static_assert(offsetof(antumbra_hemi_shading_options, bands) == 24, "LP64 shading_options.bands");
 _Static_assert(offsetof(antumbra_hemi_shading_options, near_radius) == 36, "LP64 shading_options.near_radius");
-_Static_assert(sizeof(antumbra_hemi_shading_options) == 40, "LP64 shading_options size");
+_Static_assert(offsetof(antumbra_hemi_shading_options, far_triangles) == 40, "LP64 shading_options.far_triangles");
+_Static_assert(sizeof(antumbra_hemi_shading_options) == 48, "LP64 shading_options size");
 _Static_assert(offsetof(antumbra_hemi_material, view_directions) == 48, "LP64 material.view_directions");
 _Static_assert(sizeof(antumbra_hemi_material) == 56, "LP64 material size");
 _Static_assert(sizeof(antumbra_transfer_info) == 64, "LP64 transfer_info size");
@@ -280,7 +287,8 @@ _Static_assert(sizeof(antumbra_hemi_options) == 20, "ILP32 hemi_options size");
 _Static_assert(alignof(antumbra_hemi_options) == 4, "ILP32 hemi_options alignment");
 _Static_assert(offsetof(antumbra_hemi_shading_options, bands) == 20, "ILP32 shading_options.bands");
 _Static_assert(offsetof(antumbra_hemi_shading_options, near_radius) == 32, "ILP32 shading_options.near_radius");
-_Static_assert(sizeof(antumbra_hemi_shading_options) == 36, "ILP32 shading_options size");
+_Static_assert(offsetof(antumbra_hemi_shading_options, far_triangles) == 36, "ILP32 shading_options.far_triangles");
+_Static_assert(sizeof(antumbra_hemi_shading_options) == 44, "ILP32 shading_options size");
 _Static_assert(offsetof(antumbra_hemi_material, view_directions) == 44, "ILP32 material.view_directions");
 _Static_assert(sizeof(antumbra_hemi_material) == 48, "ILP32 material size");
 _Static_assert(sizeof(antumbra_transfer_info) == 56, "ILP32 transfer_info size");

@@ -120,6 +120,12 @@
 #define ANTUMBRA_HEMI_SPACE_LOCAL 1
 
 /**
+ * The library's near radius with its own far mesh, in edges of the far mesh's
+ * clustering cubes (`antumbra_hemi_shading_options.near_radius`).
+ */
+#define ANTUMBRA_HEMI_NEAR_CELLS 3.0
+
+/**
  * Triangle index reported by a ray that hits nothing.
  */
 #define ANTUMBRA_INVALID_INDEX UINT32_MAX
@@ -380,8 +386,8 @@ typedef struct antumbra_hemi_mask {
  * `antumbra_hemi_shading_options_init`, then change fields: fields may be added
  * at the end in later versions, and `options_init` keeps old code correct.
  *
- * Layout: the 24-byte `antumbra_hemi_options` (20 on 32-bit targets), then four
- * 4-byte fields; 40 bytes on 64-bit targets, 36 on 32-bit, no padding.
+ * Layout: the 24-byte `antumbra_hemi_options` (20 on 32-bit targets), then six
+ * 4-byte fields; 48 bytes on 64-bit targets, 44 on 32-bit, no padding.
  */
 typedef struct antumbra_hemi_shading_options {
   /**
@@ -417,10 +423,29 @@ typedef struct antumbra_hemi_shading_options {
    * radius (`|c - p|² <= near_radius²`), a far-mesh triangle when all its corners
    * are beyond it, so the coarse surface never shadows the fine one near the
    * receiver. Choose several far-mesh edge lengths. Mesh units, >= 0, or
-   * +INFINITY (the default: the full mesh everywhere, the far mesh unused).
+   * +INFINITY (the default). With a far mesh the caller passes, +INFINITY
+   * means the full mesh everywhere (the far mesh unused); with the library's
+   * own (`far_triangles` > 0) it means the library's rule: three edges of the
+   * far mesh's clustering cubes (`ANTUMBRA_HEMI_NEAR_CELLS`), so the coarse
+   * surface starts where its error is about a third of the distance.
    * Ignored without a far mesh.
    */
   float near_radius;
+  /**
+   * 0 (the default): no far mesh but the one a caller passes. Otherwise the
+   * library makes one of about this many triangles from the mesh, by vertex
+   * clustering (each far vertex the mean of the full vertices in a cube;
+   * cube edge searched for the count), and moves it with every frame's full
+   * positions, so a deforming mesh needs nothing else: a shader does this once
+   * at creation, a one-shot call in the call. Must be below the mesh's
+   * triangle count; with a caller's `far_mesh` it is INVALID_ARGUMENT. A few
+   * thousand suit meshes of 10k–100k triangles.
+   */
+  uint32_t far_triangles;
+  /**
+   * Must be 0 (keeps the struct free of padding; a later field may use it).
+   */
+  uint32_t reserved;
 } antumbra_hemi_shading_options;
 
 /**
@@ -1114,7 +1139,7 @@ ANTUMBRA_NODISCARD antumbra_result antumbra_hemi_valid_mask(struct antumbra_hemi
  * Writes the default shading options: the defaults of `antumbra_hemi_options_init`
  * in `raster` (exact quality, no back-face culling, normal offset 0, on the
  * calling thread, the shared table), 3 bands, the per-cell method, world space,
- * near radius +INFINITY.
+ * near radius +INFINITY, no far mesh of the library's (far_triangles 0).
  *
  * @param options the options to fill; every field is written.
  *
@@ -1154,7 +1179,9 @@ void antumbra_hemi_material_init(struct antumbra_hemi_material *material);
  *        life; the same validation as the per-frame calls applies.
  * @param far_mesh NULL, or the simplified mesh for distant occluders in the same
  *        pose (its counts are fixed too). A shader created without one cannot
- *        take one later.
+ *        take one later. Must be NULL with `options->far_triangles` > 0: the
+ *        shader then makes its own far mesh from this pose and moves it with
+ *        each frame's positions.
  * @param options NULL for the defaults (see `antumbra_hemi_shading_options_init`),
  *        or options as documented on `antumbra_hemi_shading_options`. They are
  *        copied; a caller-owned table in `options->raster.table` is kept by
@@ -1163,13 +1190,19 @@ void antumbra_hemi_material_init(struct antumbra_hemi_material *material);
  * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, out, or an array that is NULL
  *         with a non-zero count); INVALID_ARGUMENT (an option out of its range,
  *         misaligned array or struct, stride below 12, count overflow, a
- *         coordinate beyond ±1e12); INDEX_OUT_OF_RANGE (an index of either
+ *         coordinate beyond ±1e12, options->far_triangles not below the mesh's
+ *         triangle count or given with far_mesh, options->reserved not 0);
+ *         INDEX_OUT_OF_RANGE (an index of either
  *         mesh); NON_FINITE (a position, options->raster.normal_offset, a NaN
  *         options->near_radius); OUT_OF_MEMORY (the per-frame memory or the
  *         shared half-space table); POISONED (options->raster.table); PANIC.
  *
  * Cost: groups the triangles (a sort of their centroids' Morton codes), reserves
- * 12 + 24 bytes per vertex and about 5 bytes per triangle (both meshes), and builds the shared tables of this configuration on
+ * 12 + 24 bytes per vertex and about 5 bytes per triangle (both meshes); with
+ * `far_triangles`, simplifies the mesh (about 20 clusterings, each a sort of the
+ * vertices and triangles: milliseconds per 10k triangles) and keeps the far mesh
+ * and its map from full vertices (about 4 bytes per full vertex and 24 per far
+ * vertex and triangle); and builds the shared tables of this configuration on
  * first use in the process (the SH cell integrals: about 10 ms at 3 bands, 26 ms
  * at 8; the byte lookup table for ANTUMBRA_HEMI_METHOD_LUT, a few ms more; the
  * half-space table for the table quality), kept until exit. Apart from the reported cases,
@@ -1239,8 +1272,9 @@ antumbra_result antumbra_hemi_shader_regroup(struct antumbra_hemi_shader *shader
  *        (the indices may differ; they are validated every call).
  * @param normals NULL (area-weighted normals are computed) or 3 floats per vertex,
  *        as for `antumbra_hemi_transfer`.
- * @param far_mesh NULL (no far mesh this frame) or the far mesh's current pose,
- *        with the counts given at creation.
+ * @param far_mesh NULL (no far mesh this frame, or the shader's own when created
+ *        with `far_triangles`, posed from `mesh`) or the far mesh's current
+ *        pose, with the counts given at creation.
  * @param transfer receives `vertex_count * bands²` floats, as for
  *        `antumbra_hemi_transfer`; untouched on failure.
  * @return as `antumbra_hemi_transfer`, plus INVALID_ARGUMENT for counts that
@@ -1275,8 +1309,9 @@ antumbra_result antumbra_hemi_shader_transfer(struct antumbra_hemi_shader *shade
  * @param mesh the current pose: the vertex and triangle counts given at creation.
  * @param normals NULL (computed) or 3 floats per vertex, as for
  *        `antumbra_hemi_shade`.
- * @param far_mesh NULL (no far mesh this frame) or the far mesh's current pose,
- *        with the counts given at creation.
+ * @param far_mesh NULL (no far mesh this frame, or the shader's own when created
+ *        with `far_triangles`, posed from `mesh`) or the far mesh's current
+ *        pose, with the counts given at creation.
  * @param lighting `3 * bands²` floats of world SH incident radiance (bands of the
  *        shader's options), as for `antumbra_hemi_shade`.
  * @param material the material, as for `antumbra_hemi_shade`. The glossy lobe is
@@ -1341,6 +1376,8 @@ antumbra_result antumbra_hemi_shader_shade(struct antumbra_hemi_shader *shader,
  *        exactly (0, 0, 0). A vertex with a zero normal gets a zero vector.
  * @param far_mesh NULL, or the simplified mesh for distant occluders, in the same
  *        space and pose (same checks as `mesh`, only triangle corners range-checked).
+ *        Must be NULL with `options->far_triangles` > 0, which makes a far mesh
+ *        from `mesh` as given, in the call (a shader makes it once).
  * @param options NULL for the defaults, or see `antumbra_hemi_shading_options`.
  * @param transfer receives `vertex_count * bands²` floats: vertex v's coefficients
  *        at `transfer[v * bands² + l(l+1) + m]`; untouched on failure (except
@@ -1349,7 +1386,9 @@ antumbra_result antumbra_hemi_shader_shade(struct antumbra_hemi_shader *shader,
  *         NULL with a non-zero count); INVALID_ARGUMENT (an option out of its
  *         range, misaligned array or struct, stride below 12, count overflow, a
  *         coordinate beyond ±1e12, a normal that is neither unit nor zero,
- *         overlapping output); INDEX_OUT_OF_RANGE (an index of either mesh);
+ *         overlapping output, options->far_triangles not below the mesh's
+ *         triangle count or given with far_mesh, options->reserved not 0);
+ *         INDEX_OUT_OF_RANGE (an index of either mesh);
  *         NON_FINITE (a position, a normal, options->raster.normal_offset, a NaN
  *         near_radius); OUT_OF_MEMORY (scratch memory, or the shared half-space
  *         table on first use); POISONED (options->raster.table); PANIC (a

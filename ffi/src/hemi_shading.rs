@@ -41,7 +41,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, OnceLock, PoisonError};
 
 use antumbra_core::hemi::{
-    BatchOptions, ClusteredMesh, HemiScene, Material, PhongLobe, Quality, TransferLut,
+    BatchOptions, ClusteredMesh, FarMesh, HemiScene, Material, PhongLobe, Quality, TransferLut,
     TransferMethod, TransferRotation, TransferSpace, TransferTable, TriangleClusters,
     VertexShading, glossy_transfer, mirror_direction, scene_mask, shade_diffuse, shade_glossy,
     shade_vertex, vertex_normals, vertex_transfer,
@@ -89,8 +89,8 @@ pub const ANTUMBRA_HEMI_SPACE_LOCAL: u32 = 1;
 /// `antumbra_hemi_shading_options_init`, then change fields: fields may be added
 /// at the end in later versions, and `options_init` keeps old code correct.
 ///
-/// Layout: the 24-byte `antumbra_hemi_options` (20 on 32-bit targets), then four
-/// 4-byte fields; 40 bytes on 64-bit targets, 36 on 32-bit, no padding.
+/// Layout: the 24-byte `antumbra_hemi_options` (20 on 32-bit targets), then six
+/// 4-byte fields; 48 bytes on 64-bit targets, 44 on 32-bit, no padding.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct antumbra_hemi_shading_options {
@@ -118,10 +118,29 @@ pub struct antumbra_hemi_shading_options {
     /// radius (`|c - p|² <= near_radius²`), a far-mesh triangle when all its corners
     /// are beyond it, so the coarse surface never shadows the fine one near the
     /// receiver. Choose several far-mesh edge lengths. Mesh units, >= 0, or
-    /// +INFINITY (the default: the full mesh everywhere, the far mesh unused).
+    /// +INFINITY (the default). With a far mesh the caller passes, +INFINITY
+    /// means the full mesh everywhere (the far mesh unused); with the library's
+    /// own (`far_triangles` > 0) it means the library's rule: three edges of the
+    /// far mesh's clustering cubes (`ANTUMBRA_HEMI_NEAR_CELLS`), so the coarse
+    /// surface starts where its error is about a third of the distance.
     /// Ignored without a far mesh.
     pub near_radius: f32,
+    /// 0 (the default): no far mesh but the one a caller passes. Otherwise the
+    /// library makes one of about this many triangles from the mesh, by vertex
+    /// clustering (each far vertex the mean of the full vertices in a cube;
+    /// cube edge searched for the count), and moves it with every frame's full
+    /// positions, so a deforming mesh needs nothing else: a shader does this once
+    /// at creation, a one-shot call in the call. Must be below the mesh's
+    /// triangle count; with a caller's `far_mesh` it is INVALID_ARGUMENT. A few
+    /// thousand suit meshes of 10k–100k triangles.
+    pub far_triangles: u32,
+    /// Must be 0 (keeps the struct free of padding; a later field may use it).
+    pub reserved: u32,
 }
+
+/// The library's near radius with its own far mesh, in edges of the far mesh's
+/// clustering cubes (`antumbra_hemi_shading_options.near_radius`).
+pub const ANTUMBRA_HEMI_NEAR_CELLS: f32 = 3.0;
 
 /// The surface and viewer of `antumbra_hemi_shade`: a Lambertian term plus an
 /// optional normalised modified Phong lobe about the mirror direction of the view
@@ -172,6 +191,8 @@ const DEFAULT_SHADING_OPTIONS: antumbra_hemi_shading_options = antumbra_hemi_sha
     method: ANTUMBRA_HEMI_METHOD_CELLS,
     space: ANTUMBRA_HEMI_SPACE_WORLD,
     near_radius: f32::INFINITY,
+    far_triangles: 0,
+    reserved: 0,
 };
 
 const DEFAULT_EXPONENT: f32 = 16.0;
@@ -188,7 +209,7 @@ const DEFAULT_MATERIAL: antumbra_hemi_material = antumbra_hemi_material {
 /// Writes the default shading options: the defaults of `antumbra_hemi_options_init`
 /// in `raster` (exact quality, no back-face culling, normal offset 0, on the
 /// calling thread, the shared table), 3 bands, the per-cell method, world space,
-/// near radius +INFINITY.
+/// near radius +INFINITY, no far mesh of the library's (far_triangles 0).
 ///
 /// @param options the options to fill; every field is written.
 ///
@@ -343,6 +364,8 @@ struct Config {
     method: u32,
     space: TransferSpace,
     near_radius: f32,
+    /// Triangles of the library's own far mesh; 0 for none.
+    far_triangles: usize,
     cull_backfaces: bool,
     normal_offset: f32,
     parallel: bool,
@@ -442,6 +465,12 @@ unsafe fn read_shading_options(
              everywhere)"
         )));
     }
+    if options.reserved != 0 {
+        return Err(Error::invalid(format!(
+            "options->reserved is {}; it must be 0",
+            options.reserved
+        )));
+    }
     let half_space = match (options.raster.quality, user_table) {
         (ANTUMBRA_HEMI_QUALITY_EXACT, _) => HalfSpace::Exact,
         (_, Some(table)) => HalfSpace::User(UserTable(NonNull::from(table))),
@@ -452,6 +481,7 @@ unsafe fn read_shading_options(
         method: options.method,
         space,
         near_radius: radius,
+        far_triangles: options.far_triangles as usize,
         cull_backfaces: options.raster.cull_backfaces == 1,
         normal_offset: options.raster.normal_offset,
         parallel: options.raster.parallel == 1,
@@ -794,6 +824,8 @@ struct Workspace {
     lobe: Option<Box<PhongLobe>>,
     clusters: Option<TriangleClusters>,
     far_clusters: Option<TriangleClusters>,
+    /// The library's own far mesh (`far_triangles`), posed from each frame's mesh.
+    far_mesh: Option<FarMesh>,
 }
 
 fn reserve<T: Clone>(count: usize, value: T, what: &str) -> Result<Vec<T>, Error> {
@@ -823,6 +855,7 @@ impl Workspace {
             lobe: exponent.map(|s| Box::new(PhongLobe::new(s).expect("a checked exponent"))),
             clusters: None,
             far_clusters: None,
+            far_mesh: None,
         })
     }
 
@@ -844,7 +877,18 @@ impl Workspace {
             lobe,
             clusters,
             far_clusters,
+            far_mesh,
         } = self;
+        if let Some(built) = far_mesh.as_mut() {
+            built
+                .pose(&input.mesh)
+                .expect("the frame's vertex count was checked against the shader's");
+        }
+        let far_mesh: &'a Option<FarMesh> = far_mesh;
+        let far_view = match far_mesh {
+            Some(built) => Some(built.view()),
+            None => input.far,
+        };
         match input.normals {
             Some(given) => {
                 for (v, n) in normals.iter_mut().enumerate() {
@@ -862,7 +906,7 @@ impl Workspace {
         };
         // A match, not `Option::map`: Rust 1.88, the declared minimum, does not
         // accept the closure's borrow of `far_clusters`.
-        let far = match (input.far, far_clusters) {
+        let far = match (far_view, far_clusters) {
             (Some(far), Some(c)) => Some(c.update(far)),
             (Some(far), None) => Some(ClusteredMesh::unclustered(far)),
             (None, _) => None,
@@ -874,6 +918,36 @@ impl Workspace {
         };
         (scene, normals, shading, lobe)
     }
+}
+
+/// The library's far mesh of this frame's mesh when `config.far_triangles` asks for
+/// one (refused together with a caller's far mesh), and the options with the
+/// near radius it implies.
+fn build_far_mesh(
+    config: &Config,
+    input: &FrameInput<'_>,
+) -> Result<(Option<FarMesh>, Config), Error> {
+    if config.far_triangles == 0 {
+        return Ok((None, *config));
+    }
+    if input.far.is_some() {
+        return Err(Error::invalid(format!(
+            "far_mesh is given together with options->far_triangles = {}; pass one or the \
+             other (0 far triangles to use the caller's far mesh)",
+            config.far_triangles
+        )));
+    }
+    let far = FarMesh::with_triangles(&input.mesh, config.far_triangles).map_err(|e| {
+        Error::invalid(format!(
+            "options->far_triangles is {}: {e}",
+            config.far_triangles
+        ))
+    })?;
+    let mut config = *config;
+    if config.near_radius.is_infinite() {
+        config.near_radius = ANTUMBRA_HEMI_NEAR_CELLS * far.cell_size();
+    }
+    Ok((Some(far), config))
 }
 
 /// Whether a normal carries a receiver (core's batch rule: zero normals, such as
@@ -1123,6 +1197,8 @@ pub struct antumbra_hemi_shader {
     triangle_count: usize,
     /// The far mesh's vertex and triangle counts, when created with one.
     far_counts: Option<(usize, usize)>,
+    /// Whether the shader makes its own far mesh (`far_triangles`).
+    builds_far: bool,
     workspace: Mutex<Workspace>,
     poisoned: AtomicBool,
 }
@@ -1141,7 +1217,9 @@ const _: () = {
 ///        life; the same validation as the per-frame calls applies.
 /// @param far_mesh NULL, or the simplified mesh for distant occluders in the same
 ///        pose (its counts are fixed too). A shader created without one cannot
-///        take one later.
+///        take one later. Must be NULL with `options->far_triangles` > 0: the
+///        shader then makes its own far mesh from this pose and moves it with
+///        each frame's positions.
 /// @param options NULL for the defaults (see `antumbra_hemi_shading_options_init`),
 ///        or options as documented on `antumbra_hemi_shading_options`. They are
 ///        copied; a caller-owned table in `options->raster.table` is kept by
@@ -1150,13 +1228,19 @@ const _: () = {
 /// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, out, or an array that is NULL
 ///         with a non-zero count); INVALID_ARGUMENT (an option out of its range,
 ///         misaligned array or struct, stride below 12, count overflow, a
-///         coordinate beyond ±1e12); INDEX_OUT_OF_RANGE (an index of either
+///         coordinate beyond ±1e12, options->far_triangles not below the mesh's
+///         triangle count or given with far_mesh, options->reserved not 0);
+///         INDEX_OUT_OF_RANGE (an index of either
 ///         mesh); NON_FINITE (a position, options->raster.normal_offset, a NaN
 ///         options->near_radius); OUT_OF_MEMORY (the per-frame memory or the
 ///         shared half-space table); POISONED (options->raster.table); PANIC.
 ///
 /// Cost: groups the triangles (a sort of their centroids' Morton codes), reserves
-/// 12 + 24 bytes per vertex and about 5 bytes per triangle (both meshes), and builds the shared tables of this configuration on
+/// 12 + 24 bytes per vertex and about 5 bytes per triangle (both meshes); with
+/// `far_triangles`, simplifies the mesh (about 20 clusterings, each a sort of the
+/// vertices and triangles: milliseconds per 10k triangles) and keeps the far mesh
+/// and its map from full vertices (about 4 bytes per full vertex and 24 per far
+/// vertex and triangle); and builds the shared tables of this configuration on
 /// first use in the process (the SH cell integrals: about 10 ms at 3 bands, 26 ms
 /// at 8; the byte lookup table for ANTUMBRA_HEMI_METHOD_LUT, a few ms more; the
 /// half-space table for the table quality), kept until exit. Apart from the reported cases,
@@ -1185,6 +1269,7 @@ pub unsafe extern "C" fn antumbra_hemi_shader_create(
         let config = unsafe { read_shading_options(options) }?;
         // SAFETY: caller contract on the meshes.
         let input = unsafe { read_frame(mesh, core::ptr::null(), far_mesh) }?;
+        let (built, config) = build_far_mesh(&config, &input)?;
         // SAFETY: a user table is alive by the caller's contract.
         unsafe { config.quality() }?;
         with_coefficients!(config.bands, prepare_tables(&config));
@@ -1194,14 +1279,17 @@ pub unsafe extern "C" fn antumbra_hemi_shader_create(
             &input.mesh,
             TriangleClusters::DEFAULT_SIZE,
         ));
-        workspace.far_clusters = input
-            .far
-            .map(|far| TriangleClusters::new(&far, TriangleClusters::DEFAULT_SIZE));
+        let far_view = built.as_ref().map(FarMesh::view).or(input.far);
+        workspace.far_clusters =
+            far_view.map(|far| TriangleClusters::new(&far, TriangleClusters::DEFAULT_SIZE));
+        let builds_far = built.is_some();
+        workspace.far_mesh = built;
         let shader = Box::new(antumbra_hemi_shader {
             config,
             vertex_count: input.mesh.vertex_count(),
             triangle_count: input.mesh.triangle_count(),
             far_counts: input.far.map(|f| (f.vertex_count(), f.triangle_count())),
+            builds_far,
             workspace: Mutex::new(workspace),
             poisoned: AtomicBool::new(false),
         });
@@ -1245,6 +1333,10 @@ impl antumbra_hemi_shader {
         }
         match (input.far, self.far_counts) {
             (None, _) => Ok(()),
+            (Some(_), _) if self.builds_far => Err(Error::invalid(
+                "far_mesh is given, but the shader makes its own far mesh \
+                 (options->far_triangles at creation); pass NULL",
+            )),
             (Some(_), None) => Err(Error::invalid(
                 "far_mesh is given, but the shader was created without a far mesh",
             )),
@@ -1337,6 +1429,14 @@ pub unsafe extern "C" fn antumbra_hemi_shader_regroup(
             if let (Some(far), Some(clusters)) = (input.far, workspace.far_clusters.as_mut()) {
                 clusters.reorder(&far);
             }
+            if let (Some(built), Some(clusters)) =
+                (workspace.far_mesh.as_mut(), workspace.far_clusters.as_mut())
+            {
+                built
+                    .pose(&input.mesh)
+                    .expect("the vertex count was checked against the shader's");
+                clusters.reorder(&built.view());
+            }
             Ok(())
         },
     )
@@ -1352,8 +1452,9 @@ pub unsafe extern "C" fn antumbra_hemi_shader_regroup(
 ///        (the indices may differ; they are validated every call).
 /// @param normals NULL (area-weighted normals are computed) or 3 floats per vertex,
 ///        as for `antumbra_hemi_transfer`.
-/// @param far_mesh NULL (no far mesh this frame) or the far mesh's current pose,
-///        with the counts given at creation.
+/// @param far_mesh NULL (no far mesh this frame, or the shader's own when created
+///        with `far_triangles`, posed from `mesh`) or the far mesh's current
+///        pose, with the counts given at creation.
 /// @param transfer receives `vertex_count * bands²` floats, as for
 ///        `antumbra_hemi_transfer`; untouched on failure.
 /// @return as `antumbra_hemi_transfer`, plus INVALID_ARGUMENT for counts that
@@ -1408,8 +1509,9 @@ pub unsafe extern "C" fn antumbra_hemi_shader_transfer(
 /// @param mesh the current pose: the vertex and triangle counts given at creation.
 /// @param normals NULL (computed) or 3 floats per vertex, as for
 ///        `antumbra_hemi_shade`.
-/// @param far_mesh NULL (no far mesh this frame) or the far mesh's current pose,
-///        with the counts given at creation.
+/// @param far_mesh NULL (no far mesh this frame, or the shader's own when created
+///        with `far_triangles`, posed from `mesh`) or the far mesh's current
+///        pose, with the counts given at creation.
 /// @param lighting `3 * bands²` floats of world SH incident radiance (bands of the
 ///        shader's options), as for `antumbra_hemi_shade`.
 /// @param material the material, as for `antumbra_hemi_shade`. The glossy lobe is
@@ -1497,12 +1599,16 @@ unsafe fn transfer_call(
     }
     // SAFETY: a user table is alive by the caller's contract.
     let quality = unsafe { config.quality() }?;
+    let one_shot_config;
     let mut fresh;
-    let workspace = match workspace {
-        Some(workspace) => workspace,
+    let (workspace, config) = match workspace {
+        Some(workspace) => (workspace, config),
         None => {
+            let (built, with_far) = build_far_mesh(config, &input)?;
+            one_shot_config = with_far;
             fresh = Workspace::new(input.mesh.vertex_count(), false, None)?;
-            &mut fresh
+            fresh.far_mesh = built;
+            (&mut fresh, &one_shot_config)
         }
     };
     // SAFETY: checked aligned and sized; disjoint from every input by the check
@@ -1546,16 +1652,20 @@ unsafe fn shade_call(
     }
     // SAFETY: a user table is alive by the caller's contract.
     let quality = unsafe { config.quality() }?;
+    let one_shot_config;
     let mut fresh;
-    let workspace = match workspace {
-        Some(workspace) => workspace,
+    let (workspace, config) = match workspace {
+        Some(workspace) => (workspace, config),
         None => {
+            let (built, with_far) = build_far_mesh(config, &input)?;
+            one_shot_config = with_far;
             fresh = Workspace::new(
                 vertex_count,
                 true,
                 material.glossy().then_some(material.exponent),
             )?;
-            &mut fresh
+            fresh.far_mesh = built;
+            (&mut fresh, &one_shot_config)
         }
     };
     with_coefficients!(
@@ -1623,6 +1733,8 @@ fn one_shot(
 ///        exactly (0, 0, 0). A vertex with a zero normal gets a zero vector.
 /// @param far_mesh NULL, or the simplified mesh for distant occluders, in the same
 ///        space and pose (same checks as `mesh`, only triangle corners range-checked).
+///        Must be NULL with `options->far_triangles` > 0, which makes a far mesh
+///        from `mesh` as given, in the call (a shader makes it once).
 /// @param options NULL for the defaults, or see `antumbra_hemi_shading_options`.
 /// @param transfer receives `vertex_count * bands²` floats: vertex v's coefficients
 ///        at `transfer[v * bands² + l(l+1) + m]`; untouched on failure (except
@@ -1631,7 +1743,9 @@ fn one_shot(
 ///         NULL with a non-zero count); INVALID_ARGUMENT (an option out of its
 ///         range, misaligned array or struct, stride below 12, count overflow, a
 ///         coordinate beyond ±1e12, a normal that is neither unit nor zero,
-///         overlapping output); INDEX_OUT_OF_RANGE (an index of either mesh);
+///         overlapping output, options->far_triangles not below the mesh's
+///         triangle count or given with far_mesh, options->reserved not 0);
+///         INDEX_OUT_OF_RANGE (an index of either mesh);
 ///         NON_FINITE (a position, a normal, options->raster.normal_offset, a NaN
 ///         near_radius); OUT_OF_MEMORY (scratch memory, or the shared half-space
 ///         table on first use); POISONED (options->raster.table); PANIC (a

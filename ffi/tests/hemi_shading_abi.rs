@@ -923,6 +923,8 @@ fn init_functions_write_the_documented_defaults() {
         method: 9,
         space: 9,
         near_radius: f32::NAN,
+        far_triangles: 9,
+        reserved: 9,
     };
     // SAFETY: a valid struct.
     unsafe { antumbra_hemi_shading_options_init(&mut options) };
@@ -936,6 +938,7 @@ fn init_functions_write_the_documented_defaults() {
         (3, ANTUMBRA_HEMI_METHOD_CELLS, ANTUMBRA_HEMI_SPACE_WORLD)
     );
     assert_eq!(options.near_radius, f32::INFINITY);
+    assert_eq!((options.far_triangles, options.reserved), (0, 0));
     let mut material = antumbra_hemi_material {
         albedo: [f32::NAN; 3],
         specular: [f32::NAN; 3],
@@ -971,7 +974,15 @@ fn init_functions_write_the_documented_defaults() {
         offset_of!(antumbra_hemi_shading_options, near_radius),
         raster_size + 12
     );
-    assert_eq!(size_of::<antumbra_hemi_shading_options>(), raster_size + 16);
+    assert_eq!(
+        offset_of!(antumbra_hemi_shading_options, far_triangles),
+        raster_size + 16
+    );
+    assert_eq!(
+        offset_of!(antumbra_hemi_shading_options, reserved),
+        raster_size + 20
+    );
+    assert_eq!(size_of::<antumbra_hemi_shading_options>(), raster_size + 24);
     assert_eq!(offset_of!(antumbra_hemi_material, specular), 12);
     assert_eq!(offset_of!(antumbra_hemi_material, exponent), 24);
     assert_eq!(offset_of!(antumbra_hemi_material, eye), 28);
@@ -1044,6 +1055,111 @@ fn a_shader_follows_a_deforming_mesh_frame_after_frame() {
             assert_bits_eq(&after, &once, "after regroup");
         }
     }
+}
+
+/// The library's far mesh (`far_triangles`): a shader gives the bits of the same
+/// calls with that far mesh passed by the caller, posed from each frame's full
+/// mesh, and the near radius of the documented rule (so does a one-shot call on
+/// the pose the shader was made from); it is refused together with a caller's
+/// far mesh.
+#[test]
+fn the_librarys_far_mesh_follows_the_full_mesh_as_a_callers_would() {
+    let rest = blob(24, 32, 0.0);
+    let options = options_with(|o| {
+        o.far_triangles = 300;
+        o.raster.quality = ANTUMBRA_HEMI_QUALITY_TABLE;
+    });
+    let rest_core = MeshView::new(bytemuck_positions(&rest.positions), &rest.indices).unwrap();
+    let mut far = antumbra_core::hemi::FarMesh::with_triangles(&rest_core, 300).unwrap();
+    assert!(
+        far.triangle_count().abs_diff(300) <= 60,
+        "{}",
+        far.triangle_count()
+    );
+    let by_hand = options_with(|o| {
+        o.near_radius = ANTUMBRA_HEMI_NEAR_CELLS * far.cell_size();
+        o.raster.quality = ANTUMBRA_HEMI_QUALITY_TABLE;
+    });
+    let shader = Shader::new(&rest.view(), None, Some(&options));
+    let light = lighting(3);
+    let material = glossy_material();
+    let mut differs_from_full = false;
+    for twist in [0.0f32, 0.7, 1.6] {
+        let mesh = blob(24, 32, twist);
+        let view = mesh.view();
+        far.pose(&MeshView::new(bytemuck_positions(&mesh.positions), &mesh.indices).unwrap())
+            .unwrap();
+        let far_mesh = Mesh {
+            positions: far.positions().iter().flatten().copied().collect(),
+            indices: far.indices().to_vec(),
+        };
+        let what = format!("twist {twist}");
+        let (result, want) = transfer(&view, None, Some(&far_mesh.view()), Some(&by_hand), 3);
+        assert_eq!(result, ANTUMBRA_RESULT_OK, "{what}: {}", last_error());
+        let (result, by_shader) = shader.transfer(&view, None, None, 3);
+        assert_eq!(result, ANTUMBRA_RESULT_OK, "{what}: {}", last_error());
+        assert_bits_eq(&by_shader, &want, &what);
+        // A one-shot call simplifies the mesh as it is given: in the rest pose it
+        // makes the shader's far mesh; in another pose its own.
+        let (result, once) = transfer(&view, None, None, Some(&options), 3);
+        assert_eq!(result, ANTUMBRA_RESULT_OK, "{what}: {}", last_error());
+        if twist == 0.0 {
+            assert_bits_eq(&once, &want, &what);
+        }
+        let (_, shaded) = shader.shade(&view, None, None, &light, &material);
+        let (_, shaded_by_hand) = shade(
+            &view,
+            None,
+            Some(&far_mesh.view()),
+            Some(&by_hand),
+            &light,
+            &material,
+        );
+        for k in 0..3 {
+            assert_bits_eq(&shaded[k], &shaded_by_hand[k], &what);
+        }
+        let (_, full) = transfer(&view, None, None, None, 3);
+        differs_from_full |= bits(&full) != bits(&want);
+    }
+    assert!(
+        differs_from_full,
+        "the far mesh never stood in for the full one"
+    );
+    // A caller's far mesh and far_triangles together are refused, at creation and
+    // per frame.
+    let caller_far = blob(5, 6, 0.0);
+    let (result, out) = transfer(
+        &rest.view(),
+        None,
+        Some(&caller_far.view()),
+        Some(&options),
+        3,
+    );
+    assert_eq!(result, ANTUMBRA_RESULT_INVALID_ARGUMENT);
+    assert!(
+        last_error().contains("far_mesh is given together with options->far_triangles = 300"),
+        "{}",
+        last_error()
+    );
+    assert!(out.iter().all(|&c| c == SENTINEL));
+    let mut refused = ptr::null_mut();
+    // SAFETY: valid pointers; the conflicting far mesh is under test.
+    let result = unsafe {
+        antumbra_hemi_shader_create(&rest.view(), &caller_far.view(), &options, &mut refused)
+    };
+    assert_eq!(result, ANTUMBRA_RESULT_INVALID_ARGUMENT);
+    assert!(refused.is_null());
+    let (result, _) = shader.transfer(&rest.view(), None, Some(&caller_far.view()), 3);
+    assert_eq!(result, ANTUMBRA_RESULT_INVALID_ARGUMENT);
+    assert!(
+        last_error().contains("the shader makes its own far mesh"),
+        "{}",
+        last_error()
+    );
+}
+
+fn bytemuck_positions(flat: &[f32]) -> &[[f32; 3]] {
+    bytemuck::cast_slice(flat)
 }
 
 #[test]
@@ -1169,13 +1285,28 @@ fn a_frame_through_a_shader_allocates_nothing() {
     let mesh = blob(8, 10, 0.3);
     let far = blob(4, 6, 0.3);
     let (view, far_view) = (mesh.view(), far.view());
-    for method in [ANTUMBRA_HEMI_METHOD_CELLS, ANTUMBRA_HEMI_METHOD_LUT] {
+    // The caller's far mesh with two transfer methods, then the library's own.
+    for (method, far_triangles) in [
+        (ANTUMBRA_HEMI_METHOD_CELLS, 0),
+        (ANTUMBRA_HEMI_METHOD_LUT, 0),
+        (ANTUMBRA_HEMI_METHOD_CELLS, 60),
+    ] {
         let options = options_with(|o| {
             o.near_radius = 0.5;
             o.method = method;
+            o.far_triangles = far_triangles;
             o.raster.quality = ANTUMBRA_HEMI_QUALITY_TABLE;
         });
-        let shader = Shader::new(&view, Some(&far_view), Some(&options));
+        let far_arg: *const antumbra_mesh_view = if far_triangles == 0 {
+            &far_view
+        } else {
+            ptr::null()
+        };
+        let shader = Shader::new(
+            &view,
+            (far_triangles == 0).then_some(&far_view),
+            Some(&options),
+        );
         let light = lighting(3);
         let mut material = glossy_material();
         let count = mesh.vertex_count();
@@ -1195,7 +1326,7 @@ fn a_frame_through_a_shader_allocates_nothing() {
                         shader.0,
                         &view,
                         ptr::null(),
-                        &far_view,
+                        far_arg,
                         light.as_ptr(),
                         &material,
                         rgb.as_mut_ptr(),
@@ -1206,7 +1337,7 @@ fn a_frame_through_a_shader_allocates_nothing() {
                         shader.0,
                         &view,
                         ptr::null(),
-                        &far_view,
+                        far_arg,
                         transfer_out.as_mut_ptr(),
                     ),
                 ]
@@ -1299,6 +1430,28 @@ fn every_bad_input_has_its_code_a_message_naming_it_and_leaves_outputs_untouched
             expect(
                 ANTUMBRA_RESULT_INVALID_ARGUMENT,
                 "options->near_radius is -1",
+            ),
+        ),
+        (
+            options_with(|o| o.far_triangles = 48),
+            expect(
+                ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                "options->far_triangles is 48: 48 far triangles requested: must be at least 1 \
+                 and below the mesh's 48",
+            ),
+        ),
+        (
+            options_with(|o| o.far_triangles = u32::MAX),
+            expect(
+                ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                "options->far_triangles is 4294967295",
+            ),
+        ),
+        (
+            options_with(|o| o.reserved = 1),
+            expect(
+                ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                "options->reserved is 1; it must be 0",
             ),
         ),
         (

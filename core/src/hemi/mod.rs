@@ -94,6 +94,7 @@
 //! per receiver. [`TriangleCone::new`] and [`rasterize_triangles_into`] take the
 //! corners as given (unscaled).
 
+mod far_mesh;
 mod half_space;
 mod lod;
 mod mask;
@@ -105,6 +106,7 @@ mod triangle;
 #[cfg(test)]
 mod tests;
 
+pub use far_mesh::{FarMesh, FarMeshError};
 pub use half_space::{half_space_mask, half_space_mask_reference};
 pub use lod::{
     Aabb, BatchError, BatchOptions, ClusteredMesh, HemiScene, Material, TransferSpace,
