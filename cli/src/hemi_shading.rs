@@ -25,8 +25,8 @@
 //! - Receivers are the vertices with their area-weighted normals, the center of
 //!   projection lifted by [`OFFSET_OF_DIAGONAL`] of the bounding-box diagonal, as
 //!   in `verify hemi`; no back-face culling (meshes need not be closed).
-//! - The far mesh is the rest pose simplified by vertex clustering
-//!   ([`cluster_vertices`]) with cells of [`FAR_CELL_OF_DIAGONAL`] = 1/30 of the
+//! - The far mesh is the rest pose simplified by the library's vertex clustering
+//!   ([`simplify`], core's `FarMesh`) with cells of [`FAR_CELL_OF_DIAGONAL`] = 1/30 of the
 //!   diagonal; the near radius is [`NEAR_RADIUS_OF_DIAGONAL`] = 1/10 of it, three
 //!   cells, so the coarse surface never stands in for the receiver's own
 //!   neighbourhood. Coarser cells make a cheaper far mesh and a larger error. On
@@ -46,7 +46,7 @@ use std::time::{Duration, Instant};
 
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
-    BatchOptions, HalfSpaceTable, HemiScene, Material, PhongLobe, Quality, TransferMethod,
+    BatchOptions, FarMesh, HalfSpaceTable, HemiScene, Material, PhongLobe, Quality, TransferMethod,
     TransferTable, TriangleClusters, VertexShading, shade_batch_split, vertex_normals,
 };
 use antumbra_core::sh::{EquirectMapping, Sh, ShRgb, ZonalKernel, project_equirect};
@@ -56,7 +56,6 @@ use crate::bounds::Bounds;
 use crate::envmap::EnvironmentMap;
 use crate::error::{Error, Result};
 use crate::mesh::TriangleMesh;
-use crate::simplify::{Simplified, cluster_vertices};
 
 /// SH coefficients of the lighting and transfer vectors (see the module docs).
 pub const COEFFICIENTS: usize = 16;
@@ -167,6 +166,22 @@ impl Twist {
     }
 }
 
+/// `mesh` simplified by the library's vertex clustering (core's `FarMesh`) with
+/// cubes of edge `cell_size`, as a mesh of its own.
+pub fn simplify(mesh: &TriangleMesh, cell_size: f32) -> Result<TriangleMesh> {
+    let far = FarMesh::with_cell_size(&mesh.view(), cell_size).map_err(|e| {
+        Error::msg(format!(
+            "cannot simplify {} with cells of {cell_size}: {e}",
+            mesh.name()
+        ))
+    })?;
+    TriangleMesh::new(
+        format!("{} (vertex clustering, cell {cell_size:.4})", mesh.name()),
+        far.positions().to_vec(),
+        far.indices().to_vec(),
+    )
+}
+
 /// A mesh and its far level of detail, both in the rest pose, with the near
 /// radius.
 pub struct LodMesh {
@@ -187,18 +202,20 @@ impl LodMesh {
     pub fn new(full: TriangleMesh) -> Result<Self> {
         full.require_extent()?;
         let diagonal = full.bounds().diagonal();
-        let far = cluster_vertices(&full, FAR_CELL_OF_DIAGONAL * diagonal)?;
-        Ok(Self::with_far(full, far, diagonal))
+        let far_cell = FAR_CELL_OF_DIAGONAL * diagonal;
+        let far = simplify(&full, far_cell)?;
+        Ok(Self::with_far(full, far, far_cell, diagonal))
     }
 
     /// `full` with a far mesh made by the caller (for example the clustering of
-    /// one object plus a coarse version of the rest), sizing the near radius and
-    /// the normal offset from `diagonal`, the main object's bounding-box diagonal.
-    pub fn with_far(full: TriangleMesh, far: Simplified, diagonal: f32) -> Self {
+    /// one object, with cubes of `far_cell`, plus a coarse version of the rest),
+    /// sizing the near radius and the normal offset from `diagonal`, the main
+    /// object's bounding-box diagonal.
+    pub fn with_far(full: TriangleMesh, far: TriangleMesh, far_cell: f32, diagonal: f32) -> Self {
         LodMesh {
             full,
-            far: far.mesh,
-            far_cell: far.cell_size,
+            far,
+            far_cell,
             near_radius: NEAR_RADIUS_OF_DIAGONAL * diagonal,
             normal_offset: OFFSET_OF_DIAGONAL * diagonal,
         }

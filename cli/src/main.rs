@@ -22,7 +22,6 @@ mod ray_batch;
 mod render;
 mod sampling;
 mod scene;
-mod simplify;
 mod tonemap;
 
 use std::process::ExitCode;

@@ -30,11 +30,10 @@ use crate::bounds::Bounds;
 use crate::camera::Camera;
 use crate::envmap::EnvironmentMap;
 use crate::error::Result;
-use crate::hemi_shading::{COEFFICIENTS, FAR_CELL_OF_DIAGONAL, LodMesh, Posed, Shader};
+use crate::hemi_shading::{COEFFICIENTS, FAR_CELL_OF_DIAGONAL, LodMesh, Posed, Shader, simplify};
 use crate::mesh::TriangleMesh;
 use crate::picture::HdrImage;
 use crate::raster::Framebuffer;
-use crate::simplify::{Simplified, cluster_vertices};
 use crate::tonemap::{auto_exposure, filmic, linear_to_srgb};
 
 /// Samples per pixel side when drawing (anti-aliasing by supersampling).
@@ -93,13 +92,10 @@ impl HemiStage {
     pub fn new(bunny: TriangleMesh, sky: &EnvironmentMap) -> Result<Self> {
         let bunny_bounds = bunny.bounds();
         let diagonal = bunny_bounds.diagonal();
-        let far = cluster_vertices(&bunny, FAR_CELL_OF_DIAGONAL * diagonal)?;
-        let far = Simplified {
-            mesh: with_square_ground(&far.mesh, &bunny_bounds)?,
-            ..far
-        };
+        let far_cell = FAR_CELL_OF_DIAGONAL * diagonal;
+        let far = with_square_ground(&simplify(&bunny, far_cell)?, &bunny_bounds)?;
         Ok(HemiStage {
-            lod: LodMesh::with_far(with_ground(&bunny)?, far, diagonal),
+            lod: LodMesh::with_far(with_ground(&bunny)?, far, far_cell, diagonal),
             bunny_vertices: bunny.vertex_count(),
             bunny_bounds,
             lighting: crate::hemi_shading::sky_lighting(sky)?,
