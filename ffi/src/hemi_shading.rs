@@ -139,7 +139,8 @@ pub struct antumbra_hemi_shading_options {
 }
 
 /// The library's near radius with its own far mesh, in edges of the far mesh's
-/// clustering cubes (`antumbra_hemi_shading_options.near_radius`).
+/// clustering cubes (`antumbra_hemi_shading_options.near_radius`; core's
+/// `FarMesh::NEAR_CELLS`).
 pub const ANTUMBRA_HEMI_NEAR_CELLS: f32 = 3.0;
 
 /// The surface and viewer of `antumbra_hemi_shade`: a Lambertian term plus an
@@ -945,7 +946,7 @@ fn build_far_mesh(
     })?;
     let mut config = *config;
     if config.near_radius.is_infinite() {
-        config.near_radius = ANTUMBRA_HEMI_NEAR_CELLS * far.cell_size();
+        config.near_radius = far.default_near_radius();
     }
     Ok((Some(far), config))
 }

@@ -1071,6 +1071,10 @@ fn the_librarys_far_mesh_follows_the_full_mesh_as_a_callers_would() {
     });
     let rest_core = MeshView::new(bytemuck_positions(&rest.positions), &rest.indices).unwrap();
     let mut far = antumbra_core::hemi::FarMesh::with_triangles(&rest_core, 300).unwrap();
+    assert_eq!(
+        ANTUMBRA_HEMI_NEAR_CELLS,
+        antumbra_core::hemi::FarMesh::NEAR_CELLS
+    );
     assert!(
         far.triangle_count().abs_diff(300) <= 60,
         "{}",

@@ -14,12 +14,15 @@
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
+use antumbra_core::Frame;
 use antumbra_core::hemi::{
-    BatchOptions, HemiMask, HemiScene, Material, Quality, RasterOptions, Receiver,
-    TriangleClusters, VertexShading, cell_direction, rasterize_receiver_with_counts,
-    scene_mask_with_counts,
+    BatchOptions, FarMesh, HemiMask, HemiScene, Material, Quality, RasterOptions, Receiver,
+    TransferMethod, TransferRotation, TransferSpace, TransferTable, TriangleClusters,
+    VertexShading, cell_direction, cell_directions, rasterize_receiver_with_counts,
+    scene_mask_with_counts, vertex_transfer,
 };
 use antumbra_core::raycast::BvhScene;
+use antumbra_core::sh::Sh;
 use antumbra_core::{Ray, RayCaster};
 use antumbra_tests::oracle::{OracleOptions, try_cast};
 use glam::Vec3;
@@ -278,6 +281,7 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
         "BVH (obvhs CWBVH)  {bvh_micros:>9.2} µs per receiver  ({} occlusion rays per receiver)",
         rays.len() as f64 / count
     );
+    let mut embree_hits: Option<Vec<bool>> = None;
     let embree_micros = if args.no_embree {
         None
     } else {
@@ -292,6 +296,7 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
         )
         .map_err(|e| Error::msg(format!("{e}\n(use --no-embree to skip this figure)")))?;
         let seconds = run.occluded_seconds.expect("timing was requested");
+        embree_hits = Some(run.hits.iter().map(|h| h.occluded).collect());
         let micros = seconds * 1e6 / count;
         println!("Embree (embreex)   {micros:>9.2} µs per receiver  (one batch rtcOccluded1 loop)");
         Some(micros)
@@ -307,7 +312,140 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
         println!();
     }
     println!();
+    // The reference of the far-mesh table: the full mesh traced along every cell
+    // direction, by Embree when it ran, else by our BVH (the same answers).
+    let (reference_hits, reference_name, reference_micros) = match (embree_hits, embree_micros) {
+        (Some(hits), Some(micros)) => (hits, "Embree", micros),
+        _ => (
+            rays.iter().map(|ray| bvh.occluded(ray)).collect(),
+            "the BVH",
+            bvh_micros,
+        ),
+    };
+    far_mesh_table(
+        &mesh,
+        &chosen,
+        offset,
+        &reference_hits,
+        (reference_name, reference_micros),
+        min_time,
+    )?;
+    println!();
     frame_rates(mesh, args.quality, min_time)
+}
+
+/// Far mesh sizes (triangles) the far-mesh table tries, those below half the
+/// mesh's count.
+const FAR_TABLE_TRIANGLES: [usize; 4] = [500, 1_000, 2_000, 4_000];
+
+/// Near radii the far-mesh table tries besides the library's rule, as fractions of
+/// the bounding-box diagonal.
+const FAR_TABLE_RADII_OF_DIAGONAL: [f32; 2] = [0.05, 0.1];
+
+/// The table of far mesh sizes and near radii: time per vertex of its transfer
+/// vectors (exact masks, clusters, as a shader computes them) against tracing the
+/// 812 cell directions of the full mesh, and the irradiance error against those
+/// rays under the built-in sky (4 bands, windowed), relative RMS over the
+/// receivers' luminance.
+fn far_mesh_table(
+    mesh: &TriangleMesh,
+    chosen: &[(Vec3, Vec3)],
+    offset: f32,
+    reference_hits: &[bool],
+    (reference_name, reference_micros): (&str, f64),
+    min_time: Duration,
+) -> Result<()> {
+    let table = TransferTable::<COEFFICIENTS>::new();
+    let method = TransferMethod::Cells(&table);
+    let lighting = sky_lighting(&builtin::sunrise()?)?;
+    let luminance = |t: &Sh<COEFFICIENTS>| {
+        f64::from(
+            0.2126 * lighting.r.dot(t) + 0.7152 * lighting.g.dot(t) + 0.0722 * lighting.b.dot(t),
+        )
+    };
+    // Reference irradiance of each receiver from the traced cells.
+    let mut next = reference_hits.iter();
+    let reference: Vec<f64> = chosen
+        .iter()
+        .map(|&(_, n)| {
+            let mut mask = HemiMask::default();
+            for (i, j, _) in cell_directions() {
+                mask.set(i, j, *next.next().expect("one answer per valid cell"));
+            }
+            let local = method.transfer(&mask);
+            luminance(&TransferRotation::new(&Frame::from_normal(n)).to_world(&local))
+        })
+        .collect();
+    let reference_power: f64 = reference.iter().map(|e| e * e).sum();
+    let view = mesh.view();
+    let diagonal = mesh.bounds().diagonal();
+    let options = BatchOptions {
+        quality: Quality::Exact,
+        normal_offset: offset,
+        ..BatchOptions::default()
+    };
+    let mut full_clusters = TriangleClusters::new(&view, TriangleClusters::DEFAULT_SIZE);
+    let count = chosen.len().max(1) as f64;
+    println!(
+        "far mesh table: transfer vectors ({COEFFICIENTS} coefficients, exact masks, clusters) per \
+         vertex against {reference_name} tracing the 812 cell directions of the full mesh \
+         ({reference_micros:.1} µs per vertex); irradiance under the built-in sky, relative RMS \
+         error of the luminance against those rays"
+    );
+    println!(
+        "{:>14} {:>22} {:>16} {:>14} {:>12}",
+        "far triangles", "near radius", "µs per vertex", "rays / this", "error"
+    );
+    let mut row = |far: Option<&FarMesh>, radius: f32, radius_name: &str| {
+        let mut far_clusters =
+            far.map(|f| TriangleClusters::new(&f.view(), TriangleClusters::DEFAULT_SIZE));
+        let full = full_clusters.update(view);
+        let scene = match (far, far_clusters.as_mut()) {
+            (Some(f), Some(c)) => HemiScene::with_far(full, c.update(f.view()), radius),
+            _ => HemiScene::new(full),
+        };
+        let transfer = |p: Vec3, n: Vec3| {
+            vertex_transfer(&scene, p, n, &options, method, TransferSpace::World)
+        };
+        let (mut error, mut worst) = (0.0f64, 0.0f64);
+        for (&(p, n), &want) in chosen.iter().zip(&reference) {
+            let got = luminance(&transfer(p, n));
+            error += (got - want) * (got - want);
+            worst = worst.max((got - want).abs());
+        }
+        let elapsed = time_per_call(min_time, || {
+            for &(p, n) in chosen {
+                black_box(transfer(black_box(p), n));
+            }
+        });
+        let micros = elapsed.as_secs_f64() * 1e6 / count;
+        println!(
+            "{:>14} {:>22} {micros:>16.2} {:>13.2}x {:>11.3}%",
+            far.map_or("none".to_string(), |f| f.triangle_count().to_string()),
+            radius_name,
+            reference_micros / micros,
+            100.0 * (error / reference_power.max(f64::MIN_POSITIVE)).sqrt(),
+        );
+    };
+    row(None, f32::INFINITY, "(full mesh)");
+    for target in FAR_TABLE_TRIANGLES {
+        if 2 * target > mesh.triangle_count() {
+            continue;
+        }
+        let far = FarMesh::with_triangles(&view, target)
+            .map_err(|e| Error::msg(format!("cannot simplify {}: {e}", mesh.name())))?;
+        let rule = far.default_near_radius();
+        row(Some(&far), rule, &format!("{rule:.4} (3 cells)"));
+        for fraction in FAR_TABLE_RADII_OF_DIAGONAL {
+            let radius = fraction * diagonal;
+            row(
+                Some(&far),
+                radius,
+                &format!("{radius:.4} (diag/{:.0})", 1.0 / fraction),
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Twist angles the benchmark's frames cycle through, in degrees.

@@ -107,6 +107,11 @@ impl FarMesh {
     /// cube coordinates then fit 21 bits each.
     pub const MIN_CELL_OF_EXTENT: f32 = 1.0 / (1 << 20) as f32;
 
+    /// The default near radius with a far mesh, in cube edges: the far surface,
+    /// up to about a cube edge off the full one, then starts where that error is
+    /// about a third of the distance to the receiver.
+    pub const NEAR_CELLS: f32 = 3.0;
+
     /// The far mesh of `mesh` (in its rest pose) with cubes of edge `cell_size`.
     pub fn with_cell_size(mesh: &MeshView<'_>, cell_size: f32) -> Result<Self, FarMeshError> {
         let cells = Self::cells(mesh, cell_size)?;
@@ -241,6 +246,12 @@ impl FarMesh {
     /// Edge of the clustering cubes, in mesh units.
     pub fn cell_size(&self) -> f32 {
         self.cell_size
+    }
+
+    /// The default near radius of a two-level scene with this far mesh:
+    /// [`FarMesh::NEAR_CELLS`] cube edges.
+    pub fn default_near_radius(&self) -> f32 {
+        Self::NEAR_CELLS * self.cell_size
     }
 
     /// The full vertices whose mean far vertex `far` is.
