@@ -16,7 +16,8 @@ use std::sync::{Mutex, OnceLock, PoisonError};
 
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
-    self, HalfSpaceTable, HemiMask, Quality, RasterOptions, VALID_CELL_COUNT, rasterize_receiver,
+    self, BatchOptions, HalfSpaceTable, HemiMask, HemiScene, Quality, RasterOptions,
+    TriangleClusters, VALID_CELL_COUNT, rasterize_receiver, scene_mask,
 };
 use antumbra_core::raycast::MAX_COORDINATE;
 use glam::Vec3;
@@ -389,7 +390,11 @@ const PARALLEL_GRAIN: usize = 4;
 ///         Messages name the argument and the receiver index, e.g.
 ///         `receiver_normals[12] has length 0.5, not 1 (tolerance 0.001)`.
 ///
-/// Cost: O(receivers × triangles), no allocation per receiver. The first call with
+/// Cost: O(receivers × triangles above each receiver's horizon), no allocation per
+/// receiver. A call with 20 or more receivers first groups the triangles into
+/// clusters (about 110 ns and a few tens of bytes per triangle, freed on return), whose boxes
+/// skip whole clusters below a receiver's horizon: the same masks, 1.5–2.5× less
+/// time per receiver on closed meshes. The first call with
 /// the table quality and no `options->table` builds the library's shared table
 /// (2 MiB, a few milliseconds; once per process, kept until exit).
 /// Ownership: borrows every argument for the call only.
@@ -465,21 +470,45 @@ pub(crate) fn check_coordinate_range(mesh: &MeshView<'_>, argument: &str) -> Res
     }
 }
 
+/// A batch of at least this many receivers groups the mesh's triangles into
+/// clusters first, whose boxes skip whole clusters below a receiver's horizon (the
+/// same masks). `antumbra bench hemi` prints the break-even point ("pays for
+/// itself from N receivers"): about 10 on the bunny, 5 on the armadillo, as
+/// grouping costs about 110 ns per triangle and saves 40 % or more of an exact
+/// receiver's time; twice the larger keeps small batches from paying for it.
+pub(crate) const CLUSTER_MIN_RECEIVERS: usize = 20;
+
+/// Whether a batch of `receivers` over `triangles` groups them into clusters.
+pub(crate) fn worth_clustering(receivers: usize, triangles: usize) -> bool {
+    receivers >= CLUSTER_MIN_RECEIVERS && triangles > TriangleClusters::DEFAULT_SIZE
+}
+
 fn rasterize_batch(
     mesh: &MeshView<'_>,
     receivers: &Receivers<'_>,
     settings: &Settings<'_>,
     out: &mut [antumbra_hemi_mask],
 ) {
+    let mut clusters = worth_clustering(out.len(), mesh.triangle_count())
+        .then(|| TriangleClusters::new(mesh, TriangleClusters::DEFAULT_SIZE));
+    let scene = clusters.as_mut().map(|c| HemiScene::new(c.update(*mesh)));
     let options = RasterOptions {
         quality: settings.quality,
         cull_backfaces: settings.cull_backfaces,
         normal_offset: settings.normal_offset,
         skip_triangles: &[],
     };
+    let batch_options = BatchOptions {
+        quality: settings.quality,
+        cull_backfaces: settings.cull_backfaces,
+        normal_offset: settings.normal_offset,
+    };
     let one = |k: usize| {
         let (position, normal) = receivers.get(k);
-        antumbra_hemi_mask::from(rasterize_receiver(mesh, position, normal, &options))
+        antumbra_hemi_mask::from(match &scene {
+            Some(scene) => scene_mask(scene, position, normal, &batch_options),
+            None => rasterize_receiver(mesh, position, normal, &options),
+        })
     };
     if settings.parallel && out.len() > 1 {
         use rayon::prelude::*;

@@ -56,7 +56,7 @@ use crate::error::Error;
 use crate::frame::UNIT_TOLERANCE;
 use crate::hemi::{
     ANTUMBRA_HEMI_QUALITY_EXACT, DEFAULT_OPTIONS, antumbra_hemi_options, antumbra_hemi_table,
-    check_coordinate_range, check_options, non_finite, shared_table,
+    check_coordinate_range, check_options, non_finite, shared_table, worth_clustering,
 };
 use crate::mesh::{antumbra_mesh_view, mesh_from_c};
 use crate::raw;
@@ -860,6 +860,21 @@ impl Workspace {
         })
     }
 
+    /// For a one-shot call: groups the triangles of the mesh (and far mesh) into
+    /// clusters when the call has enough receivers to pay for it (the same results).
+    fn cluster_if_worth_it(&mut self, input: &FrameInput<'_>) {
+        if !worth_clustering(input.mesh.vertex_count(), input.mesh.triangle_count()) {
+            return;
+        }
+        self.clusters = Some(TriangleClusters::new(
+            &input.mesh,
+            TriangleClusters::DEFAULT_SIZE,
+        ));
+        let far = self.far_mesh.as_ref().map(FarMesh::view).or(input.far);
+        self.far_clusters =
+            far.map(|far| TriangleClusters::new(&far, TriangleClusters::DEFAULT_SIZE));
+    }
+
     /// Fills `normals` from the caller's or computes them; returns the scene of
     /// this frame (with the cluster boxes updated) and the normals.
     fn frame<'a>(
@@ -1609,6 +1624,7 @@ unsafe fn transfer_call(
             one_shot_config = with_far;
             fresh = Workspace::new(input.mesh.vertex_count(), false, None)?;
             fresh.far_mesh = built;
+            fresh.cluster_if_worth_it(&input);
             (&mut fresh, &one_shot_config)
         }
     };
@@ -1666,6 +1682,7 @@ unsafe fn shade_call(
                 material.glossy().then_some(material.exponent),
             )?;
             fresh.far_mesh = built;
+            fresh.cluster_if_worth_it(&input);
             (&mut fresh, &one_shot_config)
         }
     };
@@ -1754,9 +1771,9 @@ fn one_shot(
 ///         Messages name the argument and index, e.g.
 ///         `normals[7] has length 0.5, neither 1 (tolerance 0.001) nor exactly 0`.
 ///
-/// Cost: O(vertices × triangles), every triangle read per receiver (a shader also
-/// skips clusters below the horizon); allocates 12 bytes per vertex for the
-/// normals. The first call with a configuration builds the shared tables it reads
+/// Cost: O(vertices × triangles above each receiver's horizon); allocates 12 bytes
+/// per vertex for the normals, and with 20 or more vertices groups the triangles
+/// into clusters (as `antumbra_hemi_rasterize`; a shader groups them once). The first call with a configuration builds the shared tables it reads
 /// (see `antumbra_hemi_shader_create`). With options->raster.parallel = 1 the
 /// vertices are split across the library's worker threads; results are identical.
 /// Ownership: borrows every argument for the call only.

@@ -175,6 +175,20 @@ fn masks_equal_core_bit_for_bit_in_every_mode() {
                         for (k, (g, w)) in got.iter().zip(&want).enumerate() {
                             assert_eq!(g.rows, w.rows, "receiver {k}, {options:?}");
                         }
+                        // A batch this large groups the triangles into clusters; a
+                        // small one does not. Both give the plain rasterizer's bits.
+                        assert!(got.len() >= 20 * 10);
+                        let few = 3 * 10;
+                        let (result, got) = rasterize(
+                            &view,
+                            &blob.positions[..few],
+                            &blob.normals[..few],
+                            Some(&options),
+                        );
+                        assert_eq!(result, ANTUMBRA_RESULT_OK, "{}", last_error());
+                        for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                            assert_eq!(g.rows, w.rows, "receiver {k} of a small batch");
+                        }
                     }
                     occluded_somewhere += want.iter().filter(|m| !m.is_empty()).count();
                 }
