@@ -1075,7 +1075,7 @@ void antumbra_hemi_table_destroy(struct antumbra_hemi_table *table);
  *         `receiver_normals[12] has length 0.5, not 1 (tolerance 0.001)`.
  *
  * Cost: O(receivers × triangles above each receiver's horizon), no allocation per
- * receiver. A call with 20 or more receivers first groups the triangles into
+ * receiver. A call with 32 or more receivers first groups the triangles into
  * clusters (about 110 ns and a few tens of bytes per triangle, freed on return), whose boxes
  * skip whole clusters below a receiver's horizon: the same masks, 1.5–2.5× less
  * time per receiver on closed meshes. The first call with
@@ -1402,7 +1402,7 @@ antumbra_result antumbra_hemi_shader_shade(struct antumbra_hemi_shader *shader,
  *         `normals[7] has length 0.5, neither 1 (tolerance 0.001) nor exactly 0`.
  *
  * Cost: O(vertices × triangles above each receiver's horizon); allocates 12 bytes
- * per vertex for the normals, and with 20 or more vertices groups the triangles
+ * per vertex for the normals, and with 32 or more vertices groups the triangles
  * into clusters (as `antumbra_hemi_rasterize`; a shader groups them once). The first call with a configuration builds the shared tables it reads
  * (see `antumbra_hemi_shader_create`). With options->raster.parallel = 1 the
  * vertices are split across the library's worker threads; results are identical.

@@ -391,7 +391,7 @@ const PARALLEL_GRAIN: usize = 4;
 ///         `receiver_normals[12] has length 0.5, not 1 (tolerance 0.001)`.
 ///
 /// Cost: O(receivers × triangles above each receiver's horizon), no allocation per
-/// receiver. A call with 20 or more receivers first groups the triangles into
+/// receiver. A call with 32 or more receivers first groups the triangles into
 /// clusters (about 110 ns and a few tens of bytes per triangle, freed on return), whose boxes
 /// skip whole clusters below a receiver's horizon: the same masks, 1.5–2.5× less
 /// time per receiver on closed meshes. The first call with
@@ -473,10 +473,11 @@ pub(crate) fn check_coordinate_range(mesh: &MeshView<'_>, argument: &str) -> Res
 /// A batch of at least this many receivers groups the mesh's triangles into
 /// clusters first, whose boxes skip whole clusters below a receiver's horizon (the
 /// same masks). `antumbra bench hemi` prints the break-even point ("pays for
-/// itself from N receivers"): about 10 on the bunny, 5 on the armadillo, as
-/// grouping costs about 110 ns per triangle and saves 40 % or more of an exact
-/// receiver's time; twice the larger keeps small batches from paying for it.
-pub(crate) const CLUSTER_MIN_RECEIVERS: usize = 20;
+/// itself from N receivers"): about 5 on the armadillo, 9 on homer, 10 on the
+/// bunny and 22 on the Chinese dragon of CGAL's data (grouping costs about 110 ns
+/// per triangle; the saving per receiver depends on how much of the mesh lies
+/// below its horizon). The threshold sits above the largest measured.
+pub(crate) const CLUSTER_MIN_RECEIVERS: usize = 32;
 
 /// Whether a batch of `receivers` over `triangles` groups them into clusters.
 pub(crate) fn worth_clustering(receivers: usize, triangles: usize) -> bool {

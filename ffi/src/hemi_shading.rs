@@ -1772,7 +1772,7 @@ fn one_shot(
 ///         `normals[7] has length 0.5, neither 1 (tolerance 0.001) nor exactly 0`.
 ///
 /// Cost: O(vertices × triangles above each receiver's horizon); allocates 12 bytes
-/// per vertex for the normals, and with 20 or more vertices groups the triangles
+/// per vertex for the normals, and with 32 or more vertices groups the triangles
 /// into clusters (as `antumbra_hemi_rasterize`; a shader groups them once). The first call with a configuration builds the shared tables it reads
 /// (see `antumbra_hemi_shader_create`). With options->raster.parallel = 1 the
 /// vertices are split across the library's worker threads; results are identical.

@@ -177,7 +177,7 @@ fn masks_equal_core_bit_for_bit_in_every_mode() {
                         }
                         // A batch this large groups the triangles into clusters; a
                         // small one does not. Both give the plain rasterizer's bits.
-                        assert!(got.len() >= 20 * 10);
+                        assert!(got.len() >= 32 * 4);
                         let few = 3 * 10;
                         let (result, got) = rasterize(
                             &view,
