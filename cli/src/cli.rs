@@ -94,6 +94,18 @@ pub enum Command {
     /// positions in order of first use by a face, objects one after another.
     Bake(BakeArgs),
 
+    /// Join the part files of a bake split with `antumbra bake --shard I/N` into one
+    /// bake file, byte for byte the file a single `antumbra bake` with the same
+    /// arguments writes. Refuses parts that overlap, leave vertices out, or come
+    /// from different meshes or settings, naming the files.
+    ///
+    /// Any job runner can run the parts: a Slurm array job (`--array=0-7`, each
+    /// task `antumbra bake ... --shard $SLURM_ARRAY_TASK_ID/8 -o part-$SLURM_ARRAY_TASK_ID.xpart`),
+    /// a Kubernetes indexed Job (`completionMode: Indexed`, `--shard
+    /// $JOB_COMPLETION_INDEX/8`), or `seq 0 7 | xargs -P 8 -I{} antumbra bake ...
+    /// --shard {}/8 -o part-{}.xpart`.
+    Merge(MergeArgs),
+
     /// Measure performance and print figures next to a baseline measured in the
     /// same run.
     #[command(subcommand)]
@@ -245,6 +257,30 @@ pub struct BakeArgs {
     /// Seed of the bake's random numbers.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub seed: u64,
+
+    /// Bake part I of N (from 0) of the vertices into a part file, for a bake split
+    /// across machines; `antumbra merge` joins the N parts into the file a single
+    /// bake writes, byte for byte. Transfer kinds only, without --pca (merge
+    /// compresses). With bounces, every part still runs the earlier passes over
+    /// every vertex.
+    #[arg(long, value_name = "I/N", value_parser = crate::shard::Shard::parse)]
+    pub shard: Option<crate::shard::Shard>,
+}
+
+/// Arguments of `antumbra merge`.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// The part files of `antumbra bake --shard I/N`, all N of them, in any order.
+    #[arg(required = true, value_name = "PART")]
+    pub parts: Vec<PathBuf>,
+
+    /// The bake file to write.
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: PathBuf,
+
+    /// PCA-compress the joined MRT bake to K components (as `bake --pca K`).
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
+    pub pca: Option<u32>,
 }
 
 /// The benchmarks.

@@ -22,6 +22,7 @@ mod ray_batch;
 mod render;
 mod sampling;
 mod scene;
+mod shard;
 mod tonemap;
 
 use std::process::ExitCode;

@@ -19,7 +19,7 @@ use antumbra_core::raycast::BvhScene;
 use antumbra_core::sh::{EquirectMapping, Sh, ShRgb, ZonalKernel, project_equirect};
 use antumbra_core::transfer::{
     BakeOptions, Brdf, Measurement, PhongBrdf, TransferSet, WardBrdf, bake, bake_serial,
-    lighting_from_sh_rgb,
+    bake_vertices, lighting_from_sh_rgb,
 };
 use glam::{Mat3, Vec3};
 use indicatif::ProgressBar;
@@ -166,6 +166,18 @@ pub fn bake_mesh(
     serial: bool,
     bar: Option<&ProgressBar>,
 ) -> Result<Baked> {
+    bake_mesh_vertices(mesh, config, serial, None, bar)
+}
+
+/// [`bake_mesh`] of the vertices in `vertices` only (all when `None`): the part of
+/// a bake split across machines (core's `bake_vertices`).
+pub fn bake_mesh_vertices(
+    mesh: &TriangleMesh,
+    config: &BakeConfig,
+    serial: bool,
+    vertices: Option<std::ops::Range<usize>>,
+    bar: Option<&ProgressBar>,
+) -> Result<Baked> {
     let view = mesh.view();
     let normals = unit_normals(mesh);
     let bvh = BvhScene::new(&view).map_err(|e| Error::msg(e.to_string()))?;
@@ -179,19 +191,20 @@ pub fn bake_mesh(
         ..bake_options(config)
     };
     let started = Instant::now();
-    let set = if serial {
-        bake_serial(&view, &normals, &bvh, &options)
-    } else {
-        bake(&view, &normals, &bvh, &options)
+    let set = match (&vertices, serial) {
+        (Some(range), _) => bake_vertices(&view, &normals, &bvh, &options, range.clone()),
+        (None, true) => bake_serial(&view, &normals, &bvh, &options),
+        (None, false) => bake(&view, &normals, &bvh, &options),
     }
     .map_err(|e| Error::msg(format!("cannot bake: {e}")))?;
     let elapsed = started.elapsed();
+    // Every pass but the last runs over every vertex; the last over the range.
+    let last_pass = vertices.map_or(mesh.vertex_count(), |r| r.len()) as u64;
     Ok(Baked {
         set,
         elapsed,
-        rays_cast: mesh.vertex_count() as u64
-            * u64::from(config.rays)
-            * u64::from(config.bounces + 1),
+        rays_cast: (mesh.vertex_count() as u64 * u64::from(config.bounces) + last_pass)
+            * u64::from(config.rays),
     })
 }
 

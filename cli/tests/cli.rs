@@ -55,7 +55,7 @@ fn help_lists_every_command_and_each_has_its_own_help() {
     let output = antumbra(&["--help"]);
     assert_success(&output);
     let text = stdout(&output);
-    for command in ["demo", "render", "bake", "bench", "verify"] {
+    for command in ["demo", "render", "bake", "merge", "bench", "verify"] {
         assert!(
             text.contains(command),
             "--help does not mention {command}:\n{text}"
@@ -65,6 +65,7 @@ fn help_lists_every_command_and_each_has_its_own_help() {
         &["demo", "--help"][..],
         &["render", "--help"],
         &["bake", "--help"],
+        &["merge", "--help"],
         &["bench", "--help"],
         &["bench", "raycast", "--help"],
         &["verify", "--help"],
@@ -652,4 +653,104 @@ fn the_ao_text_header_is_one_line_whatever_the_mesh_name() {
     assert!(lines[0].starts_with("# antumbra ambient occlusion"));
     assert!(lines[0].contains("new\\nline.obj"), "{}", lines[0]);
     assert_eq!(lines.len(), 1 + 792, "teapot: 792 vertices");
+}
+
+/// A bake split into parts run side by side (`xargs -P`, as a job runner would)
+/// and merged is the single bake's file, byte for byte; merge refuses parts that
+/// overlap, leave vertices out, or come from another bake.
+#[test]
+fn sharded_bakes_merge_into_the_single_bake_byte_for_byte() {
+    let dir = scratch("shards");
+    let teapot = data("teapot.obj");
+    let exe = env!("CARGO_BIN_EXE_antumbra");
+    for (kind, extra) in [
+        ("diffuse", "--bounces 1"),
+        ("glossy-sh", "--bands 3"),
+        ("mrt", "--grid 4 --bands 3"),
+    ] {
+        let common = format!("--mesh {teapot} --kind {kind} --rays 16 {extra} --seed 5");
+        let whole = dir.join(format!("{kind}-whole.xfer"));
+        let args: Vec<String> = format!("bake {common} -o {}", whole.display())
+            .split_whitespace()
+            .map(String::from)
+            .collect();
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_success(&antumbra(&refs));
+        let part = |i: u32| dir.join(format!("{kind}-part-{i}.xpart"));
+        let script = format!(
+            "seq 0 2 | xargs -P 3 -I{{}} {exe} bake {common} --shard {{}}/3 -o {}/{kind}-part-{{}}.xpart",
+            dir.display()
+        );
+        let run = Command::new("sh").arg("-c").arg(&script).output().unwrap();
+        assert_success(&run);
+        let merged = dir.join(format!("{kind}-merged.xfer"));
+        let (p0, p1, p2) = (part(0), part(1), part(2));
+        // Any order of the parts.
+        let output = antumbra(&[
+            "merge",
+            p2.to_str().unwrap(),
+            p0.to_str().unwrap(),
+            p1.to_str().unwrap(),
+            "-o",
+            merged.to_str().unwrap(),
+        ]);
+        assert_success(&output);
+        assert_eq!(
+            std::fs::read(&merged).unwrap(),
+            std::fs::read(&whole).unwrap(),
+            "{kind}: the merged parts differ from the single bake"
+        );
+        if kind != "diffuse" {
+            continue;
+        }
+        let refused = |parts: &[&Path], needle: &str| {
+            let mut args = vec!["merge"];
+            args.extend(parts.iter().map(|p| p.to_str().unwrap()));
+            let out = dir.join("refused.xfer");
+            args.extend(["-o", out.to_str().unwrap()]);
+            let output = antumbra(&args);
+            assert!(!output.status.success(), "merged {parts:?}");
+            assert!(
+                stderr(&output).contains(needle),
+                "{needle:?} not in {}",
+                stderr(&output)
+            );
+        };
+        refused(&[&p0, &p1, &p1, &p2], "overlaps");
+        refused(&[&p0, &p2], "are missing");
+        refused(&[&p0, &p1], "are missing");
+        // A part of the same mesh and split with another seed.
+        let other = dir.join("other-seed.xpart");
+        let args: Vec<String> = format!(
+            "bake {} --seed 6 --shard 1/3 -o {}",
+            common.replace(" --seed 5", ""),
+            other.display()
+        )
+        .split_whitespace()
+        .map(String::from)
+        .collect();
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_success(&antumbra(&refs));
+        refused(
+            &[&p0, &other, &p2],
+            "come from different bakes: seed 6 against 5",
+        );
+        refused(&[&whole], "is not a part file");
+    }
+    // Parts with PCA are refused; merge compresses instead.
+    let output = antumbra(&[
+        "bake",
+        "--mesh",
+        &teapot,
+        "--kind",
+        "mrt",
+        "--pca",
+        "4",
+        "--shard",
+        "0/2",
+        "-o",
+        dir.join("x.xpart").to_str().unwrap(),
+    ]);
+    assert!(!output.status.success());
+    assert!(stderr(&output).contains("antumbra merge --pca K"));
 }

@@ -490,7 +490,9 @@ fn bake_error(error: BakeError) -> Error {
         BakeError::RayOffset(_) => "options->ray_offset",
         BakeError::Grid(_) => "options->grid",
         BakeError::NormalCount { .. } | BakeError::Normal { .. } => "normals",
-        BakeError::TooManyVertices(_) | BakeError::NoVertices => "mesh->vertex_count",
+        BakeError::TooManyVertices(_) | BakeError::NoVertices | BakeError::VertexRange { .. } => {
+            "mesh->vertex_count"
+        }
         BakeError::BrdfNotFinite => "options->brdf_params",
         BakeError::TooLarge { .. } => {
             return Error::new(

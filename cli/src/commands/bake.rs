@@ -9,13 +9,16 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{absolute, format_duration};
-use crate::cli::{BakeArgs, BakeKind};
+use antumbra_core::transfer::{TransferKind, TransferSet};
+
+use crate::cli::{BakeArgs, BakeKind, MergeArgs};
 use crate::error::{Context, Error, Result};
 use crate::mesh::TriangleMesh;
 use crate::progress;
 use crate::prt;
 use crate::render::ambient_ray_escapes;
 use crate::sampling::{R2Sequence, SampleRng, hash_seed};
+use crate::shard::{self, PartHeader, mesh_checksum, part_bytes};
 
 /// Seed of the bake's random numbers.
 const SEED: u64 = 0xBA;
@@ -24,6 +27,11 @@ const SEED: u64 = 0xBA;
 pub fn run(args: &BakeArgs) -> Result<()> {
     if args.kind != BakeKind::Ao {
         return run_transfer(args);
+    }
+    if args.shard.is_some() {
+        return Err(Error::msg(
+            "--shard splits transfer bakes (--kind diffuse, glossy-sh or mrt), not ao",
+        ));
     }
     if let Some(d) = args.max_distance.filter(|d| d.is_nan() || *d <= 0.0) {
         return Err(Error::msg(format!(
@@ -92,6 +100,11 @@ fn run_transfer(args: &BakeArgs) -> Result<()> {
     if args.pca.is_some() && kind != prt::Kind::Mrt {
         return Err(Error::msg("--pca compresses MRT bakes only (--kind mrt)"));
     }
+    if args.pca.is_some() && args.shard.is_some() {
+        return Err(Error::msg(
+            "--pca needs every vertex: bake the parts without it, then `antumbra merge --pca K`",
+        ));
+    }
     let brdf = match args.ward.as_deref() {
         Some(&[ax, ay]) => prt::BrdfChoice::ward(ax, ay)?,
         Some(other) => {
@@ -113,9 +126,26 @@ fn run_transfer(args: &BakeArgs) -> Result<()> {
         ray_offset: args.ray_offset,
     };
     let mesh = TriangleMesh::load_obj(&args.mesh)?;
-    let passes = mesh.vertex_count() as u64 * u64::from(args.bounces + 1);
+    let vertices = match args.shard {
+        Some(shard) => {
+            let range = shard.range(mesh.vertex_count());
+            if range.is_empty() {
+                return Err(Error::msg(format!(
+                    "--shard {}/{}: {} has only {} vertices, fewer than the parts",
+                    shard.index,
+                    shard.count,
+                    mesh.name(),
+                    mesh.vertex_count()
+                )));
+            }
+            Some(range)
+        }
+        None => None,
+    };
+    let last_pass = vertices.as_ref().map_or(mesh.vertex_count(), |r| r.len()) as u64;
+    let passes = mesh.vertex_count() as u64 * u64::from(args.bounces) + last_pass;
     let bar = progress::bar(passes, "baking transfer", "vertex passes");
-    let baked = prt::bake_mesh(&mesh, &config, false, Some(&bar))?;
+    let baked = prt::bake_mesh_vertices(&mesh, &config, false, vertices.clone(), Some(&bar))?;
     bar.finish_and_clear();
     let what = match kind {
         prt::Kind::Diffuse => "diffuse transfer".to_string(),
@@ -142,7 +172,47 @@ fn run_transfer(args: &BakeArgs) -> Result<()> {
         )
     );
     let dense = baked.set;
-    let set = match args.pca {
+    if let (Some(shard), Some(range)) = (args.shard, vertices) {
+        let header = PartHeader {
+            shard,
+            first: range.start as u64,
+            end: range.end as u64,
+            total: mesh.vertex_count() as u64,
+            seed: args.seed,
+            ray_offset: args.ray_offset,
+            mesh_crc: mesh_checksum(&mesh),
+        };
+        let bytes = part_bytes(&header, &dense);
+        write_file(&args.out, &bytes)?;
+        println!(
+            "  part {}/{}: vertices {}..{} of {}; wrote {} ({} bytes); join the parts with \
+             `antumbra merge`",
+            shard.index,
+            shard.count,
+            range.start,
+            range.end,
+            mesh.vertex_count(),
+            absolute(&args.out).display(),
+            bytes.len()
+        );
+        return Ok(());
+    }
+    let set = compress_if_asked(dense, args.pca)?;
+    let bytes = set.to_bytes();
+    write_file(&args.out, &bytes)?;
+    println!(
+        "  wrote {} ({} bytes, {:.1} bytes of transfer per vertex)",
+        absolute(&args.out).display(),
+        bytes.len(),
+        set.data_bytes() as f64 / set.vertex_count().max(1) as f64
+    );
+    Ok(())
+}
+
+/// `dense`, PCA-compressed to `pca` components when asked, with the error and
+/// memory table printed.
+fn compress_if_asked(dense: TransferSet, pca: Option<u32>) -> Result<TransferSet> {
+    Ok(match pca {
         None => dense,
         Some(k) => {
             let started = Instant::now();
@@ -169,19 +239,36 @@ fn run_transfer(args: &BakeArgs) -> Result<()> {
             }
             compressed
         }
-    };
-    let bytes = set.to_bytes();
-    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+    })
+}
+
+/// Writes `bytes` to `path`, creating its folder.
+fn write_file(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("cannot create folder {}", parent.display()))?;
     }
-    std::fs::write(&args.out, &bytes)
-        .with_context(|| format!("cannot write {}", args.out.display()))?;
+    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// `antumbra merge`: joins the parts of a sharded bake into its bake file.
+pub fn run_merge(args: &MergeArgs) -> Result<()> {
+    let started = Instant::now();
+    let parts = shard::read_parts(&args.parts)?;
+    let count = parts.len();
+    let joined = shard::merge(parts)?;
+    if args.pca.is_some() && joined.kind() != TransferKind::Mrt {
+        return Err(Error::msg("--pca compresses MRT bakes only"));
+    }
+    let vertices = joined.vertex_count();
+    let set = compress_if_asked(joined, args.pca)?;
+    let bytes = set.to_bytes();
+    write_file(&args.out, &bytes)?;
     println!(
-        "  wrote {} ({} bytes, {:.1} bytes of transfer per vertex)",
+        "merged {count} parts ({vertices} vertices) in {}; wrote {} ({} bytes)",
+        format_duration(started.elapsed()),
         absolute(&args.out).display(),
-        bytes.len(),
-        set.data_bytes() as f64 / set.vertex_count().max(1) as f64
+        bytes.len()
     );
     Ok(())
 }

@@ -22,6 +22,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Demo(args) => demo::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Bake(args) => bake::run(&args),
+        Command::Merge(args) => bake::run_merge(&args),
         Command::Bench(BenchCommand::Raycast(args)) => bench::run_raycast(&args),
         Command::Bench(BenchCommand::Hemi(args)) => hemi::run_bench(&args),
         Command::Bench(BenchCommand::Transfer(args)) => bench_transfer::run(&args),

@@ -225,7 +225,46 @@ pub fn bake<C: RayCaster + Sync + ?Sized>(
     caster: &C,
     options: &BakeOptions<'_>,
 ) -> Result<TransferSet, BakeError> {
-    bake_impl(mesh, normals, caster, options, cfg!(feature = "parallel"))
+    let all = 0..mesh.vertex_count();
+    bake_impl(
+        mesh,
+        normals,
+        caster,
+        options,
+        all,
+        cfg!(feature = "parallel"),
+    )
+}
+
+/// The part of [`bake`] that holds `vertices`: a set of those vertices only,
+/// whose every value equals bit for bit the one a whole bake with the same options
+/// gives (each vertex draws from its own random streams), so the sets of
+/// consecutive ranges joined by [`TransferSet::concat`] are the whole bake. With
+/// bounces, every pass but the last still runs over every vertex (a bounce reads
+/// every vertex's previous pass); the last pass, and the result, cover the range.
+/// This is how a bake is split across machines.
+pub fn bake_vertices<C: RayCaster + Sync + ?Sized>(
+    mesh: &MeshView<'_>,
+    normals: &[Vec3],
+    caster: &C,
+    options: &BakeOptions<'_>,
+    vertices: core::ops::Range<usize>,
+) -> Result<TransferSet, BakeError> {
+    if vertices.is_empty() || vertices.end > mesh.vertex_count() {
+        return Err(BakeError::VertexRange {
+            start: vertices.start,
+            end: vertices.end,
+            vertices: mesh.vertex_count(),
+        });
+    }
+    bake_impl(
+        mesh,
+        normals,
+        caster,
+        options,
+        vertices,
+        cfg!(feature = "parallel"),
+    )
 }
 
 /// [`bake`] on the calling thread only.
@@ -235,7 +274,14 @@ pub fn bake_serial<C: RayCaster + Sync + ?Sized>(
     caster: &C,
     options: &BakeOptions<'_>,
 ) -> Result<TransferSet, BakeError> {
-    bake_impl(mesh, normals, caster, options, false)
+    bake_impl(
+        mesh,
+        normals,
+        caster,
+        options,
+        0..mesh.vertex_count(),
+        false,
+    )
 }
 
 fn bake_impl<C: RayCaster + Sync + ?Sized>(
@@ -243,10 +289,12 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
     normals: &[Vec3],
     caster: &C,
     options: &BakeOptions<'_>,
+    range: core::ops::Range<usize>,
     parallel: bool,
 ) -> Result<TransferSet, BakeError> {
     let coeffs = validate(mesh, normals, options)?;
     let vertices = mesh.vertex_count();
+    let kept = range.len();
     let (kind, projection, grid) = match options.measurement {
         Measurement::Diffuse => (TransferKind::Diffuse, Projection::None, 0),
         Measurement::GlossySh => (TransferKind::GlossySh, Projection::World, 0),
@@ -275,13 +323,13 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
     // before any ray, not an abort after the rays.
     let rows = (grid * grid) as usize;
     let mut out = match options.measurement {
-        Measurement::Mrt { .. } => zeros(vertices.checked_mul(rows * coeffs))?,
+        Measurement::Mrt { .. } => zeros(kept.checked_mul(rows * coeffs))?,
         _ => Vec::new(),
     };
     let mut measured = zeros(vertices.checked_mul(gathered))?;
     let mut previous = Vec::new();
     let done = AtomicUsize::new(0);
-    let total = vertices * (options.bounces as usize + 1);
+    let total = vertices * options.bounces as usize + kept;
     for pass in 0..=options.bounces {
         let mut irradiance = zeros(vertices.checked_mul(coeffs))?;
         let ctx = PassContext {
@@ -299,7 +347,13 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
             previous: &previous,
         };
         let progress = options.progress;
+        // The last pass only for the vertices kept; earlier ones for all, which
+        // the next pass reads.
+        let last = pass == options.bounces;
         let work = |vertex: usize, irr: &mut [f32], meas: &mut [f32]| {
+            if last && !range.contains(&vertex) {
+                return;
+            }
             gather(&ctx, vertex, irr, meas);
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             if let Some(progress) = progress {
@@ -322,6 +376,8 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
         }
         previous = irradiance;
     }
+    measured.truncate(range.end * gathered);
+    measured.drain(..range.start * gathered);
     let data = if let Measurement::Mrt { .. } = options.measurement {
         let b = &brdf_nodes;
         let apply = |v: usize, dst: &mut [f32]| {
@@ -340,7 +396,10 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
     } else {
         measured
     };
-    let normals: Vec<[f32; 3]> = normals.iter().map(|n| n.to_array()).collect();
+    let normals: Vec<[f32; 3]> = normals[range.clone()]
+        .iter()
+        .map(|n| n.to_array())
+        .collect();
     Ok(TransferSet {
         kind,
         bands: options.bands,
@@ -354,7 +413,7 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
                 _ => super::BrdfInfo::CUSTOM,
             },
         },
-        positions: (0..vertices).map(|v| mesh.position(v).to_array()).collect(),
+        positions: range.map(|v| mesh.position(v).to_array()).collect(),
         frames: super::frames_of(&normals),
         normals,
         payload: Payload::Dense(data),

@@ -132,7 +132,9 @@ mod tests;
 use alloc::vec::Vec;
 use core::fmt;
 
-pub use engine::{BakeRay, MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_rays, bake_serial};
+pub use engine::{
+    BakeRay, MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_rays, bake_serial, bake_vertices,
+};
 pub use format::FormatError;
 pub use mrt::{
     Brdf, BrdfInfo, MrtTap, PhongBrdf, WardBrdf, hemi_oct_decode, hemi_oct_encode, mrt_tap,
@@ -309,6 +311,15 @@ pub enum BakeError {
         /// Bytes of one of its buffers (`u64::MAX`: the size overflowed).
         bytes: u64,
     },
+    /// The vertex range of [`bake_vertices`] is empty or reaches past the mesh.
+    VertexRange {
+        /// First vertex asked for.
+        start: usize,
+        /// One past the last vertex asked for.
+        end: usize,
+        /// Vertices of the mesh.
+        vertices: usize,
+    },
 }
 
 impl fmt::Display for BakeError {
@@ -333,6 +344,14 @@ impl fmt::Display for BakeError {
                 f,
                 "the transfer data needs a buffer of {bytes} bytes, more than can be allocated \
                  (fewer vertices, bands or a smaller grid)"
+            ),
+            BakeError::VertexRange {
+                start,
+                end,
+                vertices,
+            } => write!(
+                f,
+                "vertices {start}..{end} are not a non-empty range of the mesh's {vertices}"
             ),
         }
     }
@@ -386,7 +405,78 @@ pub(crate) fn frames_of(normals: &[[f32; 3]]) -> Vec<crate::Frame> {
         .collect()
 }
 
+/// Why [`TransferSet::concat`] refused its parts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConcatError {
+    /// No part was given.
+    Empty,
+    /// Part `index` was baked differently from part 0 (kind, bands, grid, rays,
+    /// bounces, albedo or BRDF).
+    Settings {
+        /// The part that differs.
+        index: usize,
+    },
+    /// Part `index` is PCA-compressed; only dense parts are joined (compress the
+    /// joined set).
+    Compressed {
+        /// The compressed part.
+        index: usize,
+    },
+}
+
+impl fmt::Display for ConcatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            ConcatError::Empty => f.write_str("no part to join"),
+            ConcatError::Settings { index } => write!(
+                f,
+                "part {index} was baked with other settings than part 0 (kind, bands, grid, \
+                 rays, bounces, albedo or BRDF)"
+            ),
+            ConcatError::Compressed { index } => write!(
+                f,
+                "part {index} is PCA-compressed; join dense parts, then compress"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for ConcatError {}
+
 impl TransferSet {
+    /// The vertices of `parts`, in order, as one set: the whole bake when the parts
+    /// are [`bake_vertices`] of consecutive ranges with the same options. The
+    /// parts must be dense and baked alike.
+    pub fn concat(parts: &[TransferSet]) -> Result<TransferSet, ConcatError> {
+        let first = parts.first().ok_or(ConcatError::Empty)?;
+        let mut data = Vec::new();
+        for (index, part) in parts.iter().enumerate() {
+            let alike = part.kind == first.kind
+                && part.bands == first.bands
+                && part.grid == first.grid
+                && part.info == first.info;
+            if !alike {
+                return Err(ConcatError::Settings { index });
+            }
+            match &part.payload {
+                Payload::Dense(d) => data.extend_from_slice(d),
+                Payload::Pca(_) => return Err(ConcatError::Compressed { index }),
+            }
+        }
+        let positions: Vec<[f32; 3]> = parts.iter().flat_map(|p| p.positions.clone()).collect();
+        let normals: Vec<[f32; 3]> = parts.iter().flat_map(|p| p.normals.clone()).collect();
+        Ok(TransferSet {
+            kind: first.kind,
+            bands: first.bands,
+            grid: first.grid,
+            info: first.info,
+            frames: frames_of(&normals),
+            positions,
+            normals,
+            payload: Payload::Dense(data),
+        })
+    }
+
     /// The measurement held.
     pub fn kind(&self) -> TransferKind {
         self.kind

@@ -777,6 +777,64 @@ fn bakes_are_deterministic_for_a_seed() {
 }
 
 #[test]
+fn parts_of_a_bake_join_into_the_whole_bake_byte_for_byte() {
+    let scene = ground_and_box();
+    let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
+    let caster = BruteForceCaster::new(mesh);
+    let brdf = PhongBrdf::new(6.0).unwrap();
+    let vertices = mesh.vertex_count();
+    for measurement in [
+        Measurement::Diffuse,
+        Measurement::GlossySh,
+        Measurement::Mrt {
+            grid: 4,
+            brdf: &brdf,
+        },
+    ] {
+        for bounces in [0, 1] {
+            let opts = BakeOptions {
+                bounces,
+                ..options(measurement, 3, 16)
+            };
+            let whole = bake(&mesh, &scene.normals, &caster, &opts).unwrap();
+            // Uneven cuts, one part of a single vertex.
+            let cuts = [0, 7, 8, vertices / 2, vertices];
+            let parts: Vec<TransferSet> = cuts
+                .windows(2)
+                .map(|w| bake_vertices(&mesh, &scene.normals, &caster, &opts, w[0]..w[1]).unwrap())
+                .collect();
+            assert_eq!(parts[1].vertex_count(), 1);
+            let joined = TransferSet::concat(&parts).unwrap();
+            assert_eq!(
+                joined.to_bytes(),
+                whole.to_bytes(),
+                "{measurement:?}, {bounces} bounces"
+            );
+        }
+    }
+    let opts = options(Measurement::Diffuse, 2, 4);
+    for bad in [3..3, 0..vertices + 1] {
+        assert!(matches!(
+            bake_vertices(&mesh, &scene.normals, &caster, &opts, bad),
+            Err(BakeError::VertexRange { .. })
+        ));
+    }
+    let diffuse = bake_vertices(&mesh, &scene.normals, &caster, &opts, 0..4).unwrap();
+    let other = BakeOptions { rays: 9, ..opts };
+    let more_rays = bake_vertices(&mesh, &scene.normals, &caster, &other, 4..8).unwrap();
+    assert_eq!(
+        TransferSet::concat(&[diffuse.clone(), more_rays]).unwrap_err(),
+        ConcatError::Settings { index: 1 }
+    );
+    assert_eq!(TransferSet::concat(&[]).unwrap_err(), ConcatError::Empty);
+    let compressed = small_mrt_set(4, 2).compress(2).unwrap();
+    assert_eq!(
+        TransferSet::concat(&[compressed]).unwrap_err(),
+        ConcatError::Compressed { index: 0 }
+    );
+}
+
+#[test]
 fn every_normal_a_bake_accepts_loads_again() {
     let scene = ground_and_box();
     let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
