@@ -105,7 +105,7 @@ static_assert(sizeof(antumbra_hemi_options) == 16 + sizeof(void *), "hemi_option
 static_assert(std::is_standard_layout<antumbra_hemi_shading_options>::value, "hemi_shading_options is standard layout");
 static_assert(std::is_trivially_copyable<antumbra_hemi_shading_options>::value,
               "hemi_shading_options is trivially copyable");
-static_assert(sizeof(antumbra_hemi_shading_options) == sizeof(antumbra_hemi_options) + 16,
+static_assert(sizeof(antumbra_hemi_shading_options) == sizeof(antumbra_hemi_options) + 24,
               "hemi_shading_options size as seen from C++");
 static_assert(std::is_standard_layout<antumbra_hemi_material>::value, "hemi_material is standard layout");
 static_assert(std::is_trivially_copyable<antumbra_hemi_material>::value, "hemi_material is trivially copyable");
