@@ -38,6 +38,18 @@
 #define ANTUMBRA_VERSION \
     ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR, ANTUMBRA_VERSION_PATCH)
 
+/** Defined when the program links the hosted library (the default), which has
+ *  every function; left undefined when the program defines ANTUMBRA_NO_STD
+ *  before including this header, to link the bare-metal build (`cargo build -p
+ *  antumbra-ffi --release --no-default-features --target thumbv7em-none-eabihf`).
+ *  Declarations under `#if defined(ANTUMBRA_HAS_STD)` are not in the bare-metal
+ *  library at all (a link error, never a run-time surprise); those under
+ *  `#if !defined(ANTUMBRA_HAS_STD)` are only there: antumbra_set_allocator() and
+ *  antumbra_set_panic_hook(). */
+#if !defined(ANTUMBRA_NO_STD) && !defined(ANTUMBRA_HAS_STD)
+#define ANTUMBRA_HAS_STD 1
+#endif
+
 /** Marks functions whose antumbra_result must be checked. In C, GCC still warns
  *  on `(void)f()`; write `(void)!f()` to discard a result on purpose. */
 #if defined(__cplusplus) && __cplusplus >= 201703L
@@ -126,10 +138,12 @@
  */
 #define ANTUMBRA_HEMI_NEAR_CELLS 3.0
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Triangle index reported by a ray that hits nothing.
  */
 #define ANTUMBRA_INVALID_INDEX UINT32_MAX
+#endif
 
 /**
  * The most SH bands supported (lmax = 7, 64 coefficients per channel).
@@ -237,6 +251,7 @@
  */
 #define ANTUMBRA_TRANSFER_MAX_BOUNCES 64
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Shading state for one mesh topology and one configuration, reused every frame.
  * Opaque; create with `antumbra_hemi_shader_create`, free with
@@ -249,6 +264,7 @@
  * meshes at once.
  */
 typedef struct antumbra_hemi_shader antumbra_hemi_shader;
+#endif
 
 /**
  * A half-space table owned by the caller, for `antumbra_hemi_options.table`:
@@ -258,12 +274,14 @@ typedef struct antumbra_hemi_shader antumbra_hemi_shader;
  */
 typedef struct antumbra_hemi_table antumbra_hemi_table;
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * An immutable ray-casting scene: a compressed wide BVH over a copy of a mesh's
  * triangles. Opaque; create with `antumbra_scene_create`, free with
  * `antumbra_scene_destroy`.
  */
 typedef struct antumbra_scene antumbra_scene;
+#endif
 
 /**
  * Soft shadows from one planar area light with a fixed set of samples over a
@@ -294,6 +312,22 @@ typedef int32_t antumbra_result;
  * exception) and must not call back into Antumbra.
  */
 typedef void (*antumbra_error_callback)(antumbra_result code, const char *message, void *user_data);
+
+#if !defined(ANTUMBRA_HAS_STD)
+/**
+ * Returns `size` bytes aligned to `align` (a power of two), or NULL when there is
+ * no memory. `user_data` is the pointer given to `antumbra_set_allocator`.
+ */
+typedef void *(*antumbra_alloc_fn)(size_t size, size_t align, void *user_data);
+#endif
+
+#if !defined(ANTUMBRA_HAS_STD)
+/**
+ * Releases a block that the matching `antumbra_alloc_fn` returned, with the same
+ * `size` and `align` it was asked for.
+ */
+typedef void (*antumbra_free_fn)(void *pointer, size_t size, size_t align, void *user_data);
+#endif
 
 /**
  * Options of `antumbra_hemi_rasterize`. Fill with `antumbra_hemi_options_init`,
@@ -504,6 +538,17 @@ typedef struct antumbra_hemi_material {
   const float *view_directions;
 } antumbra_hemi_material;
 
+#if !defined(ANTUMBRA_HAS_STD)
+/**
+ * Called once when the library panics (an Antumbra bug; please report it), with a
+ * NUL-terminated description (file, line, message) and the `user_data` given to
+ * `antumbra_set_panic_hook`. It may log, reset the device or halt; if it returns,
+ * the library stops in an endless loop.
+ */
+typedef void (*antumbra_panic_hook)(const char *message, void *user_data);
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * The closest hit of one ray.
  */
@@ -525,6 +570,7 @@ typedef struct antumbra_hit {
    */
   float v;
 } antumbra_hit;
+#endif
 
 /**
  * Options of `antumbra_ssv_create`. Fill with `antumbra_ssv_options_init`, then
@@ -655,6 +701,7 @@ typedef struct antumbra_ssv_statistics {
   double candidates_per_query;
 } antumbra_ssv_statistics;
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * What `antumbra_transfer_bake` measures and how. Fill with
  * `antumbra_transfer_options_init`, then change fields: fields may be added at
@@ -729,6 +776,7 @@ typedef struct antumbra_transfer_options {
    */
   uint64_t seed;
 } antumbra_transfer_options;
+#endif
 
 /**
  * The surface and viewer of `antumbra_transfer_shade`. Fill with
@@ -772,6 +820,7 @@ typedef struct antumbra_transfer_material {
   const float *view_directions;
 } antumbra_transfer_material;
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Progress of `antumbra_transfer_bake`: `done` of `total` vertex passes
  * (vertices × (1 + bounces)). With `options->parallel` = 1 it is called from the
@@ -779,6 +828,7 @@ typedef struct antumbra_transfer_material {
  * be thread-safe, return normally and not call back into Antumbra.
  */
 typedef void (*antumbra_transfer_progress_fn)(size_t done, size_t total, void *user_data);
+#endif
 
 /**
  * What a transfer set holds, from `antumbra_transfer_describe`.
@@ -914,7 +964,9 @@ extern "C" {
  * Returns a NUL-terminated UTF-8 string owned by the library, never NULL, valid
  * until the next Antumbra call on the same thread; copy it to keep it (or use
  * `antumbra_last_error_message_copy`).
- * Thread safety: each thread has its own message.
+ * Thread safety: each thread has its own message. Without ANTUMBRA_HAS_STD (the
+ * bare-metal build) there is one message for the program, kept in static memory
+ * and cut at 240 bytes; call the library from one thread of execution there.
  */
 const char *antumbra_last_error_message(void);
 
@@ -950,9 +1002,38 @@ antumbra_result antumbra_last_error_message_copy(char *buffer,
  * @param user_data passed back to `callback` untouched.
  *
  * Thread safety: may be called from any thread; calls already in flight may
- * still report to the previous callback.
+ * still report to the previous callback. Without ANTUMBRA_HAS_STD, call it while
+ * no other Antumbra call runs.
  */
 void antumbra_set_error_callback(antumbra_error_callback callback, void *user_data);
+
+#if !defined(ANTUMBRA_HAS_STD)
+/**
+ * Registers the functions the bare-metal build allocates with (only in the build
+ * without ANTUMBRA_HAS_STD; the hosted build uses the system allocator).
+ *
+ * @param alloc returns `size` bytes aligned to `align`, or NULL when there is no
+ *        memory; every failure becomes ANTUMBRA_RESULT_OUT_OF_MEMORY of the call
+ *        that needed the memory, never an abort.
+ * @param free releases a block `alloc` returned, given the same size and align.
+ * @param user_data passed to both untouched.
+ * @return ANTUMBRA_RESULT_OK; ANTUMBRA_RESULT_NULL_ARGUMENT when exactly one of
+ *         `alloc` and `free` is NULL (both NULL removes the allocator, after which
+ *         every call that needs memory fails with ANTUMBRA_RESULT_OUT_OF_MEMORY);
+ *         ANTUMBRA_RESULT_INVALID_ARGUMENT while blocks from the previous
+ *         allocator are still held (destroy every handle first).
+ *
+ * Call it before any other Antumbra call that allocates. What each function
+ * allocates is in its documentation; the queries (masks, soft-shadow queries,
+ * shading) allocate nothing once their structure exists, except the soft-shadow
+ * hierarchy, which grows on the queries that first reach each region.
+ * Thread safety: call it while no other Antumbra call runs.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_set_allocator(antumbra_alloc_fn alloc,
+                                       antumbra_free_fn free,
+                                       void *user_data);
+#endif
 
 /**
  * The orthonormal frame (tangent, bitangent, normal) of Duff et al. 2017 around a
@@ -994,6 +1075,7 @@ void antumbra_frame_from_normal(const float *normal, float *tangent, float *bita
  */
 void antumbra_hemi_options_init(struct antumbra_hemi_options *options);
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Builds a half-space table that the caller owns, for `antumbra_hemi_options.table`.
  *
@@ -1018,7 +1100,9 @@ void antumbra_hemi_options_init(struct antumbra_hemi_options *options);
 ANTUMBRA_NODISCARD
 antumbra_result antumbra_hemi_table_create(uint32_t resolution,
                                            struct antumbra_hemi_table **out);
+#endif
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Frees a table. NULL is a no-op.
  *
@@ -1031,6 +1115,7 @@ antumbra_result antumbra_hemi_table_create(uint32_t resolution,
  * destroyed at most once.
  */
 void antumbra_hemi_table_destroy(struct antumbra_hemi_table *table);
+#endif
 
 /**
  * Hemisphere masks of a batch of receivers against every triangle of `mesh`.
@@ -1080,7 +1165,9 @@ void antumbra_hemi_table_destroy(struct antumbra_hemi_table *table);
  * skip whole clusters below a receiver's horizon: the same masks, 1.5–2.5× less
  * time per receiver on closed meshes. The first call with
  * the table quality and no `options->table` builds the library's shared table
- * (2 MiB, a few milliseconds; once per process, kept until exit).
+ * (2 MiB, a few milliseconds; once per process, kept until exit). Without
+ * ANTUMBRA_HAS_STD (bare metal) the call never groups and allocates nothing;
+ * the table quality and `parallel` = 1 are ANTUMBRA_RESULT_UNSUPPORTED there.
  * Ownership: borrows every argument for the call only.
  * Thread safety: any number of threads may rasterize at once, with the same or
  * different meshes, options and tables (all are only read).
@@ -1174,6 +1261,7 @@ void antumbra_hemi_shading_options_init(struct antumbra_hemi_shading_options *op
  */
 void antumbra_hemi_material_init(struct antumbra_hemi_material *material);
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Creates a shader for a mesh topology (and optionally a far mesh's) and a
  * configuration; the per-frame calls then take the current positions.
@@ -1225,7 +1313,9 @@ antumbra_result antumbra_hemi_shader_create(const struct antumbra_mesh_view *mes
                                             const struct antumbra_mesh_view *far_mesh,
                                             const struct antumbra_hemi_shading_options *options,
                                             struct antumbra_hemi_shader **out);
+#endif
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Frees a shader. NULL is a no-op.
  *
@@ -1239,7 +1329,9 @@ antumbra_result antumbra_hemi_shader_create(const struct antumbra_mesh_view *mes
  * destroyed at most once.
  */
 void antumbra_hemi_shader_destroy(struct antumbra_hemi_shader *shader);
+#endif
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Regroups a shader's triangle clusters from the current pose, for meshes whose
  * shape changed so much since creation that the rest-pose clusters are no
@@ -1265,7 +1357,9 @@ ANTUMBRA_NODISCARD
 antumbra_result antumbra_hemi_shader_regroup(struct antumbra_hemi_shader *shader,
                                              const struct antumbra_mesh_view *mesh,
                                              const struct antumbra_mesh_view *far_mesh);
+#endif
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Transfer vectors of every vertex of a mesh in its current pose, through a
  * shader: as `antumbra_hemi_transfer` with the shader's options, allocating
@@ -1303,7 +1397,9 @@ antumbra_result antumbra_hemi_shader_transfer(struct antumbra_hemi_shader *shade
                                               const float *normals,
                                               const struct antumbra_mesh_view *far_mesh,
                                               float *transfer);
+#endif
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Shaded colours of every vertex of a mesh in its current pose, through a
  * shader: as `antumbra_hemi_shade` with the shader's options, allocating nothing
@@ -1345,6 +1441,7 @@ antumbra_result antumbra_hemi_shader_shade(struct antumbra_hemi_shader *shader,
                                            float *rgb,
                                            float *diffuse,
                                            float *glossy);
+#endif
 
 /**
  * Spherical-harmonic transfer vectors of every vertex of a mesh, each vertex a
@@ -1406,6 +1503,9 @@ antumbra_result antumbra_hemi_shader_shade(struct antumbra_hemi_shader *shader,
  * into clusters (as `antumbra_hemi_rasterize`; a shader groups them once). The first call with a configuration builds the shared tables it reads
  * (see `antumbra_hemi_shader_create`). With options->raster.parallel = 1 the
  * vertices are split across the library's worker threads; results are identical.
+ * Without ANTUMBRA_HAS_STD (bare metal) the call never groups, and
+ * `far_triangles` > 0 and `parallel` = 1 are ANTUMBRA_RESULT_UNSUPPORTED (pass
+ * a far mesh of your own); every allocation failure is OUT_OF_MEMORY.
  * Ownership: borrows every argument for the call only.
  * Thread safety: any number of threads may call at once (the inputs and shared
  * tables are only read).
@@ -1482,6 +1582,22 @@ antumbra_result antumbra_hemi_shade(const struct antumbra_mesh_view *mesh,
                                     float *diffuse,
                                     float *glossy);
 
+#if !defined(ANTUMBRA_HAS_STD)
+/**
+ * Installs (or, with NULL, removes) the function called when the library panics
+ * (only in the build without ANTUMBRA_HAS_STD; the hosted build returns
+ * ANTUMBRA_RESULT_PANIC from the call instead).
+ *
+ * @param hook called with the panic's description; NULL removes it.
+ * @param user_data passed back to `hook` untouched.
+ *
+ * A panic is a bug of Antumbra, never a consequence of bad input (bad input is a
+ * result code). Without a hook the library stops silently in an endless loop.
+ * Thread safety: call it while no other Antumbra call runs.
+ */
+void antumbra_set_panic_hook(antumbra_panic_hook hook, void *user_data);
+#endif
+
 /**
  * A static, NUL-terminated name for a result code, e.g.
  * `"ANTUMBRA_RESULT_NULL_ARGUMENT"`; `"ANTUMBRA_RESULT_UNKNOWN"` for values this
@@ -1490,6 +1606,7 @@ antumbra_result antumbra_hemi_shade(const struct antumbra_mesh_view *mesh,
  */
 const char *antumbra_result_str(antumbra_result code);
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Builds a scene over `mesh`, copying its triangles (the mesh may be freed
  * afterwards).
@@ -1515,7 +1632,9 @@ const char *antumbra_result_str(antumbra_result code);
 ANTUMBRA_NODISCARD
 antumbra_result antumbra_scene_create(const struct antumbra_mesh_view *mesh,
                                       struct antumbra_scene **out);
+#endif
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Frees a scene. NULL is a no-op.
  *
@@ -1528,7 +1647,9 @@ antumbra_result antumbra_scene_create(const struct antumbra_mesh_view *mesh,
  * most once.
  */
 void antumbra_scene_destroy(struct antumbra_scene *scene);
+#endif
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Any-hit occlusion for a batch of rays: `occluded[i] = 1` when ray i hits a
  * triangle at some `0 < t < t_max[i]` (t in units of `|directions[i]|`), else 0.
@@ -1560,7 +1681,9 @@ antumbra_result antumbra_scene_occluded(const struct antumbra_scene *scene,
                                         const float *t_max,
                                         size_t ray_count,
                                         uint8_t *occluded);
+#endif
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Closest hit for a batch of rays: the hit with the smallest t in
  * `0 < t < t_max[i]` (t in units of `|directions[i]|`). A miss reports distance
@@ -1593,6 +1716,7 @@ antumbra_result antumbra_scene_intersect(const struct antumbra_scene *scene,
                                          const float *t_max,
                                          size_t ray_count,
                                          struct antumbra_hit *hits);
+#endif
 
 /**
  * SH coefficients of a linear RGB equirectangular (latitude–longitude) map:
@@ -1759,13 +1883,17 @@ void antumbra_ssv_options_init(struct antumbra_ssv_options *options);
  *         option out of range, misaligned pointer, stride below 12, size
  *         overflow, a coordinate beyond ±1e12); INDEX_OUT_OF_RANGE (a mesh
  *         index); NON_FINITE (a NaN or infinite mesh position, light vertex,
- *         sample or root bound); OUT_OF_MEMORY (the BVH could not be allocated);
- *         PANIC. Messages name the argument and index, e.g. `samples[7] is off
- *         the light polygon ...`.
+ *         sample or root bound); OUT_OF_MEMORY (the structure or the BVH could
+ *         not be allocated; nothing is kept); UNSUPPORTED (without
+ *         ANTUMBRA_HAS_STD: the hemicube structure, `parallel` = 1); PANIC.
+ *         Messages name the argument and index, e.g. `samples[7] is off the
+ *         light polygon ...`.
  *
- * Cost: O(triangles log triangles) (edge welding, the BVH); the hierarchy's
- * nodes are built lazily by the queries that reach them, the hemicube's cells
- * here.
+ * Cost: O(triangles log triangles) (edge welding, the BVH); allocates the edge
+ * graph, the structure and a copy of the samples (tens of bytes per triangle).
+ * The hierarchy's nodes are built lazily by the queries that reach them, the
+ * hemicube's cells here. Without ANTUMBRA_HAS_STD the reference ray goes
+ * through every triangle (no BVH): O(triangles) per query.
  * Ownership: the caller owns `*out` and frees it with `antumbra_ssv_destroy`.
  * Thread safety: safe from any thread; the new handle is independent of others.
  *
@@ -1827,6 +1955,9 @@ void antumbra_ssv_destroy(struct antumbra_ssv *ssv);
  * call's points need (it splits a node where eight or more of them fall and
  * the split shortens the lists; a few arrays of `point_count` entries for
  * that), so pass a frame's receivers in one call rather than one by one.
+ * Memory never makes a query fail: where a node cannot be allocated the walk
+ * stops at the coarser node it reached, whose candidates include the finer
+ * one's (the same bits, more work).
  * Ownership: borrows every array for the call only; the outputs must not overlap
  * each other or `points`.
  * Thread safety: any number of threads may query the same handle at once
@@ -1886,8 +2017,10 @@ antumbra_result antumbra_ssv_get_statistics(const struct antumbra_ssv *ssv,
  * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (light_vertices, samples);
  *         INVALID_ARGUMENT (a count out of range, an unknown pattern, a
  *         non-convex, non-planar or degenerate light, a coordinate beyond
- *         ±1e12, misaligned arrays); NON_FINITE (a light vertex); PANIC.
+ *         ±1e12, misaligned arrays); NON_FINITE (a light vertex); OUT_OF_MEMORY;
+ *         PANIC.
  *
+ * Cost: allocates a temporary of `12 * sample_count` bytes.
  * Thread safety: safe from any thread.
  *
  * # Safety
@@ -1902,6 +2035,7 @@ antumbra_result antumbra_ssv_generate_samples(const float *light_vertices,
                                               uint64_t seed,
                                               float *samples);
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Writes the default bake options: diffuse kind, 4 bands, grid 8, 256 rays, no
  * bounces, parallel, a Phong BRDF of exponent 16 (MRT), albedo 0.5, ray offset
@@ -1918,6 +2052,7 @@ antumbra_result antumbra_ssv_generate_samples(const float *light_vertices,
  * `options` must be NULL or valid for writing one `antumbra_transfer_options`.
  */
 void antumbra_transfer_options_init(struct antumbra_transfer_options *options);
+#endif
 
 /**
  * Writes the default material: diffuse and specular (1, 1, 1), Phong exponent
@@ -1935,6 +2070,7 @@ void antumbra_transfer_options_init(struct antumbra_transfer_options *options);
  */
 void antumbra_transfer_material_init(struct antumbra_transfer_material *material);
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * Bakes the transfer of every vertex of a mesh: rays cast from each vertex over
  * its hemisphere against the mesh itself (a BVH built for the call), for every
@@ -1978,6 +2114,7 @@ antumbra_result antumbra_transfer_bake(const struct antumbra_mesh_view *mesh,
                                        antumbra_transfer_progress_fn progress,
                                        void *user_data,
                                        struct antumbra_transfer **out);
+#endif
 
 /**
  * Frees a transfer set. NULL is a no-op.
@@ -2050,7 +2187,7 @@ antumbra_result antumbra_transfer_geometry(const struct antumbra_transfer *trans
  *         INVALID_ARGUMENT (misaligned size); BUFFER_TOO_SMALL (nothing written
  *         to `buffer`); OUT_OF_MEMORY; POISONED; PANIC.
  *
- * Cost: builds the file in a temporary of its size, then copies it.
+ * Cost: writes the file straight into `buffer`; allocates nothing.
  * Thread safety: any number of threads may use the same set at once.
  *
  * # Safety
@@ -2074,8 +2211,11 @@ antumbra_result antumbra_transfer_save(const struct antumbra_transfer *transfer,
  * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (bytes with len > 0, out);
  *         INVALID_ARGUMENT (misaligned out); INVALID_DATA (truncated, bad magic,
  *         unsupported version, a field out of range, checksum mismatch, trailing
- *         bytes, a non-finite value; the message names the field); PANIC.
+ *         bytes, a non-finite value; the message names the field); OUT_OF_MEMORY
+ *         (nothing is kept); PANIC.
  *
+ * Cost: allocates the set: about the file's size plus 36 bytes per vertex (the
+ * vertex frames).
  * Ownership: the caller owns `*out` (free with `antumbra_transfer_destroy`);
  * `bytes` is borrowed for the call only.
  * Thread safety: safe from any thread.
@@ -2088,6 +2228,7 @@ antumbra_result antumbra_transfer_load(const uint8_t *bytes,
                                        size_t len,
                                        struct antumbra_transfer **out);
 
+#if defined(ANTUMBRA_HAS_STD)
 /**
  * PCA-compresses an uncompressed MRT set: a mean and `components` principal
  * components of the per-vertex matrices, `components` weights per vertex.
@@ -2114,6 +2255,7 @@ ANTUMBRA_NODISCARD
 antumbra_result antumbra_transfer_compress(const struct antumbra_transfer *transfer,
                                            uint32_t components,
                                            struct antumbra_transfer **out);
+#endif
 
 /**
  * Relights every vertex of a transfer set: RGB radiance toward the viewer under

@@ -66,6 +66,7 @@ extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod fallible;
 pub mod geom;
 pub mod hemi;
 mod prefetch;

@@ -1,10 +1,12 @@
 //! The panic boundary every export runs inside: no unwinding ever reaches C.
 //!
-//! A panic is an Antumbra bug; it is reported as `ANTUMBRA_RESULT_PANIC` with the
-//! panic message, and the caller is told (by the export) to poison its handle.
+//! A panic is an Antumbra bug; in the hosted build it is reported as
+//! `ANTUMBRA_RESULT_PANIC` with the panic message, and the caller is told (by the
+//! export) to poison its handle. The bare-metal build cannot unwind: a panic calls
+//! the application's hook and stops (see `panic_hook.rs`), so nothing is caught
+//! here and no handle is ever poisoned.
 
-use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::sync::atomic::{AtomicBool, Ordering};
+use core::sync::atomic::{AtomicBool, Ordering};
 
 use crate::error::{Error, clear_last_error, record};
 use crate::raw;
@@ -17,16 +19,25 @@ pub(crate) fn guard(
     body: impl FnOnce() -> Result<(), Error>,
 ) -> antumbra_result {
     clear_last_error();
-    // Unwind safety: a panicking body leaves no shared state half-updated except
-    // handles, which the exports poison.
-    match catch_unwind(AssertUnwindSafe(body)) {
-        Ok(Ok(())) => ANTUMBRA_RESULT_OK,
-        Ok(Err(error)) => record(function, error),
-        Err(payload) => record(function, panic_error(payload.as_ref())),
+    #[cfg(feature = "std")]
+    {
+        // Unwind safety: a panicking body leaves no shared state half-updated
+        // except handles, which the exports poison.
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(body)) {
+            Ok(Ok(())) => ANTUMBRA_RESULT_OK,
+            Ok(Err(error)) => record(function, error),
+            Err(payload) => record(function, panic_error(payload.as_ref())),
+        }
+    }
+    #[cfg(not(feature = "std"))]
+    match body() {
+        Ok(()) => ANTUMBRA_RESULT_OK,
+        Err(error) => record(function, error),
     }
 }
 
 /// The error a caught panic becomes.
+#[cfg(feature = "std")]
 pub(crate) fn panic_error(payload: &(dyn std::any::Any + Send)) -> Error {
     let what = payload
         .downcast_ref::<&str>()
@@ -35,7 +46,7 @@ pub(crate) fn panic_error(payload: &(dyn std::any::Any + Send)) -> Error {
         .unwrap_or("(no message)");
     Error::new(
         ANTUMBRA_RESULT_PANIC,
-        format!("internal error (please report): {what}"),
+        message!("internal error (please report): {what}"),
     )
 }
 
@@ -54,7 +65,7 @@ pub(crate) fn check_not_poisoned(flag: &AtomicBool, argument: &str) -> Result<()
     if flag.load(Ordering::Acquire) {
         return Err(Error::new(
             ANTUMBRA_RESULT_POISONED,
-            format!("{argument} was poisoned by an earlier internal error; destroy it"),
+            message!("{argument} was poisoned by an earlier internal error; destroy it"),
         ));
     }
     Ok(())

@@ -49,11 +49,11 @@ pub unsafe extern "C" fn antumbra_frame_from_normal(
         if !n.is_finite() {
             return Err(Error::new(
                 ANTUMBRA_RESULT_NON_FINITE,
-                format!("normal ({}, {}, {}) is not finite", n.x, n.y, n.z),
+                message!("normal ({}, {}, {}) is not finite", n.x, n.y, n.z),
             ));
         }
         if (n.length() - 1.0).abs() > UNIT_TOLERANCE {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "normal has length {}, not 1",
                 n.length()
             )));

@@ -11,7 +11,10 @@
 //! `antumbra_core::hemi::rasterize_receiver` with the same inputs, whichever thread
 //! computed it.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+#[cfg(feature = "std")]
+use alloc::boxed::Box;
+use core::sync::atomic::{AtomicBool, Ordering};
+#[cfg(feature = "std")]
 use std::sync::{Mutex, OnceLock, PoisonError};
 
 use antumbra_core::MeshView;
@@ -165,6 +168,7 @@ pub unsafe extern "C" fn antumbra_hemi_options_init(options: *mut antumbra_hemi_
     });
 }
 
+#[cfg(feature = "std")]
 /// Builds a half-space table that the caller owns, for `antumbra_hemi_options.table`.
 ///
 /// @param resolution grid points per side of the octant of plane normals: 0 for
@@ -199,7 +203,7 @@ pub unsafe extern "C" fn antumbra_hemi_table_create(
             0 => HalfSpaceTable::DEFAULT_RESOLUTION,
             r if r <= HalfSpaceTable::MAX_RESOLUTION => r,
             r => {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "resolution is {r}; expected 0 (the default) or 1 to {}",
                     HalfSpaceTable::MAX_RESOLUTION
                 )));
@@ -216,6 +220,7 @@ pub unsafe extern "C" fn antumbra_hemi_table_create(
     })
 }
 
+#[cfg(feature = "std")]
 /// Frees a table. NULL is a no-op.
 ///
 /// Ownership: takes back a table from `antumbra_hemi_table_create`; it must not be
@@ -236,11 +241,12 @@ pub unsafe extern "C" fn antumbra_hemi_table_destroy(table: *mut antumbra_hemi_t
     });
 }
 
+#[cfg(feature = "std")]
 fn build_table(resolution: u32) -> Result<HalfSpaceTable, Error> {
     HalfSpaceTable::try_new(resolution).map_err(|e| {
         Error::new(
             ANTUMBRA_RESULT_OUT_OF_MEMORY,
-            format!(
+            message!(
                 "no memory for a half-space table of {resolution}² masks ({} bytes): {e}",
                 resolution as usize * resolution as usize * core::mem::size_of::<HemiMask>()
             ),
@@ -250,6 +256,7 @@ fn build_table(resolution: u32) -> Result<HalfSpaceTable, Error> {
 
 /// The library's shared table, built by the first call that needs it. A failed
 /// build (out of memory) is not remembered: a later call tries again.
+#[cfg(feature = "std")]
 pub(crate) fn shared_table() -> Result<&'static HalfSpaceTable, Error> {
     static TABLE: OnceLock<HalfSpaceTable> = OnceLock::new();
     // Serialises the builds so concurrent first calls build one table, not one
@@ -271,6 +278,8 @@ struct Settings<'t> {
     quality: Quality<'t>,
     cull_backfaces: bool,
     normal_offset: f32,
+    /// Always false in the bare-metal build (refused by `check_options`).
+    #[cfg_attr(not(feature = "std"), allow(dead_code))]
     parallel: bool,
 }
 
@@ -278,7 +287,7 @@ pub(crate) fn flag(value: u32, argument: &str) -> Result<bool, Error> {
     match value {
         0 => Ok(false),
         1 => Ok(true),
-        v => Err(Error::invalid(format!(
+        v => Err(Error::invalid(message!(
             "{argument} is {v}; expected 0 or 1"
         ))),
     }
@@ -314,28 +323,44 @@ pub(crate) unsafe fn check_options<'a>(
     prefix: &str,
 ) -> Result<Option<&'a antumbra_hemi_table>, Error> {
     if options.quality > ANTUMBRA_HEMI_QUALITY_TABLE {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "{prefix}quality is {}; expected ANTUMBRA_HEMI_QUALITY_EXACT (0) or \
              ANTUMBRA_HEMI_QUALITY_TABLE (1)",
             options.quality
         )));
     }
-    flag(options.cull_backfaces, &format!("{prefix}cull_backfaces"))?;
-    flag(options.parallel, &format!("{prefix}parallel"))?;
+    flag(options.cull_backfaces, &message!("{prefix}cull_backfaces"))?;
+    flag(options.parallel, &message!("{prefix}parallel"))?;
     let offset = options.normal_offset;
     if !offset.is_finite() {
         return Err(Error::new(
             ANTUMBRA_RESULT_NON_FINITE,
-            format!("{prefix}normal_offset is {offset}; it must be finite"),
+            message!("{prefix}normal_offset is {offset}; it must be finite"),
         ));
     }
     if !(0.0..=MAX_COORDINATE).contains(&offset) {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "{prefix}normal_offset is {offset}; expected 0 to {MAX_COORDINATE:e}"
         )));
     }
+    #[cfg(not(feature = "std"))]
+    {
+        if options.quality == ANTUMBRA_HEMI_QUALITY_TABLE {
+            return Err(Error::new(
+                ANTUMBRA_RESULT_UNSUPPORTED,
+                message!(
+                    "{prefix}quality is ANTUMBRA_HEMI_QUALITY_TABLE, which the bare-metal \
+                     build does not include (its table is 2 MiB); use \
+                     ANTUMBRA_HEMI_QUALITY_EXACT"
+                ),
+            ));
+        }
+        if options.parallel == 1 {
+            return Err(unsupported_parallel(&message!("{prefix}parallel")));
+        }
+    }
     if options.quality == ANTUMBRA_HEMI_QUALITY_TABLE && !options.table.is_null() {
-        let argument = format!("{prefix}table");
+        let argument = message!("{prefix}table");
         // SAFETY: non-NULL, so by contract a live table.
         let table = unsafe { raw::reference(options.table, &argument) }?;
         check_not_poisoned(&table.poisoned, &argument)?;
@@ -345,8 +370,18 @@ pub(crate) unsafe fn check_options<'a>(
     }
 }
 
+/// The error for `parallel` = 1 in the bare-metal build, which has no threads.
+#[cfg(not(feature = "std"))]
+pub(crate) fn unsupported_parallel(argument: &str) -> Error {
+    Error::new(
+        ANTUMBRA_RESULT_UNSUPPORTED,
+        message!("{argument} is 1, but the bare-metal build has no worker threads; use 0"),
+    )
+}
+
 /// Receivers per rayon task: one receiver costs microseconds (every triangle is
 /// read and culled), so small tasks balance well and still amortise scheduling.
+#[cfg(feature = "std")]
 const PARALLEL_GRAIN: usize = 4;
 
 /// Hemisphere masks of a batch of receivers against every triangle of `mesh`.
@@ -396,7 +431,9 @@ const PARALLEL_GRAIN: usize = 4;
 /// skip whole clusters below a receiver's horizon: the same masks, 1.5–2.5× less
 /// time per receiver on closed meshes. The first call with
 /// the table quality and no `options->table` builds the library's shared table
-/// (2 MiB, a few milliseconds; once per process, kept until exit).
+/// (2 MiB, a few milliseconds; once per process, kept until exit). Without
+/// ANTUMBRA_HAS_STD (bare metal) the call never groups and allocates nothing;
+/// the table quality and `parallel` = 1 are ANTUMBRA_RESULT_UNSUPPORTED there.
 /// Ownership: borrows every argument for the call only.
 /// Thread safety: any number of threads may rasterize at once, with the same or
 /// different meshes, options and tables (all are only read).
@@ -430,12 +467,16 @@ pub unsafe extern "C" fn antumbra_hemi_rasterize(
             unsafe { Receivers::new(receiver_positions, receiver_normals, receiver_count) }?;
         // SAFETY: caller contract: valid for `receiver_count` masks, no overlap.
         let out = unsafe { raw::slice_mut(masks, receiver_count, "masks") }?;
+        #[cfg(feature = "std")]
         let quality = match (options.quality, user_table) {
             (ANTUMBRA_HEMI_QUALITY_EXACT, _) => Quality::Exact,
             (_, Some(table)) => Quality::Table(&table.table),
             (_, None) if receiver_count == 0 => Quality::Exact,
             (_, None) => Quality::Table(shared_table()?),
         };
+        // `check_options` refused the table quality.
+        #[cfg(not(feature = "std"))]
+        let quality = Quality::Exact;
         let settings = Settings {
             quality,
             cull_backfaces: options.cull_backfaces == 1,
@@ -462,7 +503,7 @@ pub(crate) fn check_coordinate_range(mesh: &MeshView<'_>, argument: &str) -> Res
         .iter()
         .find(|&&v| mesh.position(v as usize).abs().max_element() > MAX_COORDINATE)
     {
-        Some(&vertex) => Err(Error::invalid(format!(
+        Some(&vertex) => Err(Error::invalid(message!(
             "{argument}->positions: vertex {vertex} has a coordinate beyond the supported range \
              of ±{MAX_COORDINATE:e}"
         ))),
@@ -490,8 +531,11 @@ fn rasterize_batch(
     settings: &Settings<'_>,
     out: &mut [antumbra_hemi_mask],
 ) {
-    let mut clusters = worth_clustering(out.len(), mesh.triangle_count())
-        .then(|| TriangleClusters::new(mesh, TriangleClusters::DEFAULT_SIZE));
+    // The bare-metal build never groups: its masks allocate nothing, and the
+    // meshes it meets are small.
+    let mut clusters = (cfg!(feature = "std")
+        && worth_clustering(out.len(), mesh.triangle_count()))
+    .then(|| TriangleClusters::new(mesh, TriangleClusters::DEFAULT_SIZE));
     let scene = clusters.as_mut().map(|c| HemiScene::new(c.update(*mesh)));
     let options = RasterOptions {
         quality: settings.quality,
@@ -511,16 +555,17 @@ fn rasterize_batch(
             None => rasterize_receiver(mesh, position, normal, &options),
         })
     };
+    #[cfg(feature = "std")]
     if settings.parallel && out.len() > 1 {
         use rayon::prelude::*;
         out.par_iter_mut()
             .enumerate()
             .with_min_len(PARALLEL_GRAIN)
             .for_each(|(k, mask)| *mask = one(k));
-    } else {
-        for (k, mask) in out.iter_mut().enumerate() {
-            *mask = one(k);
-        }
+        return;
+    }
+    for (k, mask) in out.iter_mut().enumerate() {
+        *mask = one(k);
     }
 }
 
@@ -545,10 +590,12 @@ impl<'a> Receivers<'a> {
                 return Err(non_finite("receiver_positions", k, p));
             }
             if p.abs().max_element() > MAX_COORDINATE {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "receiver_positions[{k}] ({}, {}, {}) is beyond the supported range of \
                      ±{MAX_COORDINATE:e}",
-                    p.x, p.y, p.z
+                    p.x,
+                    p.y,
+                    p.z
                 )));
             }
             let n = Vec3::from_slice(&normals[3 * k..]);
@@ -557,7 +604,7 @@ impl<'a> Receivers<'a> {
             }
             let length = n.length();
             if (length - 1.0).abs() > UNIT_TOLERANCE {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "receiver_normals[{k}] has length {length}, not 1 (tolerance {UNIT_TOLERANCE})"
                 )));
             }
@@ -577,7 +624,7 @@ impl<'a> Receivers<'a> {
 pub(crate) fn non_finite(argument: &str, k: usize, v: Vec3) -> Error {
     Error::new(
         ANTUMBRA_RESULT_NON_FINITE,
-        format!("{argument}[{k}] ({}, {}, {}) is not finite", v.x, v.y, v.z),
+        message!("{argument}[{k}] ({}, {}, {}) is not finite", v.x, v.y, v.z),
     )
 }
 
@@ -612,7 +659,7 @@ pub unsafe extern "C" fn antumbra_hemi_cell_direction(
         // SAFETY: caller contract: valid for 3 floats, aliasing nothing we read.
         let out = unsafe { raw::slice_mut(local_direction, 3, "local_direction") }?;
         if i >= ANTUMBRA_HEMI_GRID || j >= ANTUMBRA_HEMI_GRID {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "cell ({i}, {j}) is outside the {ANTUMBRA_HEMI_GRID}x{ANTUMBRA_HEMI_GRID} grid"
             )));
         }
@@ -621,7 +668,7 @@ pub unsafe extern "C" fn antumbra_hemi_cell_direction(
                 hemi::cell_coordinate(i as usize),
                 hemi::cell_coordinate(j as usize),
             );
-            Error::invalid(format!(
+            Error::invalid(message!(
                 "cell ({i}, {j}) is outside the unit disk (u = {u}, v = {v}, u² + v² = {} >= 1)",
                 u * u + v * v
             ))

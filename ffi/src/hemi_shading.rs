@@ -35,10 +35,15 @@
 //! per-vertex `vertex_transfer` / `shade_vertex` they call) on the same inputs,
 //! whichever thread computed it.
 
-use std::any::Any;
-use std::ptr::NonNull;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Mutex, OnceLock, PoisonError};
+use alloc::boxed::Box;
+use alloc::vec::Vec;
+use core::any::Any;
+use core::ptr::NonNull;
+#[cfg(feature = "std")]
+use core::sync::atomic::AtomicBool;
+use core::sync::atomic::Ordering;
+#[cfg(feature = "std")]
+use std::sync::{Mutex, PoisonError};
 
 use antumbra_core::hemi::{
     BatchOptions, ClusteredMesh, FarMesh, HemiScene, Material, PhongLobe, Quality, TransferLut,
@@ -51,12 +56,17 @@ use antumbra_core::sh::{Sh, ShRgb};
 use antumbra_core::{Frame, MeshView};
 use glam::Vec3;
 
-use crate::boundary::{check_not_poisoned, guard};
+#[cfg(feature = "std")]
+use crate::boundary::check_not_poisoned;
+use crate::boundary::guard;
 use crate::error::Error;
+use crate::fallible;
 use crate::frame::UNIT_TOLERANCE;
+#[cfg(feature = "std")]
+use crate::hemi::shared_table;
 use crate::hemi::{
     ANTUMBRA_HEMI_QUALITY_EXACT, DEFAULT_OPTIONS, antumbra_hemi_options, antumbra_hemi_table,
-    check_coordinate_range, check_options, non_finite, shared_table, worth_clustering,
+    check_coordinate_range, check_options, non_finite, worth_clustering,
 };
 use crate::mesh::{antumbra_mesh_view, mesh_from_c};
 use crate::raw;
@@ -266,40 +276,58 @@ fn write_one<T>(pointer: *mut T, value: T, argument: &str) -> Result<(), Error> 
 
 /// Tables per band count, built on first use and kept until the process exits.
 /// A slot holds the table of `bands = index + 1`, so the downcast cannot fail.
-type Slots = [OnceLock<Box<dyn Any + Send + Sync>>; ANTUMBRA_SH_MAX_BANDS as usize];
+/// Racing first calls may each build a table; one is kept, the others dropped.
+type Slots = [once_cell::race::OnceBox<Box<dyn Any + Send + Sync>>; ANTUMBRA_SH_MAX_BANDS as usize];
 
 fn shared<T: Any + Send + Sync>(
     slots: &'static Slots,
     bands: usize,
-    build: fn() -> T,
-) -> &'static T {
-    slots[bands - 1]
-        .get_or_init(|| Box::new(build()))
+    what: &str,
+    build: impl FnOnce() -> Result<T, alloc::collections::TryReserveError>,
+) -> Result<&'static T, Error> {
+    let slot = slots[bands - 1].get_or_try_init(|| {
+        let table =
+            build().map_err(|_| fallible::out_of_memory(what, core::mem::size_of::<T>()))?;
+        let table: Box<dyn Any + Send + Sync> = fallible::boxed(table, what)?;
+        fallible::boxed(table, what)
+    })?;
+    Ok(slot
         .downcast_ref::<T>()
-        .expect("a table slot holds the table of its band count")
+        .expect("a table slot holds the table of its band count"))
 }
 
 /// The per-cell SH integrals for `N` coefficients (39 KB at 3 bands, 262 KB at 8;
 /// measured 9 ms to build at 3 bands, 26 ms at 8).
-fn transfer_table<const N: usize>() -> &'static TransferTable<N> {
-    static SLOTS: Slots = [const { OnceLock::new() }; ANTUMBRA_SH_MAX_BANDS as usize];
-    shared(&SLOTS, Sh::<N>::BANDS, TransferTable::<N>::new)
+fn transfer_table<const N: usize>() -> Result<&'static TransferTable<N>, Error> {
+    static SLOTS: Slots =
+        [const { once_cell::race::OnceBox::new() }; ANTUMBRA_SH_MAX_BANDS as usize];
+    shared(
+        &SLOTS,
+        Sh::<N>::BANDS,
+        "the shared transfer table",
+        TransferTable::<N>::try_new,
+    )
 }
 
 /// The byte lookup table for `N` coefficients.
-fn transfer_lut<const N: usize>() -> &'static TransferLut<N> {
-    static SLOTS: Slots = [const { OnceLock::new() }; ANTUMBRA_SH_MAX_BANDS as usize];
-    shared(&SLOTS, Sh::<N>::BANDS, || {
-        TransferLut::new(transfer_table::<N>().clone())
-    })
+fn transfer_lut<const N: usize>() -> Result<&'static TransferLut<N>, Error> {
+    static SLOTS: Slots =
+        [const { once_cell::race::OnceBox::new() }; ANTUMBRA_SH_MAX_BANDS as usize];
+    let table = transfer_table::<N>()?;
+    shared(
+        &SLOTS,
+        Sh::<N>::BANDS,
+        "the shared transfer lookup table",
+        || TransferLut::try_new(table.clone()),
+    )
 }
 
-fn transfer_method<const N: usize>(method: u32) -> TransferMethod<'static, N> {
-    match method {
-        ANTUMBRA_HEMI_METHOD_LUT => TransferMethod::Lut(transfer_lut::<N>()),
-        ANTUMBRA_HEMI_METHOD_DOWNSAMPLED => TransferMethod::Downsampled(transfer_table::<N>()),
-        _ => TransferMethod::Cells(transfer_table::<N>()),
-    }
+fn transfer_method<const N: usize>(method: u32) -> Result<TransferMethod<'static, N>, Error> {
+    Ok(match method {
+        ANTUMBRA_HEMI_METHOD_LUT => TransferMethod::Lut(transfer_lut::<N>()?),
+        ANTUMBRA_HEMI_METHOD_DOWNSAMPLED => TransferMethod::Downsampled(transfer_table::<N>()?),
+        _ => TransferMethod::Cells(transfer_table::<N>()?),
+    })
 }
 
 /// Calls `$f::<N>($args)` with the coefficient count of `$bands` (1 to 8).
@@ -320,8 +348,9 @@ macro_rules! with_coefficients {
 }
 
 /// Builds the tables a configuration reads, so that later calls only read them.
-fn prepare_tables<const N: usize>(config: &Config) {
-    let _ = transfer_method::<N>(config.method);
+#[cfg(feature = "std")]
+fn prepare_tables<const N: usize>(config: &Config) -> Result<(), Error> {
+    transfer_method::<N>(config.method).map(|_| ())
 }
 
 // ---------------------------------------------------------------------------
@@ -381,7 +410,11 @@ impl Config {
     unsafe fn quality(&self) -> Result<Quality<'_>, Error> {
         Ok(match self.half_space {
             HalfSpace::Exact => Quality::Exact,
+            #[cfg(feature = "std")]
             HalfSpace::Shared => Quality::Table(shared_table()?),
+            // `check_options` refuses the table quality in the bare-metal build.
+            #[cfg(not(feature = "std"))]
+            HalfSpace::Shared => Quality::Exact,
             HalfSpace::User(UserTable(table)) => {
                 // SAFETY: alive by the caller's contract.
                 let table = unsafe { table.as_ref() };
@@ -431,13 +464,13 @@ unsafe fn read_shading_options(
     // SAFETY: forwarded contract on the table.
     let user_table = unsafe { check_options(&options.raster, "options->raster.") }?;
     if !(1..=ANTUMBRA_SH_MAX_BANDS).contains(&options.bands) {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->bands is {}; expected 1 to {ANTUMBRA_SH_MAX_BANDS}",
             options.bands
         )));
     }
     if options.method > ANTUMBRA_HEMI_METHOD_DOWNSAMPLED {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->method is {}; expected ANTUMBRA_HEMI_METHOD_CELLS (0), \
              ANTUMBRA_HEMI_METHOD_LUT (1) or ANTUMBRA_HEMI_METHOD_DOWNSAMPLED (2)",
             options.method
@@ -447,7 +480,7 @@ unsafe fn read_shading_options(
         ANTUMBRA_HEMI_SPACE_WORLD => TransferSpace::World,
         ANTUMBRA_HEMI_SPACE_LOCAL => TransferSpace::Local,
         s => {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "options->space is {s}; expected ANTUMBRA_HEMI_SPACE_WORLD (0) or \
                  ANTUMBRA_HEMI_SPACE_LOCAL (1)"
             )));
@@ -461,13 +494,13 @@ unsafe fn read_shading_options(
         ));
     }
     if radius < 0.0 {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->near_radius is {radius}; it must be >= 0 (+INFINITY: the full mesh \
              everywhere)"
         )));
     }
     if options.reserved != 0 {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->reserved is {}; it must be 0",
             options.reserved
         )));
@@ -544,10 +577,11 @@ fn check_disjoint(outputs: &[Option<Span>], inputs: &Spans) -> Result<(), Error>
         let Some(output) = output else { continue };
         for other in outputs[k + 1..].iter().chain(&inputs.items).flatten() {
             if output.overlaps(other) {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "{} overlaps {}; outputs must not share memory with each other or \
                      with the inputs",
-                    output.name, other.name
+                    output.name,
+                    other.name
                 )));
             }
         }
@@ -605,7 +639,7 @@ unsafe fn read_frame<'a>(
     if let Some(vertex) = (0..core_mesh.vertex_count())
         .find(|&v| core_mesh.position(v).abs().max_element() > MAX_COORDINATE)
     {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "mesh->positions: vertex {vertex} has a coordinate beyond the supported range of \
              ±{MAX_COORDINATE:e}"
         )));
@@ -641,7 +675,7 @@ unsafe fn read_frame<'a>(
             }
             let length = n.length();
             if n != Vec3::ZERO && (length - 1.0).abs() > UNIT_TOLERANCE {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "normals[{v}] has length {length}, neither 1 (tolerance {UNIT_TOLERANCE}) \
                      nor exactly 0"
                 )));
@@ -679,13 +713,15 @@ fn check_reflectance(value: [f32; 3], argument: impl core::fmt::Display) -> Resu
     if !v.is_finite() {
         return Err(Error::new(
             ANTUMBRA_RESULT_NON_FINITE,
-            format!("{argument} ({}, {}, {}) is not finite", v.x, v.y, v.z),
+            message!("{argument} ({}, {}, {}) is not finite", v.x, v.y, v.z),
         ));
     }
     if v.min_element() < 0.0 {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "{argument} ({}, {}, {}) has a negative channel",
-            v.x, v.y, v.z
+            v.x,
+            v.y,
+            v.z
         )));
     }
     Ok(v)
@@ -707,11 +743,11 @@ unsafe fn read_material<'a>(
     if !exponent.is_finite() {
         return Err(Error::new(
             ANTUMBRA_RESULT_NON_FINITE,
-            format!("material->exponent is {exponent}; it must be finite"),
+            message!("material->exponent is {exponent}; it must be finite"),
         ));
     }
     if exponent < 0.0 {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "material->exponent is {exponent}; it must be >= 0"
         )));
     }
@@ -719,16 +755,20 @@ unsafe fn read_material<'a>(
     if !eye.is_finite() {
         return Err(Error::new(
             ANTUMBRA_RESULT_NON_FINITE,
-            format!(
+            message!(
                 "material->eye ({}, {}, {}) is not finite",
-                eye.x, eye.y, eye.z
+                eye.x,
+                eye.y,
+                eye.z
             ),
         ));
     }
     if eye.abs().max_element() > MAX_COORDINATE {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "material->eye ({}, {}, {}) is beyond the supported range of ±{MAX_COORDINATE:e}",
-            eye.x, eye.y, eye.z
+            eye.x,
+            eye.y,
+            eye.z
         )));
     }
     let xyz = raw::element_count(vertex_count, 3, "mesh->vertex_count")?;
@@ -756,7 +796,7 @@ unsafe fn read_material<'a>(
             }
             let length = direction.length();
             if (length - 1.0).abs() > UNIT_TOLERANCE {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "material->view_directions[{v}] has length {length}, not 1 (tolerance \
                      {UNIT_TOLERANCE})"
                 )));
@@ -793,7 +833,7 @@ unsafe fn read_lighting<'a>(
     if let Some(i) = l.iter().position(|c| !c.is_finite()) {
         return Err(Error::new(
             ANTUMBRA_RESULT_NON_FINITE,
-            format!(
+            message!(
                 "lighting[{i}] (channel {}, coefficient {}) is {}; it must be finite",
                 ["red", "green", "blue"][i / count],
                 i % count,
@@ -834,7 +874,7 @@ fn reserve<T: Clone>(count: usize, value: T, what: &str) -> Result<Vec<T>, Error
     v.try_reserve_exact(count).map_err(|e| {
         Error::new(
             ANTUMBRA_RESULT_OUT_OF_MEMORY,
-            format!(
+            message!(
                 "no memory for {what} of {count} vertices ({} bytes): {e}",
                 count.saturating_mul(core::mem::size_of::<T>())
             ),
@@ -853,7 +893,13 @@ impl Workspace {
             } else {
                 Vec::new()
             },
-            lobe: exponent.map(|s| Box::new(PhongLobe::new(s).expect("a checked exponent"))),
+            lobe: match exponent {
+                Some(s) => Some(fallible::boxed(
+                    PhongLobe::new(s).expect("a checked exponent"),
+                    "a Phong lobe",
+                )?),
+                None => None,
+            },
             clusters: None,
             far_clusters: None,
             far_mesh: None,
@@ -863,7 +909,10 @@ impl Workspace {
     /// For a one-shot call: groups the triangles of the mesh (and far mesh) into
     /// clusters when the call has enough receivers to pay for it (the same results).
     fn cluster_if_worth_it(&mut self, input: &FrameInput<'_>) {
-        if !worth_clustering(input.mesh.vertex_count(), input.mesh.triangle_count()) {
+        // The bare-metal build never groups (grouping allocates; see hemi.rs).
+        if !cfg!(feature = "std")
+            || !worth_clustering(input.mesh.vertex_count(), input.mesh.triangle_count())
+        {
             return;
         }
         self.clusters = Some(TriangleClusters::new(
@@ -947,14 +996,26 @@ fn build_far_mesh(
         return Ok((None, *config));
     }
     if input.far.is_some() {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "far_mesh is given together with options->far_triangles = {}; pass one or the \
              other (0 far triangles to use the caller's far mesh)",
             config.far_triangles
         )));
     }
+    // Simplification allocates in ways the bare-metal build cannot report yet;
+    // there a far mesh comes from the caller.
+    if cfg!(not(feature = "std")) {
+        return Err(Error::new(
+            ANTUMBRA_RESULT_UNSUPPORTED,
+            message!(
+                "options->far_triangles is {}, but the bare-metal build does not simplify \
+                 meshes; pass a far mesh of your own",
+                config.far_triangles
+            ),
+        ));
+    }
     let far = FarMesh::with_triangles(&input.mesh, config.far_triangles).map_err(|e| {
-        Error::invalid(format!(
+        Error::invalid(message!(
             "options->far_triangles is {}: {e}",
             config.far_triangles
         ))
@@ -975,6 +1036,7 @@ fn usable(normal: Vec3) -> bool {
 
 /// Vertices per rayon task (as core's batches): a receiver costs tens of
 /// microseconds.
+#[cfg(feature = "std")]
 const VERTEX_GRAIN: usize = 16;
 
 /// `f(v, chunk)` for every chunk of `width` elements of `out`.
@@ -984,16 +1046,19 @@ fn for_each_chunk<T: Send>(
     parallel: bool,
     f: impl Fn(usize, &mut [T]) + Sync + Send,
 ) {
+    #[cfg(feature = "std")]
     if parallel && out.len() > width {
         use rayon::prelude::*;
         out.par_chunks_exact_mut(width)
             .enumerate()
             .with_min_len(VERTEX_GRAIN)
             .for_each(|(v, chunk)| f(v, chunk));
-    } else {
-        for (v, chunk) in out.chunks_exact_mut(width).enumerate() {
-            f(v, chunk);
-        }
+        return;
+    }
+    // `check_options` refuses `parallel` in the bare-metal build.
+    let _ = parallel;
+    for (v, chunk) in out.chunks_exact_mut(width).enumerate() {
+        f(v, chunk);
     }
 }
 
@@ -1003,8 +1068,8 @@ fn transfer_frame<const N: usize>(
     quality: Quality<'_>,
     input: &FrameInput<'_>,
     out: &mut [f32],
-) {
-    let method = transfer_method::<N>(config.method);
+) -> Result<(), Error> {
+    let method = transfer_method::<N>(config.method)?;
     let options = config.batch_options(quality);
     let (scene, normals, _, _) = workspace.frame(input, config.near_radius);
     let positions = input.mesh;
@@ -1024,6 +1089,7 @@ fn transfer_frame<const N: usize>(
             chunk.fill(0.0);
         }
     });
+    Ok(())
 }
 
 /// `shade_vertex` for a view direction instead of an eye point: the same steps in
@@ -1074,7 +1140,7 @@ fn shade_frame<const N: usize>(
     material: &MaterialInput<'_>,
     outputs: Outputs,
 ) -> Result<(), Error> {
-    let method = transfer_method::<N>(config.method);
+    let method = transfer_method::<N>(config.method)?;
     let options = config.batch_options(quality);
     let lighting = lighting_rgb::<N>(lighting);
     let (scene, normals, shading, lobe) = workspace.frame(input, config.near_radius);
@@ -1084,7 +1150,7 @@ fn shade_frame<const N: usize>(
         match lobe {
             Some(lobe) if lobe.exponent().to_bits() == exponent.to_bits() => {}
             Some(lobe) => **lobe = new_lobe(),
-            None => *lobe = Some(Box::new(new_lobe())),
+            None => *lobe = Some(fallible::boxed(new_lobe(), "a Phong lobe")?),
         }
         lobe.as_deref()
     } else {
@@ -1198,6 +1264,7 @@ fn check_outputs(outputs: &Outputs, vertex_count: usize, inputs: &Spans) -> Resu
 // The handle
 // ---------------------------------------------------------------------------
 
+#[cfg(feature = "std")]
 /// Shading state for one mesh topology and one configuration, reused every frame.
 /// Opaque; create with `antumbra_hemi_shader_create`, free with
 /// `antumbra_hemi_shader_destroy`.
@@ -1219,11 +1286,13 @@ pub struct antumbra_hemi_shader {
     poisoned: AtomicBool,
 }
 
+#[cfg(feature = "std")]
 const _: () = {
     const fn assert_send_sync<T: Send + Sync>() {}
     assert_send_sync::<antumbra_hemi_shader>();
 };
 
+#[cfg(feature = "std")]
 /// Creates a shader for a mesh topology (and optionally a far mesh's) and a
 /// configuration; the per-frame calls then take the current positions.
 ///
@@ -1288,7 +1357,7 @@ pub unsafe extern "C" fn antumbra_hemi_shader_create(
         let (built, config) = build_far_mesh(&config, &input)?;
         // SAFETY: a user table is alive by the caller's contract.
         unsafe { config.quality() }?;
-        with_coefficients!(config.bands, prepare_tables(&config));
+        with_coefficients!(config.bands, prepare_tables(&config))?;
         let mut workspace =
             Workspace::new(input.mesh.vertex_count(), true, Some(DEFAULT_EXPONENT))?;
         workspace.clusters = Some(TriangleClusters::new(
@@ -1315,6 +1384,7 @@ pub unsafe extern "C" fn antumbra_hemi_shader_create(
     })
 }
 
+#[cfg(feature = "std")]
 /// Frees a shader. NULL is a no-op.
 ///
 /// Ownership: takes back a shader from `antumbra_hemi_shader_create`; it must not
@@ -1336,15 +1406,17 @@ pub unsafe extern "C" fn antumbra_hemi_shader_destroy(shader: *mut antumbra_hemi
     });
 }
 
+#[cfg(feature = "std")]
 impl antumbra_hemi_shader {
     /// Checks that this frame's meshes have the topology the shader was made for.
     fn check_topology(&self, input: &FrameInput<'_>) -> Result<(), Error> {
         let (v, t) = (input.mesh.vertex_count(), input.mesh.triangle_count());
         if (v, t) != (self.vertex_count, self.triangle_count) {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "mesh has {v} vertices and {t} triangles, but the shader was created for \
                  {} vertices and {} triangles",
-                self.vertex_count, self.triangle_count
+                self.vertex_count,
+                self.triangle_count
             )));
         }
         match (input.far, self.far_counts) {
@@ -1359,7 +1431,7 @@ impl antumbra_hemi_shader {
             (Some(far), Some((fv, ft))) => {
                 let (v, t) = (far.vertex_count(), far.triangle_count());
                 if (v, t) != (fv, ft) {
-                    Err(Error::invalid(format!(
+                    Err(Error::invalid(message!(
                         "far_mesh has {v} vertices and {t} triangles, but the shader was \
                          created with a far mesh of {fv} vertices and {ft} triangles"
                     )))
@@ -1371,6 +1443,7 @@ impl antumbra_hemi_shader {
     }
 }
 
+#[cfg(feature = "std")]
 /// Runs a per-frame call on a shader: rejects NULL and poisoned shaders, takes its
 /// lock, and poisons the shader (and its caller-owned table) when the call panics.
 fn with_shader(
@@ -1406,6 +1479,7 @@ fn with_shader(
     result
 }
 
+#[cfg(feature = "std")]
 /// Regroups a shader's triangle clusters from the current pose, for meshes whose
 /// shape changed so much since creation that the rest-pose clusters are no
 /// longer compact (shading gets slower, never different: results do not depend
@@ -1458,6 +1532,7 @@ pub unsafe extern "C" fn antumbra_hemi_shader_regroup(
     )
 }
 
+#[cfg(feature = "std")]
 /// Transfer vectors of every vertex of a mesh in its current pose, through a
 /// shader: as `antumbra_hemi_transfer` with the shader's options, allocating
 /// nothing and skipping whole clusters of triangles below each receiver's
@@ -1516,6 +1591,7 @@ pub unsafe extern "C" fn antumbra_hemi_shader_transfer(
     )
 }
 
+#[cfg(feature = "std")]
 /// Shaded colours of every vertex of a mesh in its current pose, through a
 /// shader: as `antumbra_hemi_shade` with the shader's options, allocating nothing
 /// per frame and skipping whole clusters of triangles below each receiver's
@@ -1586,13 +1662,28 @@ pub unsafe extern "C" fn antumbra_hemi_shader_shade(
 // One-shot calls
 // ---------------------------------------------------------------------------
 
+/// The shader a call runs for, if any (the per-call functions serve both).
+#[cfg(feature = "std")]
+type ShaderHandle = antumbra_hemi_shader;
+
+/// The bare-metal build has no shaders (they need a lock); nothing is of this type.
+#[cfg(not(feature = "std"))]
+enum ShaderHandle {}
+
+#[cfg(not(feature = "std"))]
+impl ShaderHandle {
+    fn check_topology(&self, _: &FrameInput<'_>) -> Result<(), Error> {
+        match *self {}
+    }
+}
+
 /// # Safety
 /// Every pointer NULL or valid for what it describes; a user table in `config`
 /// alive.
 unsafe fn transfer_call(
     config: &Config,
     workspace: Option<&mut Workspace>,
-    shader: Option<&antumbra_hemi_shader>,
+    shader: Option<&ShaderHandle>,
     mesh: *const antumbra_mesh_view,
     normals: *const f32,
     far_mesh: *const antumbra_mesh_view,
@@ -1634,8 +1725,7 @@ unsafe fn transfer_call(
     with_coefficients!(
         config.bands,
         transfer_frame(workspace, config, quality, &input, out)
-    );
-    Ok(())
+    )
 }
 
 /// # Safety
@@ -1645,7 +1735,7 @@ unsafe fn transfer_call(
 unsafe fn shade_call(
     config: &Config,
     workspace: Option<&mut Workspace>,
-    shader: Option<&antumbra_hemi_shader>,
+    shader: Option<&ShaderHandle>,
     mesh: *const antumbra_mesh_view,
     normals: *const f32,
     far_mesh: *const antumbra_mesh_view,
@@ -1776,6 +1866,9 @@ fn one_shot(
 /// into clusters (as `antumbra_hemi_rasterize`; a shader groups them once). The first call with a configuration builds the shared tables it reads
 /// (see `antumbra_hemi_shader_create`). With options->raster.parallel = 1 the
 /// vertices are split across the library's worker threads; results are identical.
+/// Without ANTUMBRA_HAS_STD (bare metal) the call never groups, and
+/// `far_triangles` > 0 and `parallel` = 1 are ANTUMBRA_RESULT_UNSUPPORTED (pass
+/// a far mesh of your own); every allocation failure is OUT_OF_MEMORY.
 /// Ownership: borrows every argument for the call only.
 /// Thread safety: any number of threads may call at once (the inputs and shared
 /// tables are only read).
@@ -1944,9 +2037,9 @@ mod tests {
 
     #[test]
     fn shared_tables_are_built_once_per_band_count() {
-        let a: *const TransferTable<9> = transfer_table::<9>();
-        let b: *const TransferTable<9> = transfer_table::<9>();
+        let a: *const TransferTable<9> = transfer_table::<9>().unwrap();
+        let b: *const TransferTable<9> = transfer_table::<9>().unwrap();
         assert_eq!(a, b);
-        assert_eq!(transfer_table::<4>().unoccluded().coeffs.len(), 4);
+        assert_eq!(transfer_table::<4>().unwrap().unoccluded().coeffs.len(), 4);
     }
 }

@@ -13,22 +13,47 @@
 //! - queries on a const handle may run on many threads at once.
 //!
 //! Items carry exactly their C names so grep works across languages.
+//!
+//! Two builds share the header. The default (`std` feature) is the hosted library.
+//! Without it the crate is `#![no_std]` for bare metal: the application supplies
+//! the allocator (`antumbra_set_allocator`) and a panic hook
+//! (`antumbra_set_panic_hook`), error messages live in static memory, and the
+//! functions that need an operating system (threads, the BVH ray caster) are not
+//! in the library at all; the header wraps them in `#if defined(ANTUMBRA_HAS_STD)`.
+#![cfg_attr(not(feature = "std"), no_std)]
+// Without std an error carries its message inline (240 bytes) so that reporting
+// it never allocates: a deliberate trade of stack for never failing to report.
+#![cfg_attr(not(feature = "std"), allow(clippy::result_large_err))]
 #![allow(non_camel_case_types)]
 #![warn(missing_docs)]
 
-mod boundary;
+extern crate alloc;
+
+#[macro_use]
 mod error;
+#[cfg(not(feature = "std"))]
+mod allocator;
+mod boundary;
+mod fallible;
 mod frame;
 mod hemi;
 mod hemi_shading;
 mod mesh;
+#[cfg(not(feature = "std"))]
+mod panic_hook;
 mod raw;
 mod result;
+#[cfg(feature = "std")]
 mod scene;
 mod sh;
 mod ssv;
 mod transfer;
 mod version;
+
+#[cfg(not(feature = "std"))]
+pub use allocator::{antumbra_alloc_fn, antumbra_free_fn, antumbra_set_allocator};
+#[cfg(not(feature = "std"))]
+pub use panic_hook::{antumbra_panic_hook, antumbra_set_panic_hook};
 
 pub use error::{
     antumbra_error_callback, antumbra_last_error_message, antumbra_last_error_message_copy,
@@ -40,19 +65,24 @@ pub use hemi::{
     ANTUMBRA_HEMI_TABLE_DEFAULT_RESOLUTION, ANTUMBRA_HEMI_TABLE_MAX_RESOLUTION,
     ANTUMBRA_HEMI_VALID_CELL_COUNT, antumbra_hemi_cell_direction, antumbra_hemi_mask,
     antumbra_hemi_options, antumbra_hemi_options_init, antumbra_hemi_rasterize,
-    antumbra_hemi_table, antumbra_hemi_table_create, antumbra_hemi_table_destroy,
-    antumbra_hemi_valid_mask,
+    antumbra_hemi_table, antumbra_hemi_valid_mask,
 };
+#[cfg(feature = "std")]
+pub use hemi::{antumbra_hemi_table_create, antumbra_hemi_table_destroy};
 pub use hemi_shading::{
     ANTUMBRA_HEMI_METHOD_CELLS, ANTUMBRA_HEMI_METHOD_DOWNSAMPLED, ANTUMBRA_HEMI_METHOD_LUT,
     ANTUMBRA_HEMI_NEAR_CELLS, ANTUMBRA_HEMI_SPACE_LOCAL, ANTUMBRA_HEMI_SPACE_WORLD,
-    antumbra_hemi_material, antumbra_hemi_material_init, antumbra_hemi_shade, antumbra_hemi_shader,
-    antumbra_hemi_shader_create, antumbra_hemi_shader_destroy, antumbra_hemi_shader_regroup,
-    antumbra_hemi_shader_shade, antumbra_hemi_shader_transfer, antumbra_hemi_shading_options,
-    antumbra_hemi_shading_options_init, antumbra_hemi_transfer,
+    antumbra_hemi_material, antumbra_hemi_material_init, antumbra_hemi_shade,
+    antumbra_hemi_shading_options, antumbra_hemi_shading_options_init, antumbra_hemi_transfer,
+};
+#[cfg(feature = "std")]
+pub use hemi_shading::{
+    antumbra_hemi_shader, antumbra_hemi_shader_create, antumbra_hemi_shader_destroy,
+    antumbra_hemi_shader_regroup, antumbra_hemi_shader_shade, antumbra_hemi_shader_transfer,
 };
 pub use mesh::antumbra_mesh_view;
 pub use result::*;
+#[cfg(feature = "std")]
 pub use scene::{
     ANTUMBRA_INVALID_INDEX, antumbra_hit, antumbra_scene, antumbra_scene_create,
     antumbra_scene_destroy, antumbra_scene_intersect, antumbra_scene_occluded,
@@ -73,11 +103,14 @@ pub use transfer::{
     ANTUMBRA_TRANSFER_BRDF_PHONG, ANTUMBRA_TRANSFER_BRDF_WARD, ANTUMBRA_TRANSFER_KIND_DIFFUSE,
     ANTUMBRA_TRANSFER_KIND_GLOSSY_SH, ANTUMBRA_TRANSFER_KIND_MRT, ANTUMBRA_TRANSFER_MAX_BOUNCES,
     ANTUMBRA_TRANSFER_MAX_GRID, ANTUMBRA_TRANSFER_MAX_RAYS, antumbra_transfer,
-    antumbra_transfer_bake, antumbra_transfer_compress, antumbra_transfer_describe,
-    antumbra_transfer_destroy, antumbra_transfer_geometry, antumbra_transfer_info,
-    antumbra_transfer_load, antumbra_transfer_material, antumbra_transfer_material_init,
-    antumbra_transfer_options, antumbra_transfer_options_init, antumbra_transfer_progress_fn,
-    antumbra_transfer_save, antumbra_transfer_shade,
+    antumbra_transfer_describe, antumbra_transfer_destroy, antumbra_transfer_geometry,
+    antumbra_transfer_info, antumbra_transfer_load, antumbra_transfer_material,
+    antumbra_transfer_material_init, antumbra_transfer_save, antumbra_transfer_shade,
+};
+#[cfg(feature = "std")]
+pub use transfer::{
+    antumbra_transfer_bake, antumbra_transfer_compress, antumbra_transfer_options,
+    antumbra_transfer_options_init, antumbra_transfer_progress_fn,
 };
 pub use version::{antumbra_version, antumbra_version_string};
 

@@ -41,7 +41,7 @@ pub(crate) unsafe fn mesh_from_c<'a>(
         view.position_stride
     };
     if stride < antumbra_core::geom::POSITION_BYTES {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "{argument}->position_stride is {stride}, less than the 12 bytes of one position"
         )));
     }
@@ -51,7 +51,7 @@ pub(crate) unsafe fn mesh_from_c<'a>(
             .checked_mul(stride)
             .and_then(|b| b.checked_add(antumbra_core::geom::POSITION_BYTES))
             .ok_or_else(|| {
-                Error::invalid(format!(
+                Error::invalid(message!(
                     "{argument}: vertex_count {n} at position_stride {stride} overflows size_t"
                 ))
             })?,
@@ -97,14 +97,14 @@ fn mesh_error(error: MeshError, argument: &str) -> Error {
             at,
             index,
             vertex_count,
-        } => format!(
+        } => message!(
             "{argument}->indices[{at}] (triangle {}) is {index}, not below {argument}->vertex_count {vertex_count}",
             at / 3
         ),
         MeshError::NonFinitePosition { vertex } => {
-            format!("{argument}->positions: vertex {vertex} has a NaN or infinite coordinate")
+            message!("{argument}->positions: vertex {vertex} has a NaN or infinite coordinate")
         }
-        other => format!("{argument}: {other}"),
+        other => message!("{argument}: {other}"),
     };
     Error::new(code, message)
 }

@@ -20,7 +20,7 @@ pub(crate) fn element_count(
     argument: impl Display,
 ) -> Result<usize, Error> {
     count.checked_mul(per_item).ok_or_else(|| {
-        Error::invalid(format!(
+        Error::invalid(message!(
             "{argument}: {count} items of {per_item} elements overflow size_t"
         ))
     })
@@ -30,18 +30,18 @@ fn check_raw<T>(pointer: *const T, len: usize, argument: impl Display) -> Result
     if pointer.is_null() {
         return Err(Error::new(
             crate::result::ANTUMBRA_RESULT_NULL_ARGUMENT,
-            format!("{argument} is NULL but {len} elements were expected"),
+            message!("{argument} is NULL but {len} elements were expected"),
         ));
     }
     let align = core::mem::align_of::<T>();
     if !(pointer as usize).is_multiple_of(align) {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "{argument} ({pointer:p}) is not aligned to {align} bytes"
         )));
     }
     let bytes = len.checked_mul(core::mem::size_of::<T>());
     if bytes.is_none_or(|bytes| bytes > isize::MAX as usize) {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "{argument}: {len} elements exceed the address space"
         )));
     }

@@ -92,14 +92,14 @@ pub unsafe extern "C" fn antumbra_scene_create(
             ));
         }
         let bvh = BvhScene::new(&mesh).map_err(|e| match e {
-            BvhError::CoordinateOutOfRange { vertex } => Error::invalid(format!(
+            BvhError::CoordinateOutOfRange { vertex } => Error::invalid(message!(
                 "mesh->positions: vertex {vertex} has a coordinate beyond the supported \
                  range of ±{:e}",
                 antumbra_core::raycast::MAX_COORDINATE
             )),
             BvhError::OutOfMemory(e) => Error::new(
                 ANTUMBRA_RESULT_OUT_OF_MEMORY,
-                format!("no memory for {} triangles: {e}", mesh.triangle_count()),
+                message!("no memory for {} triangles: {e}", mesh.triangle_count()),
             ),
         })?;
         let scene = Box::new(antumbra_scene {
@@ -165,7 +165,7 @@ impl<'a> RayBatch<'a> {
                 return Err(non_finite("directions", i, d));
             }
             if d.iter().all(|&c| c == 0.0) {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "directions[{i}] is the zero vector"
                 )));
             }
@@ -173,11 +173,11 @@ impl<'a> RayBatch<'a> {
             if t.is_nan() {
                 return Err(Error::new(
                     ANTUMBRA_RESULT_NON_FINITE,
-                    format!("t_max[{i}] is NaN"),
+                    message!("t_max[{i}] is NaN"),
                 ));
             }
             if t < 0.0 {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "t_max[{i}] is {t}; it must be >= 0 (+INFINITY for an unbounded ray)"
                 )));
             }
@@ -203,9 +203,11 @@ impl<'a> RayBatch<'a> {
 fn non_finite(argument: &str, ray: usize, xyz: &[f32]) -> Error {
     Error::new(
         ANTUMBRA_RESULT_NON_FINITE,
-        format!(
+        message!(
             "{argument}[{ray}] ({}, {}, {}) is not finite",
-            xyz[0], xyz[1], xyz[2]
+            xyz[0],
+            xyz[1],
+            xyz[2]
         ),
     )
 }

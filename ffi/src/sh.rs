@@ -7,6 +7,7 @@
 //! hold `bands²` coefficients; the map convention is core's default
 //! `EquirectMapping::Y_UP`.
 
+use alloc::vec::Vec;
 use antumbra_core::sh::{self, EquirectMapping, MAX_BANDS, ShRgb};
 use glam::Vec3;
 
@@ -27,7 +28,7 @@ fn check_bands(bands: u32) -> Result<usize, Error> {
     if (1..=ANTUMBRA_SH_MAX_BANDS).contains(&bands) {
         Ok(bands as usize)
     } else {
-        Err(Error::invalid(format!(
+        Err(Error::invalid(message!(
             "bands is {bands}; expected 1 to {ANTUMBRA_SH_MAX_BANDS}"
         )))
     }
@@ -91,7 +92,7 @@ pub unsafe extern "C" fn antumbra_sh_project_equirect(
     guard("antumbra_sh_project_equirect", || {
         let bands = check_bands(bands)?;
         if width == 0 || height == 0 {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "the map is {width}x{height} texels; width and height must be at least 1"
             )));
         }
@@ -100,12 +101,12 @@ pub unsafe extern "C" fn antumbra_sh_project_equirect(
         let stride = match row_stride_bytes {
             0 => row_bytes,
             s if s < row_bytes => {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "row_stride_bytes is {s}, less than the {row_bytes} bytes of {w} RGB texels"
                 )));
             }
             s if s % core::mem::size_of::<f32>() != 0 => {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "row_stride_bytes is {s}, not a multiple of 4 (the size of a float)"
                 )));
             }
@@ -115,7 +116,7 @@ pub unsafe extern "C" fn antumbra_sh_project_equirect(
             .checked_mul(stride)
             .and_then(|b| b.checked_add(row_bytes))
             .ok_or_else(|| {
-                Error::invalid(format!(
+                Error::invalid(message!(
                     "{h} rows at row_stride_bytes {stride} overflow size_t"
                 ))
             })?;
@@ -134,9 +135,11 @@ pub unsafe extern "C" fn antumbra_sh_project_equirect(
                 let t = &texels[3 * column..3 * column + 3];
                 return Err(Error::new(
                     ANTUMBRA_RESULT_NON_FINITE,
-                    format!(
+                    message!(
                         "rgb: texel (column {column}, row {row}) is ({}, {}, {}), not finite",
-                        t[0], t[1], t[2]
+                        t[0],
+                        t[1],
+                        t[2]
                     ),
                 ));
             }
@@ -149,7 +152,7 @@ pub unsafe extern "C" fn antumbra_sh_project_equirect(
             copy.try_reserve_exact(w * h).map_err(|e| {
                 Error::new(
                     ANTUMBRA_RESULT_OUT_OF_MEMORY,
-                    format!(
+                    message!(
                         "no memory to pack the {w}x{h} map ({} bytes): {e}",
                         w * h * TEXEL_BYTES
                     ),
@@ -167,8 +170,8 @@ pub unsafe extern "C" fn antumbra_sh_project_equirect(
         project(pixels, w, h, bands, [r, g, b]).map_err(|e| match e {
             // The texels are the argument at fault; the others cannot happen
             // here (checked above).
-            sh::ShError::CoefficientOverflow { .. } => Error::invalid(format!("rgb: {e}")),
-            _ => Error::invalid(e.to_string()),
+            sh::ShError::CoefficientOverflow { .. } => Error::invalid(message!("rgb: {e}")),
+            _ => Error::invalid(message!("{e}")),
         })
     })
 }
@@ -245,17 +248,17 @@ pub unsafe extern "C" fn antumbra_sh_eval(
         if !d.is_finite() {
             return Err(Error::new(
                 ANTUMBRA_RESULT_NON_FINITE,
-                format!("direction ({}, {}, {}) is not finite", d.x, d.y, d.z),
+                message!("direction ({}, {}, {}) is not finite", d.x, d.y, d.z),
             ));
         }
         let length = d.length();
         if (length - 1.0).abs() > UNIT_TOLERANCE {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "direction has length {length}, not 1 (tolerance {UNIT_TOLERANCE})"
             )));
         }
         let mut basis = [0.0f32; sh::MAX_COEFFS];
-        sh::eval_basis_into(d, &mut basis[..count]).map_err(|e| Error::invalid(e.to_string()))?;
+        sh::eval_basis_into(d, &mut basis[..count]).map_err(|e| Error::invalid(message!("{e}")))?;
         // SAFETY: `out` checked non-NULL and aligned for `count` floats; written
         // through the raw pointer only, so aliasing `direction` is fine.
         unsafe { core::ptr::copy_nonoverlapping(basis.as_ptr(), out, count) };
@@ -306,7 +309,7 @@ pub unsafe extern "C" fn antumbra_sh_rotate(
         if let Some(i) = r.iter().position(|c| !c.is_finite()) {
             return Err(Error::new(
                 ANTUMBRA_RESULT_NON_FINITE,
-                format!("rotation[{i}] is {}; it must be finite", r[i]),
+                message!("rotation[{i}] is {}; it must be finite", r[i]),
             ));
         }
         let bands = check_bands(bands)?;
@@ -317,7 +320,7 @@ pub unsafe extern "C" fn antumbra_sh_rotate(
             .iter()
             .fold(0.0f32, |m, e| m.max(e.abs()));
         if error > UNIT_TOLERANCE {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "rotation is not orthogonal: R Rᵀ differs from the identity by {error} \
                  (tolerance {UNIT_TOLERANCE})"
             )));
@@ -338,7 +341,7 @@ pub unsafe extern "C" fn antumbra_sh_rotate(
             if !c.is_finite() {
                 return Err(Error::new(
                     ANTUMBRA_RESULT_NON_FINITE,
-                    format!(
+                    message!(
                         "coefficients[{i}] (vector {}, coefficient {}) is {c}; it must be finite",
                         i / count,
                         i % count

@@ -10,7 +10,11 @@
 //! thread computed it. The handle also counts the work its queries did (candidate
 //! edges per query), read back with `antumbra_ssv_get_statistics`.
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use alloc::boxed::Box;
+use alloc::vec::Vec;
+#[cfg(feature = "std")]
+use core::sync::atomic::AtomicU64 as Counter;
+use core::sync::atomic::{AtomicBool, Ordering};
 
 use antumbra_core::raycast::MAX_COORDINATE;
 use antumbra_core::ssv::{
@@ -21,6 +25,7 @@ use glam::Vec3;
 
 use crate::boundary::{Poisonable, guard, with_handle};
 use crate::error::Error;
+use crate::fallible;
 use crate::hemi::{check_coordinate_range, flag, non_finite};
 use crate::mesh::{antumbra_mesh_view, mesh_from_c};
 use crate::raw;
@@ -166,10 +171,10 @@ pub struct antumbra_ssv_statistics {
 pub struct antumbra_ssv {
     shadows: SoftShadows,
     parallel: bool,
-    queries: AtomicU64,
-    candidates: AtomicU64,
-    silhouettes: AtomicU64,
-    rays: AtomicU64,
+    queries: Counter,
+    candidates: Counter,
+    silhouettes: Counter,
+    rays: Counter,
     poisoned: AtomicBool,
 }
 
@@ -212,7 +217,7 @@ fn check_options(options: &antumbra_ssv_options) -> Result<(SsvOptions, bool), E
         ANTUMBRA_SSV_STRUCTURE_BRUTE_FORCE => Structure::BruteForce,
         ANTUMBRA_SSV_STRUCTURE_RAY_TRACE => Structure::RayTrace,
         s => {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "options->structure is {s}; expected ANTUMBRA_SSV_STRUCTURE_HIERARCHY (0), \
                  _HEMICUBE (1), _BRUTE_FORCE (2) or _RAY_TRACE (3)"
             )));
@@ -224,13 +229,13 @@ fn check_options(options: &antumbra_ssv_options) -> Result<(SsvOptions, bool), E
         ));
     }
     if options.max_depth > ANTUMBRA_SSV_MAX_DEPTH_LIMIT {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->max_depth is {}; expected 0 to {ANTUMBRA_SSV_MAX_DEPTH_LIMIT}",
             options.max_depth
         )));
     }
     if !(1..=ANTUMBRA_SSV_MAX_HEMICUBE_RESOLUTION).contains(&options.hemicube_resolution) {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->hemicube_resolution is {}; expected 1 to \
              {ANTUMBRA_SSV_MAX_HEMICUBE_RESOLUTION}",
             options.hemicube_resolution
@@ -245,32 +250,54 @@ fn check_options(options: &antumbra_ssv_options) -> Result<(SsvOptions, bool), E
         if !lo.is_finite() {
             return Err(Error::new(
                 ANTUMBRA_RESULT_NON_FINITE,
-                format!(
+                message!(
                     "options->root_min ({}, {}, {}) is not finite",
-                    lo.x, lo.y, lo.z
+                    lo.x,
+                    lo.y,
+                    lo.z
                 ),
             ));
         }
         if !hi.is_finite() {
             return Err(Error::new(
                 ANTUMBRA_RESULT_NON_FINITE,
-                format!(
+                message!(
                     "options->root_max ({}, {}, {}) is not finite",
-                    hi.x, hi.y, hi.z
+                    hi.x,
+                    hi.y,
+                    hi.z
                 ),
             ));
         }
         if !lo.cmplt(hi).all() {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "options->root_min ({}, {}, {}) is not below options->root_max ({}, {}, {}) \
                  in every coordinate",
-                lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+                lo.x,
+                lo.y,
+                lo.z,
+                hi.x,
+                hi.y,
+                hi.z
             )));
         }
         Some([lo, hi])
     } else {
         None
     };
+    #[cfg(not(feature = "std"))]
+    if parallel {
+        return Err(crate::hemi::unsupported_parallel("options->parallel"));
+    }
+    #[cfg(not(feature = "std"))]
+    if structure == Structure::Hemicube {
+        return Err(Error::new(
+            ANTUMBRA_RESULT_UNSUPPORTED,
+            "options->structure is ANTUMBRA_SSV_STRUCTURE_HEMICUBE, which the bare-metal build \
+             does not include (its construction cannot report running out of memory); use \
+             ANTUMBRA_SSV_STRUCTURE_HIERARCHY",
+        ));
+    }
     Ok((
         SsvOptions {
             structure,
@@ -303,18 +330,22 @@ unsafe fn points<'a>(
             return Err(non_finite(argument, i, p));
         }
         if p.abs().max_element() > MAX_COORDINATE {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "{argument}[{i}] ({}, {}, {}) is beyond the supported range of \
                  ±{MAX_COORDINATE:e}",
-                p.x, p.y, p.z
+                p.x,
+                p.y,
+                p.z
             )));
         }
     }
     Ok(floats)
 }
 
-fn to_vec3s(floats: &[f32]) -> Vec<Vec3> {
-    floats.chunks_exact(3).map(Vec3::from_slice).collect()
+fn to_vec3s(floats: &[f32], what: &str) -> Result<Vec<Vec3>, Error> {
+    let mut points = fallible::vec_with_capacity(floats.len() / 3, what)?;
+    points.extend(floats.chunks_exact(3).map(Vec3::from_slice));
+    Ok(points)
 }
 
 /// The validated light polygon from C arguments.
@@ -326,7 +357,7 @@ unsafe fn read_light(
     light_vertex_count: usize,
 ) -> Result<LightPolygon, Error> {
     if !(3..=MAX_LIGHT_VERTICES).contains(&light_vertex_count) {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "light_vertex_count is {light_vertex_count}; a light polygon needs 3 to \
              {MAX_LIGHT_VERTICES} vertices"
         )));
@@ -339,12 +370,12 @@ unsafe fn read_light(
             "light_vertices",
         )
     }?;
-    LightPolygon::new(&to_vec3s(floats)).map_err(light_error)
+    LightPolygon::new(&to_vec3s(floats, "the light's vertices")?).map_err(light_error)
 }
 
 fn light_error(error: LightError) -> Error {
     match error {
-        LightError::VertexCount { count } => Error::invalid(format!(
+        LightError::VertexCount { count } => Error::invalid(message!(
             "light_vertex_count is {count}; a light polygon needs 3 to {MAX_LIGHT_VERTICES} \
              vertices"
         )),
@@ -356,21 +387,25 @@ fn light_error(error: LightError) -> Error {
             "light_vertices: the polygon is degenerate (zero area, or two consecutive \
              vertices equal)",
         ),
-        LightError::NotPlanar { vertex } => Error::invalid(format!(
+        LightError::NotPlanar { vertex } => Error::invalid(message!(
             "light_vertices[{vertex}] is off the polygon's plane (tolerance {:e} of its \
              diameter, or 8 units of f32 rounding at its largest coordinate if more)",
             antumbra_core::ssv::LIGHT_TOLERANCE
         )),
-        LightError::NotConvex { vertex } => Error::invalid(format!(
+        LightError::NotConvex { vertex } => Error::invalid(message!(
             "light_vertices: the polygon is not convex at light_vertices[{vertex}] (or winds \
              more than once)"
         )),
-        LightError::SampleOffLight { index } => Error::invalid(format!(
+        LightError::SampleOffLight { index } => Error::invalid(message!(
             "samples[{index}] is off the light polygon (beyond {:e} of its diameter, or 8 \
              units of f32 rounding at its largest coordinate if more, from its plane or \
              outside its edges)",
             antumbra_core::ssv::LIGHT_TOLERANCE
         )),
+        LightError::OutOfMemory => Error::new(
+            ANTUMBRA_RESULT_OUT_OF_MEMORY,
+            "no memory for the light polygon",
+        ),
     }
 }
 
@@ -404,13 +439,17 @@ fn light_error(error: LightError) -> Error {
 ///         option out of range, misaligned pointer, stride below 12, size
 ///         overflow, a coordinate beyond ±1e12); INDEX_OUT_OF_RANGE (a mesh
 ///         index); NON_FINITE (a NaN or infinite mesh position, light vertex,
-///         sample or root bound); OUT_OF_MEMORY (the BVH could not be allocated);
-///         PANIC. Messages name the argument and index, e.g. `samples[7] is off
-///         the light polygon ...`.
+///         sample or root bound); OUT_OF_MEMORY (the structure or the BVH could
+///         not be allocated; nothing is kept); UNSUPPORTED (without
+///         ANTUMBRA_HAS_STD: the hemicube structure, `parallel` = 1); PANIC.
+///         Messages name the argument and index, e.g. `samples[7] is off the
+///         light polygon ...`.
 ///
-/// Cost: O(triangles log triangles) (edge welding, the BVH); the hierarchy's
-/// nodes are built lazily by the queries that reach them, the hemicube's cells
-/// here.
+/// Cost: O(triangles log triangles) (edge welding, the BVH); allocates the edge
+/// graph, the structure and a copy of the samples (tens of bytes per triangle).
+/// The hierarchy's nodes are built lazily by the queries that reach them, the
+/// hemicube's cells here. Without ANTUMBRA_HAS_STD the reference ray goes
+/// through every triangle (no BVH): O(triangles) per query.
 /// Ownership: the caller owns `*out` and frees it with `antumbra_ssv_destroy`.
 /// Thread safety: safe from any thread; the new handle is independent of others.
 ///
@@ -449,34 +488,43 @@ pub unsafe extern "C" fn antumbra_ssv_create(
         // SAFETY: caller contract on `light_vertices`.
         let light = unsafe { read_light(light_vertices, light_vertex_count) }?;
         if sample_count == 0 || sample_count > MAX_SAMPLES {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "sample_count is {sample_count}; expected 1 to {MAX_SAMPLES}"
             )));
         }
         // SAFETY: caller contract on `samples`.
-        let samples =
-            to_vec3s(unsafe { points(samples, (sample_count, "sample_count"), "samples") }?);
+        let samples = to_vec3s(
+            unsafe { points(samples, (sample_count, "sample_count"), "samples") }?,
+            "the samples",
+        )?;
         light.validate_samples(&samples).map_err(light_error)?;
         let triangles = mesh.triangle_count();
         let shadows =
             SoftShadows::new(&mesh, light, &samples, core_options).map_err(|e| match e {
                 SsvError::Light(e) => light_error(e),
+                SsvError::OutOfMemory => Error::new(
+                    ANTUMBRA_RESULT_OUT_OF_MEMORY,
+                    message!("no memory for the soft shadows over {triangles} triangles"),
+                ),
                 // Every other input was checked above; what is left is allocation.
                 SsvError::Caster => Error::new(
                     ANTUMBRA_RESULT_OUT_OF_MEMORY,
-                    format!("no memory for the ray caster over {triangles} triangles"),
+                    message!("no memory for the ray caster over {triangles} triangles"),
                 ),
-                other => Error::invalid(format!("{other}")),
+                other => Error::invalid(message!("{other}")),
             })?;
-        let handle = Box::new(antumbra_ssv {
-            shadows,
-            parallel,
-            queries: AtomicU64::new(0),
-            candidates: AtomicU64::new(0),
-            silhouettes: AtomicU64::new(0),
-            rays: AtomicU64::new(0),
-            poisoned: AtomicBool::new(false),
-        });
+        let handle = fallible::boxed(
+            antumbra_ssv {
+                shadows,
+                parallel,
+                queries: Counter::new(0),
+                candidates: Counter::new(0),
+                silhouettes: Counter::new(0),
+                rays: Counter::new(0),
+                poisoned: AtomicBool::new(false),
+            },
+            "the soft shadow handle",
+        )?;
         // SAFETY: non-NULL, aligned (checked), valid for a pointer write by contract.
         unsafe { out.write(Box::into_raw(handle)) };
         Ok(())
@@ -513,7 +561,83 @@ impl Poisonable for antumbra_ssv {
 
 /// Points per rayon task: one query costs tens of microseconds (hundreds of
 /// candidate edges times N samples), so small tasks balance well.
+#[cfg(feature = "std")]
 const PARALLEL_GRAIN: usize = 16;
+
+/// A work counter of the handle. The bare-metal target has no 64-bit atomics, and
+/// its calls are single-threaded by contract.
+#[cfg(not(feature = "std"))]
+struct Counter(core::cell::Cell<u64>);
+
+#[cfg(not(feature = "std"))]
+impl Counter {
+    const fn new(value: u64) -> Self {
+        Counter(core::cell::Cell::new(value))
+    }
+
+    fn fetch_add(&self, value: u64, _: Ordering) -> u64 {
+        let old = self.0.get();
+        self.0.set(old.wrapping_add(value));
+        old
+    }
+
+    fn load(&self, _: Ordering) -> u64 {
+        self.0.get()
+    }
+}
+
+// SAFETY: the bare-metal build runs the library on one thread of execution (its
+// documented contract), so the cell is never accessed concurrently.
+#[cfg(not(feature = "std"))]
+unsafe impl Sync for Counter {}
+
+/// Runs the queries of a call one after another.
+fn serial_queries(
+    bits: &mut [u64],
+    mut counts: Option<&mut [u32]>,
+    words: usize,
+    one: &(dyn Fn(usize, &mut [u64]) -> QueryInfo + Sync),
+) -> Work {
+    let mut work = Work::default();
+    for (k, out) in bits.chunks_exact_mut(words).enumerate() {
+        let info = one(k, out);
+        if let Some(counts) = counts.as_deref_mut() {
+            counts[k] = info.visible;
+        }
+        work = work.add(&info);
+    }
+    work
+}
+
+/// Runs the queries of a call on the library's worker threads.
+#[cfg(feature = "std")]
+fn parallel_queries(
+    bits: &mut [u64],
+    counts: Option<&mut [u32]>,
+    words: usize,
+    one: &(dyn Fn(usize, &mut [u64]) -> QueryInfo + Sync),
+) -> Work {
+    use rayon::prelude::*;
+    match counts {
+        Some(counts) => bits
+            .par_chunks_mut(words)
+            .zip(counts.par_iter_mut())
+            .enumerate()
+            .with_min_len(PARALLEL_GRAIN)
+            .fold(Work::default, |work, (k, (out, count))| {
+                let info = one(k, out);
+                *count = info.visible;
+                work.add(&info)
+            })
+            .reduce(Work::default, Work::merge),
+        None => bits
+            .par_chunks_mut(words)
+            .enumerate()
+            .with_min_len(PARALLEL_GRAIN)
+            .fold(Work::default, |work, (k, out)| work.add(&one(k, out)))
+            .reduce(Work::default, Work::merge),
+    }
+}
 
 /// Work counters of a run of queries, added to the handle's once per run.
 #[derive(Clone, Copy, Default)]
@@ -533,6 +657,7 @@ impl Work {
         self
     }
 
+    #[cfg(feature = "std")]
     fn merge(self, other: Work) -> Work {
         Work {
             queries: self.queries + other.queries,
@@ -573,6 +698,9 @@ impl Work {
 /// call's points need (it splits a node where eight or more of them fall and
 /// the split shortens the lists; a few arrays of `point_count` entries for
 /// that), so pass a frame's receivers in one call rather than one by one.
+/// Memory never makes a query fail: where a node cannot be allocated the walk
+/// stops at the coarser node it reached, whose candidates include the finer
+/// one's (the same bits, more work).
 /// Ownership: borrows every array for the call only; the outputs must not overlap
 /// each other or `points`.
 /// Thread safety: any number of threads may query the same handle at once
@@ -611,8 +739,11 @@ pub unsafe extern "C" fn antumbra_ssv_query(
         };
         // Every input is valid: the core query fails only on non-finite points
         // and short outputs, both excluded above.
-        let receivers: Vec<Vec3> = floats.chunks_exact(3).map(Vec3::from_slice).collect();
-        ssv.shadows.prepare(&receivers, ssv.parallel);
+        // Preparing the hierarchy for the batch only saves work: without memory
+        // for the points' copy the queries build what they need themselves.
+        if let Ok(receivers) = to_vec3s(floats, "the query points") {
+            ssv.shadows.prepare(&receivers, ssv.parallel);
+        }
         let one = |k: usize, out: &mut [u64]| -> QueryInfo {
             let p = Vec3::from_slice(&floats[3 * k..]);
             ssv.shadows
@@ -621,38 +752,15 @@ pub unsafe extern "C" fn antumbra_ssv_query(
         };
         let work = if point_count == 0 {
             Work::default()
-        } else if ssv.parallel && point_count > 1 {
-            use rayon::prelude::*;
-            match counts {
-                Some(counts) => bits
-                    .par_chunks_mut(words)
-                    .zip(counts.par_iter_mut())
-                    .enumerate()
-                    .with_min_len(PARALLEL_GRAIN)
-                    .fold(Work::default, |work, (k, (out, count))| {
-                        let info = one(k, out);
-                        *count = info.visible;
-                        work.add(&info)
-                    })
-                    .reduce(Work::default, Work::merge),
-                None => bits
-                    .par_chunks_mut(words)
-                    .enumerate()
-                    .with_min_len(PARALLEL_GRAIN)
-                    .fold(Work::default, |work, (k, out)| work.add(&one(k, out)))
-                    .reduce(Work::default, Work::merge),
-            }
         } else {
-            let mut work = Work::default();
-            let mut counts = counts;
-            for (k, out) in bits.chunks_exact_mut(words).enumerate() {
-                let info = one(k, out);
-                if let Some(counts) = counts.as_deref_mut() {
-                    counts[k] = info.visible;
-                }
-                work = work.add(&info);
+            #[cfg(feature = "std")]
+            if ssv.parallel && point_count > 1 {
+                parallel_queries(bits, counts, words, &one)
+            } else {
+                serial_queries(bits, counts, words, &one)
             }
-            work
+            #[cfg(not(feature = "std"))]
+            serial_queries(bits, counts, words, &one)
         };
         ssv.queries.fetch_add(work.queries, Ordering::Relaxed);
         ssv.candidates.fetch_add(work.candidates, Ordering::Relaxed);
@@ -737,8 +845,10 @@ pub unsafe extern "C" fn antumbra_ssv_get_statistics(
 /// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (light_vertices, samples);
 ///         INVALID_ARGUMENT (a count out of range, an unknown pattern, a
 ///         non-convex, non-planar or degenerate light, a coordinate beyond
-///         ±1e12, misaligned arrays); NON_FINITE (a light vertex); PANIC.
+///         ±1e12, misaligned arrays); NON_FINITE (a light vertex); OUT_OF_MEMORY;
+///         PANIC.
 ///
+/// Cost: allocates a temporary of `12 * sample_count` bytes.
 /// Thread safety: safe from any thread.
 ///
 /// # Safety
@@ -758,7 +868,7 @@ pub unsafe extern "C" fn antumbra_ssv_generate_samples(
         // SAFETY: caller contract on `light_vertices`.
         let light = unsafe { read_light(light_vertices, light_vertex_count) }?;
         if sample_count == 0 || sample_count > MAX_SAMPLES {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "sample_count is {sample_count}; expected 1 to {MAX_SAMPLES}"
             )));
         }
@@ -766,7 +876,7 @@ pub unsafe extern "C" fn antumbra_ssv_generate_samples(
             ANTUMBRA_SSV_SAMPLES_JITTERED => SamplePattern::Jittered,
             ANTUMBRA_SSV_SAMPLES_STRATIFIED => SamplePattern::Stratified,
             p => {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "pattern is {p}; expected ANTUMBRA_SSV_SAMPLES_JITTERED (0) or \
                      ANTUMBRA_SSV_SAMPLES_STRATIFIED (1)"
                 )));
@@ -774,10 +884,12 @@ pub unsafe extern "C" fn antumbra_ssv_generate_samples(
         };
         // SAFETY: caller contract: valid for `3 * sample_count` floats, no overlap.
         let out = unsafe { raw::slice_mut(samples, 3 * sample_count, "samples") }?;
-        let generated = light.samples(sample_count, pattern, seed);
+        let generated = light
+            .try_samples(sample_count, pattern, seed)
+            .map_err(|_| fallible::out_of_memory("the samples", 12 * sample_count))?;
         if generated.len() != sample_count {
             // Not expected (core apportions every sample); never a partly written buffer.
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "light_vertices: the light gave {} samples for sample_count {sample_count}",
                 generated.len()
             )));
@@ -1025,8 +1137,8 @@ mod tests {
     #[test]
     fn generated_samples_equal_the_core_samples() {
         let samples = generated(37);
-        let light = LightPolygon::new(&to_vec3s(&QUAD)).unwrap();
+        let light = LightPolygon::new(&to_vec3s(&QUAD, "quad").unwrap()).unwrap();
         let want = light.samples(37, SamplePattern::Jittered, 7);
-        assert_eq!(to_vec3s(&samples), want);
+        assert_eq!(to_vec3s(&samples, "samples").unwrap(), want);
     }
 }

@@ -15,26 +15,34 @@
 //! reason, never a crash, and loading never allocates more than a small multiple
 //! of the input's length.
 
-use core::ffi::c_void;
-use std::sync::atomic::AtomicBool;
+use alloc::boxed::Box;
+use core::sync::atomic::AtomicBool;
 
-use antumbra_core::MeshView;
-use antumbra_core::hemi::vertex_normals;
-use antumbra_core::raycast::{BvhError, BvhScene};
 use antumbra_core::sh::MAX_COEFFS;
-use antumbra_core::transfer::{
-    self, BakeError, BakeOptions, Brdf, FormatError, Material, Measurement, PcaError, PhongBrdf,
-    ShadeError, TransferKind, TransferSet, View, WardBrdf,
-};
-use glam::Vec3;
+use antumbra_core::transfer::{FormatError, Material, ShadeError, TransferKind, TransferSet, View};
 
 use crate::boundary::{Poisonable, guard, with_handle};
 use crate::error::Error;
-use crate::frame::UNIT_TOLERANCE;
-use crate::mesh::{antumbra_mesh_view, mesh_from_c};
 use crate::raw;
 use crate::result::*;
-use crate::sh::ANTUMBRA_SH_MAX_BANDS;
+
+/// What only the hosted build has: baking (it casts rays through the BVH) and
+/// PCA compression (which allocates as it goes).
+#[cfg(feature = "std")]
+use {
+    crate::frame::UNIT_TOLERANCE,
+    crate::mesh::{antumbra_mesh_view, mesh_from_c},
+    crate::sh::ANTUMBRA_SH_MAX_BANDS,
+    alloc::vec::Vec,
+    antumbra_core::MeshView,
+    antumbra_core::hemi::vertex_normals,
+    antumbra_core::raycast::{BvhError, BvhScene},
+    antumbra_core::transfer::{
+        self, BakeError, BakeOptions, Brdf, Measurement, PcaError, PhongBrdf, WardBrdf,
+    },
+    core::ffi::c_void,
+    glam::Vec3,
+};
 
 /// `antumbra_transfer_options.kind`: a diffuse transfer vector per vertex
 /// (`bands²` values): shadowed (and, with bounces, interreflected) irradiance.
@@ -63,14 +71,15 @@ pub const ANTUMBRA_TRANSFER_MAX_RAYS: u32 = 1 << 22;
 pub const ANTUMBRA_TRANSFER_MAX_BOUNCES: u32 = 64;
 
 const _: () = {
-    assert!(ANTUMBRA_TRANSFER_MAX_GRID == transfer::MAX_GRID);
-    assert!(ANTUMBRA_TRANSFER_MAX_RAYS == transfer::MAX_RAYS);
-    assert!(ANTUMBRA_TRANSFER_MAX_BOUNCES == transfer::MAX_BOUNCES);
+    assert!(ANTUMBRA_TRANSFER_MAX_GRID == antumbra_core::transfer::MAX_GRID);
+    assert!(ANTUMBRA_TRANSFER_MAX_RAYS == antumbra_core::transfer::MAX_RAYS);
+    assert!(ANTUMBRA_TRANSFER_MAX_BOUNCES == antumbra_core::transfer::MAX_BOUNCES);
     assert!(ANTUMBRA_TRANSFER_KIND_DIFFUSE == TransferKind::Diffuse as u32);
     assert!(ANTUMBRA_TRANSFER_KIND_GLOSSY_SH == TransferKind::GlossySh as u32);
     assert!(ANTUMBRA_TRANSFER_KIND_MRT == TransferKind::Mrt as u32);
 };
 
+#[cfg(feature = "std")]
 /// What `antumbra_transfer_bake` measures and how. Fill with
 /// `antumbra_transfer_options_init`, then change fields: fields may be added at
 /// the end in later versions, and `options_init` keeps old code correct.
@@ -122,6 +131,7 @@ pub struct antumbra_transfer_options {
     pub seed: u64,
 }
 
+#[cfg(feature = "std")]
 const DEFAULT_OPTIONS: antumbra_transfer_options = antumbra_transfer_options {
     kind: ANTUMBRA_TRANSFER_KIND_DIFFUSE,
     bands: 4,
@@ -215,6 +225,7 @@ const DEFAULT_MATERIAL: antumbra_transfer_material = antumbra_transfer_material 
     view_directions: core::ptr::null(),
 };
 
+#[cfg(feature = "std")]
 /// Progress of `antumbra_transfer_bake`: `done` of `total` vertex passes
 /// (vertices × (1 + bounces)). With `options->parallel` = 1 it is called from the
 /// library's worker threads, possibly at once and slightly out of order; it must
@@ -248,6 +259,7 @@ fn write_one<T>(pointer: *mut T, value: T, argument: &str) -> Result<(), Error> 
     Ok(())
 }
 
+#[cfg(feature = "std")]
 /// Writes the default bake options: diffuse kind, 4 bands, grid 8, 256 rays, no
 /// bounces, parallel, a Phong BRDF of exponent 16 (MRT), albedo 0.5, ray offset
 /// 1e-4, seed 0.
@@ -289,12 +301,14 @@ pub unsafe extern "C" fn antumbra_transfer_material_init(
     });
 }
 
+#[cfg(feature = "std")]
 /// The BRDF an MRT bake uses, chosen from the options.
 enum BakeBrdf {
     Phong(PhongBrdf),
     Ward(WardBrdf),
 }
 
+#[cfg(feature = "std")]
 impl BakeBrdf {
     fn as_dyn(&self) -> &dyn Brdf {
         match self {
@@ -308,52 +322,53 @@ fn finite_in(value: f32, argument: &str, ok: bool, range: &str) -> Result<(), Er
     if !value.is_finite() {
         return Err(Error::new(
             ANTUMBRA_RESULT_NON_FINITE,
-            format!("{argument} is {value}; it must be finite"),
+            message!("{argument} is {value}; it must be finite"),
         ));
     }
     if !ok {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "{argument} is {value}; expected {range}"
         )));
     }
     Ok(())
 }
 
+#[cfg(feature = "std")]
 /// Validates the options, naming the field; returns the BRDF for an MRT bake.
 fn check_options(o: &antumbra_transfer_options) -> Result<Option<BakeBrdf>, Error> {
     if !(ANTUMBRA_TRANSFER_KIND_DIFFUSE..=ANTUMBRA_TRANSFER_KIND_MRT).contains(&o.kind) {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->kind is {}; expected ANTUMBRA_TRANSFER_KIND_DIFFUSE (1), _GLOSSY_SH (2) \
              or _MRT (3)",
             o.kind
         )));
     }
     if !(1..=ANTUMBRA_SH_MAX_BANDS).contains(&o.bands) {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->bands is {}; expected 1 to {ANTUMBRA_SH_MAX_BANDS}",
             o.bands
         )));
     }
     if !(1..=ANTUMBRA_TRANSFER_MAX_RAYS).contains(&o.rays) {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->rays is {}; expected 1 to {ANTUMBRA_TRANSFER_MAX_RAYS}",
             o.rays
         )));
     }
     if o.bounces > ANTUMBRA_TRANSFER_MAX_BOUNCES {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->bounces is {}; expected 0 to {ANTUMBRA_TRANSFER_MAX_BOUNCES}",
             o.bounces
         )));
     }
     if o.parallel > 1 {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->parallel is {}; expected 0 or 1",
             o.parallel
         )));
     }
     if o.reserved != 0 {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->reserved is {}; it must be 0",
             o.reserved
         )));
@@ -374,7 +389,7 @@ fn check_options(o: &antumbra_transfer_options) -> Result<Option<BakeBrdf>, Erro
         return Ok(None);
     }
     if !(2..=ANTUMBRA_TRANSFER_MAX_GRID).contains(&o.grid) {
-        return Err(Error::invalid(format!(
+        return Err(Error::invalid(message!(
             "options->grid is {}; expected 2 to {ANTUMBRA_TRANSFER_MAX_GRID} for an MRT bake",
             o.grid
         )));
@@ -389,7 +404,7 @@ fn check_options(o: &antumbra_transfer_options) -> Result<Option<BakeBrdf>, Erro
                 "a value >= 0",
             )?;
             let brdf = PhongBrdf::new(p0).ok_or_else(|| {
-                Error::invalid(format!(
+                Error::invalid(message!(
                     "options->brdf_params[0] {p0} is not a Phong exponent"
                 ))
             })?;
@@ -399,25 +414,26 @@ fn check_options(o: &antumbra_transfer_options) -> Result<Option<BakeBrdf>, Erro
             for (i, a) in [p0, p1].into_iter().enumerate() {
                 finite_in(
                     a,
-                    &format!("options->brdf_params[{i}] (Ward roughness)"),
+                    &message!("options->brdf_params[{i}] (Ward roughness)"),
                     a > 0.0 && a <= 1.0,
                     "a value in (0, 1]",
                 )?;
             }
             let brdf = WardBrdf::new(p0, p1).ok_or_else(|| {
-                Error::invalid(format!(
+                Error::invalid(message!(
                     "options->brdf_params ({p0}, {p1}) are not Ward roughnesses"
                 ))
             })?;
             Ok(Some(BakeBrdf::Ward(brdf)))
         }
-        other => Err(Error::invalid(format!(
+        other => Err(Error::invalid(message!(
             "options->brdf is {other}; expected ANTUMBRA_TRANSFER_BRDF_PHONG (1) or \
              ANTUMBRA_TRANSFER_BRDF_WARD (2) for an MRT bake"
         ))),
     }
 }
 
+#[cfg(feature = "std")]
 /// The caller's normals (validated) or the area-weighted ones of `mesh`.
 ///
 /// # Safety
@@ -428,14 +444,14 @@ unsafe fn bake_normals(mesh: &MeshView<'_>, normals: *const f32) -> Result<Vec<V
     out.try_reserve_exact(vertices).map_err(|e| {
         Error::new(
             ANTUMBRA_RESULT_OUT_OF_MEMORY,
-            format!("no memory for {vertices} normals: {e}"),
+            message!("no memory for {vertices} normals: {e}"),
         )
     })?;
     if normals.is_null() {
         out.resize(vertices, Vec3::ZERO);
-        vertex_normals(mesh, &mut out).map_err(|e| Error::invalid(e.to_string()))?;
+        vertex_normals(mesh, &mut out).map_err(|e| Error::invalid(message!("{e}")))?;
         if let Some(v) = out.iter().position(|n| *n == Vec3::ZERO) {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "normals is NULL and vertex {v} has no area-weighted normal (it is used by \
                  no triangle, or only by degenerate ones); pass normals"
             )));
@@ -450,12 +466,12 @@ unsafe fn bake_normals(mesh: &MeshView<'_>, normals: *const f32) -> Result<Vec<V
         if !n.is_finite() {
             return Err(Error::new(
                 ANTUMBRA_RESULT_NON_FINITE,
-                format!("normals[{v}] ({}, {}, {}) is not finite", n.x, n.y, n.z),
+                message!("normals[{v}] ({}, {}, {}) is not finite", n.x, n.y, n.z),
             ));
         }
         let length = n.length();
         if (length - 1.0).abs() > UNIT_TOLERANCE {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "normals[{v}] has length {length}, not 1 (tolerance {UNIT_TOLERANCE})"
             )));
         }
@@ -464,6 +480,7 @@ unsafe fn bake_normals(mesh: &MeshView<'_>, normals: *const f32) -> Result<Vec<V
     Ok(out)
 }
 
+#[cfg(feature = "std")]
 /// Forwards core's progress to the C callback.
 struct ProgressSink {
     callback: unsafe extern "C" fn(usize, usize, *mut c_void),
@@ -472,8 +489,10 @@ struct ProgressSink {
 
 // SAFETY: the caller promises the callback may be called from any thread with its
 // `user_data` (documented on `antumbra_transfer_progress_fn`).
+#[cfg(feature = "std")]
 unsafe impl Sync for ProgressSink {}
 
+#[cfg(feature = "std")]
 impl ProgressSink {
     fn report(&self, done: usize, total: usize) {
         // SAFETY: the caller registered this function for this bake.
@@ -481,6 +500,7 @@ impl ProgressSink {
     }
 }
 
+#[cfg(feature = "std")]
 fn bake_error(error: BakeError) -> Error {
     let field = match error {
         BakeError::Bands(_) => "options->bands",
@@ -497,21 +517,25 @@ fn bake_error(error: BakeError) -> Error {
         BakeError::TooLarge { .. } => {
             return Error::new(
                 ANTUMBRA_RESULT_OUT_OF_MEMORY,
-                format!("mesh and options: {error}"),
+                message!("mesh and options: {error}"),
             );
         }
     };
-    Error::invalid(format!("{field}: {error}"))
+    Error::invalid(message!("{field}: {error}"))
 }
 
-fn boxed(set: TransferSet, out: *mut *mut antumbra_transfer) {
-    let handle = Box::new(antumbra_transfer {
-        set,
-        poisoned: AtomicBool::new(false),
-    });
+fn boxed(set: TransferSet, out: *mut *mut antumbra_transfer) -> Result<(), Error> {
+    let handle = crate::fallible::boxed(
+        antumbra_transfer {
+            set,
+            poisoned: AtomicBool::new(false),
+        },
+        "the transfer handle",
+    )?;
     // SAFETY: the exports check `out` non-NULL and aligned before any work, and
     // the caller promises it is valid for a pointer write.
     unsafe { *out = Box::into_raw(handle) };
+    Ok(())
 }
 
 fn check_out(out: *mut *mut antumbra_transfer) -> Result<*mut *mut antumbra_transfer, Error> {
@@ -521,6 +545,7 @@ fn check_out(out: *mut *mut antumbra_transfer) -> Result<*mut *mut antumbra_tran
     raw::writable(out, 1, "out")
 }
 
+#[cfg(feature = "std")]
 /// Bakes the transfer of every vertex of a mesh: rays cast from each vertex over
 /// its hemisphere against the mesh itself (a BVH built for the call), for every
 /// lighting coefficient at once, with `options->bounces` diffuse interreflections.
@@ -582,14 +607,14 @@ pub unsafe extern "C" fn antumbra_transfer_bake(
         // SAFETY: caller contract on `normals`.
         let normals = unsafe { bake_normals(&mesh, normals) }?;
         let scene = BvhScene::new(&mesh).map_err(|e| match e {
-            BvhError::CoordinateOutOfRange { vertex } => Error::invalid(format!(
+            BvhError::CoordinateOutOfRange { vertex } => Error::invalid(message!(
                 "mesh->positions: vertex {vertex} has a coordinate beyond the supported \
                  range of ±{:e}",
                 antumbra_core::raycast::MAX_COORDINATE
             )),
             BvhError::OutOfMemory(e) => Error::new(
                 ANTUMBRA_RESULT_OUT_OF_MEMORY,
-                format!("no memory for {} triangles: {e}", mesh.triangle_count()),
+                message!("no memory for {} triangles: {e}", mesh.triangle_count()),
             ),
         })?;
         let measurement = match (options.kind, &brdf) {
@@ -625,7 +650,7 @@ pub unsafe extern "C" fn antumbra_transfer_bake(
             transfer::bake_serial(&mesh, &normals, &scene, &bake_options)
         }
         .map_err(bake_error)?;
-        boxed(set, out);
+        boxed(set, out)?;
         Ok(())
     })
 }
@@ -731,7 +756,7 @@ pub unsafe extern "C" fn antumbra_transfer_geometry(
     with_handle("antumbra_transfer_geometry", transfer, |t| {
         let set = &t.set;
         if vertex_count != set.vertex_count() {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "vertex_count is {vertex_count}; the set has {} vertices",
                 set.vertex_count()
             )));
@@ -773,7 +798,7 @@ pub unsafe extern "C" fn antumbra_transfer_geometry(
 ///         INVALID_ARGUMENT (misaligned size); BUFFER_TOO_SMALL (nothing written
 ///         to `buffer`); OUT_OF_MEMORY; POISONED; PANIC.
 ///
-/// Cost: builds the file in a temporary of its size, then copies it.
+/// Cost: writes the file straight into `buffer`; allocates nothing.
 /// Thread safety: any number of threads may use the same set at once.
 ///
 /// # Safety
@@ -804,21 +829,25 @@ pub unsafe extern "C" fn antumbra_transfer_save(
             report(needed);
             return Err(Error::new(
                 ANTUMBRA_RESULT_BUFFER_TOO_SMALL,
-                format!("capacity is {capacity} bytes; the file needs {needed}"),
+                message!("capacity is {capacity} bytes; the file needs {needed}"),
             ));
         }
-        let bytes = t.set.to_bytes();
-        debug_assert_eq!(bytes.len(), needed);
-        // SAFETY: `buffer` is valid for `capacity >= bytes.len()` bytes and cannot
-        // overlap the fresh temporary.
-        unsafe { core::ptr::copy_nonoverlapping(bytes.as_ptr(), buffer, bytes.len()) };
-        report(bytes.len());
+        // SAFETY: `buffer` is valid for `capacity >= needed` bytes of writes by
+        // the caller's contract and cannot overlap the library-owned set.
+        let out = unsafe { core::slice::from_raw_parts_mut(buffer, needed) };
+        // Written in place: saving allocates nothing.
+        t.set.write_to(out);
+        report(needed);
         Ok(())
     })
 }
 
 fn format_error(error: FormatError) -> Error {
-    Error::new(ANTUMBRA_RESULT_INVALID_DATA, format!("bytes: {error}"))
+    let code = match error {
+        FormatError::OutOfMemory { .. } => ANTUMBRA_RESULT_OUT_OF_MEMORY,
+        _ => ANTUMBRA_RESULT_INVALID_DATA,
+    };
+    Error::new(code, message!("bytes: {error}"))
 }
 
 /// Reads a bake file (as written by `antumbra_transfer_save` or the `antumbra
@@ -832,8 +861,11 @@ fn format_error(error: FormatError) -> Error {
 /// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (bytes with len > 0, out);
 ///         INVALID_ARGUMENT (misaligned out); INVALID_DATA (truncated, bad magic,
 ///         unsupported version, a field out of range, checksum mismatch, trailing
-///         bytes, a non-finite value; the message names the field); PANIC.
+///         bytes, a non-finite value; the message names the field); OUT_OF_MEMORY
+///         (nothing is kept); PANIC.
 ///
+/// Cost: allocates the set: about the file's size plus 36 bytes per vertex (the
+/// vertex frames).
 /// Ownership: the caller owns `*out` (free with `antumbra_transfer_destroy`);
 /// `bytes` is borrowed for the call only.
 /// Thread safety: safe from any thread.
@@ -852,11 +884,12 @@ pub unsafe extern "C" fn antumbra_transfer_load(
         // SAFETY: caller contract on `bytes`.
         let bytes = unsafe { raw::slice(bytes, len, "bytes") }?;
         let set = TransferSet::from_bytes(bytes).map_err(format_error)?;
-        boxed(set, out);
+        boxed(set, out)?;
         Ok(())
     })
 }
 
+#[cfg(feature = "std")]
 /// PCA-compresses an uncompressed MRT set: a mean and `components` principal
 /// components of the per-vertex matrices, `components` weights per vertex.
 /// Shading the result costs `4 (K + 1)` RGB multiply-adds per vertex after `K + 1`
@@ -887,7 +920,7 @@ pub unsafe extern "C" fn antumbra_transfer_compress(
     with_handle("antumbra_transfer_compress", transfer, |t| {
         let out = check_out(out)?;
         let set = t.set.compress(components as usize).map_err(|e| match e {
-            PcaError::NotDenseMrt => Error::invalid(format!(
+            PcaError::NotDenseMrt => Error::invalid(message!(
                 "transfer: {e} (this set is kind {}{})",
                 t.set.kind() as u32,
                 if t.set.pca().is_some() {
@@ -896,9 +929,9 @@ pub unsafe extern "C" fn antumbra_transfer_compress(
                     ""
                 }
             )),
-            PcaError::Components { .. } => Error::invalid(format!("components: {e}")),
+            PcaError::Components { .. } => Error::invalid(message!("components: {e}")),
         })?;
-        boxed(set, out);
+        boxed(set, out)?;
         Ok(())
     })
 }
@@ -916,7 +949,7 @@ unsafe fn read_material<'a>(
         ("material->specular", m.specular),
     ] {
         for (i, c) in rgb.into_iter().enumerate() {
-            finite_in(c, &format!("{name}[{i}]"), c >= 0.0, "a value >= 0")?;
+            finite_in(c, &message!("{name}[{i}]"), c >= 0.0, "a value >= 0")?;
         }
     }
     finite_in(
@@ -929,7 +962,7 @@ unsafe fn read_material<'a>(
         if let Some(i) = m.eye.iter().position(|c| !c.is_finite()) {
             return Err(Error::new(
                 ANTUMBRA_RESULT_NON_FINITE,
-                format!("material->eye[{i}] is {}; it must be finite", m.eye[i]),
+                message!("material->eye[{i}] is {}; it must be finite", m.eye[i]),
             ));
         }
         View::Eye(m.eye)
@@ -942,14 +975,16 @@ unsafe fn read_material<'a>(
             if !d.iter().all(|c| c.is_finite()) {
                 return Err(Error::new(
                     ANTUMBRA_RESULT_NON_FINITE,
-                    format!(
+                    message!(
                         "material->view_directions[{v}] ({}, {}, {}) is not finite",
-                        d[0], d[1], d[2]
+                        d[0],
+                        d[1],
+                        d[2]
                     ),
                 ));
             }
             if d.iter().all(|&c| c == 0.0) {
-                return Err(Error::invalid(format!(
+                return Err(Error::invalid(message!(
                     "material->view_directions[{v}] is the zero vector"
                 )));
             }
@@ -1014,7 +1049,7 @@ pub unsafe extern "C" fn antumbra_transfer_shade(
             return Err(Error::null("lighting"));
         }
         if lighting_count != 3 * n {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "lighting_count is {lighting_count}; the set has {} bands and needs \
                  3 * {n} = {} floats",
                 set.bands(),
@@ -1026,7 +1061,7 @@ pub unsafe extern "C" fn antumbra_transfer_shade(
         if let Some(i) = l.iter().position(|c| !c.is_finite()) {
             return Err(Error::new(
                 ANTUMBRA_RESULT_NON_FINITE,
-                format!(
+                message!(
                     "lighting[{i}] (channel {}, coefficient {}) is {}; it must be finite",
                     ["red", "green", "blue"][i / n],
                     i % n,
@@ -1036,7 +1071,7 @@ pub unsafe extern "C" fn antumbra_transfer_shade(
         }
         let vertices = set.vertex_count();
         if vertex_count != vertices {
-            return Err(Error::invalid(format!(
+            return Err(Error::invalid(message!(
                 "vertex_count is {vertex_count}; the set has {vertices} vertices"
             )));
         }
@@ -1072,9 +1107,12 @@ pub unsafe extern "C" fn antumbra_transfer_shade(
         .map_err(|e| match e {
             ShadeError::NonFinite { argument } => Error::new(
                 ANTUMBRA_RESULT_NON_FINITE,
-                format!("material->{argument}: {e}"),
+                message!("material->{argument}: {e}"),
             ),
-            other => Error::invalid(other.to_string()),
+            ShadeError::OutOfMemory { .. } => {
+                Error::new(ANTUMBRA_RESULT_OUT_OF_MEMORY, message!("{e}"))
+            }
+            other => Error::invalid(message!("{other}")),
         })
     })
 }

@@ -32,6 +32,18 @@ fn after_includes() -> String {
 #define ANTUMBRA_VERSION \
     ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR, ANTUMBRA_VERSION_PATCH)
 
+/** Defined when the program links the hosted library (the default), which has
+ *  every function; left undefined when the program defines ANTUMBRA_NO_STD
+ *  before including this header, to link the bare-metal build (`cargo build -p
+ *  antumbra-ffi --release --no-default-features --target thumbv7em-none-eabihf`).
+ *  Declarations under `#if defined(ANTUMBRA_HAS_STD)` are not in the bare-metal
+ *  library at all (a link error, never a run-time surprise); those under
+ *  `#if !defined(ANTUMBRA_HAS_STD)` are only there: antumbra_set_allocator() and
+ *  antumbra_set_panic_hook(). */
+#if !defined(ANTUMBRA_NO_STD) && !defined(ANTUMBRA_HAS_STD)
+#define ANTUMBRA_HAS_STD 1
+#endif
+
 /** Marks functions whose antumbra_result must be checked. In C, GCC still warns
  *  on `(void)f()`; write `(void)!f()` to discard a result on purpose. */
 #if defined(__cplusplus) && __cplusplus >= 201703L

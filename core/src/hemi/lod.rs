@@ -811,7 +811,15 @@ pub(super) fn rasterize_mesh_batched(
 ) -> (HemiMask, TriangleCounts) {
     match quality {
         Quality::Exact => batched_loop(mesh, receiver, skip, cull, ExactCones),
+        #[cfg(feature = "std")]
         Quality::Table(table) => batched_loop(mesh, receiver, skip, cull, TableCones(table)),
+        // Each copy of the four-wide loop is about 34 KB of Cortex-M4 code; bare
+        // metal (no `std`) keeps the exact quality's only, and rasterizes the table
+        // quality one triangle at a time: the same bits and counts, slower.
+        #[cfg(not(feature = "std"))]
+        Quality::Table(table) => super::rasterize_mesh(mesh, receiver, skip, |a, b, c, acc| {
+            acc.add(a, b, c, cull, table_raster(table))
+        }),
     }
 }
 

@@ -373,7 +373,7 @@ pub fn rasterize_triangles_into<I: IntoIterator<Item = [Vec3; 3]>>(
 }
 
 /// The loop over a mesh's triangles, minus the skip list.
-#[cfg(test)]
+#[cfg(any(test, not(feature = "std")))]
 #[inline(always)]
 fn rasterize_mesh(
     mesh: &MeshView<'_>,

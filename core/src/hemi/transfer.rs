@@ -82,7 +82,7 @@
 //! fixed-size arrays on the stack.
 
 use alloc::boxed::Box;
-use alloc::vec;
+use alloc::collections::TryReserveError;
 use alloc::vec::Vec;
 
 use glam::{Mat3, Vec3};
@@ -140,6 +140,14 @@ impl<const N: usize> Default for TransferTable<N> {
     }
 }
 
+/// `len` copies of `value`, or the allocation's error.
+fn try_filled<T: Clone>(value: T, len: usize) -> Result<Vec<T>, TryReserveError> {
+    let mut items = Vec::new();
+    items.try_reserve_exact(len)?;
+    items.resize(len, value);
+    Ok(items)
+}
+
 impl<const N: usize> TransferTable<N> {
     /// Integrates every cell with [`QUADRATURE_NODES`] nodes per direction.
     pub fn new() -> Self {
@@ -149,9 +157,19 @@ impl<const N: usize> TransferTable<N> {
     /// Integrates every cell with `nodes` Gauss–Legendre nodes per direction (at
     /// least 2, at most 64); for convergence studies. Prefer [`TransferTable::new`].
     pub fn with_nodes(nodes: usize) -> Self {
+        Self::try_with_nodes(nodes).expect("memory for a transfer table")
+    }
+
+    /// [`TransferTable::new`], or an error when its `GRID² × N` floats cannot be
+    /// allocated (for callers whose allocator may run out, such as bare metal).
+    pub fn try_new() -> Result<Self, TryReserveError> {
+        Self::try_with_nodes(QUADRATURE_NODES)
+    }
+
+    fn try_with_nodes(nodes: usize) -> Result<Self, TryReserveError> {
         let _ = Sh::<N>::BANDS;
         let rule = GaussLegendre::new(nodes.clamp(2, 64));
-        let mut cells = vec![[0.0f32; N]; GRID * GRID].into_boxed_slice();
+        let mut cells = try_filled([0.0f32; N], GRID * GRID)?.into_boxed_slice();
         let mut total = [0.0f64; N];
         let mut blocks = [[0.0f64; N]; BLOCKS * BLOCKS];
         let mut block_valid = [0u32; BLOCKS * BLOCKS];
@@ -181,22 +199,20 @@ impl<const N: usize> TransferTable<N> {
                 }
             }
         }
-        let block_share = blocks
-            .iter()
-            .zip(block_valid)
-            .map(|(w, count)| {
-                if count == 0 {
-                    [0.0; N]
-                } else {
-                    w.map(|x| (x / f64::from(count)) as f32)
-                }
-            })
-            .collect();
-        TransferTable {
+        let mut block_share = Vec::new();
+        block_share.try_reserve_exact(blocks.len())?;
+        block_share.extend(blocks.iter().zip(block_valid).map(|(w, count)| {
+            if count == 0 {
+                [0.0; N]
+            } else {
+                w.map(|x| (x / f64::from(count)) as f32)
+            }
+        }));
+        Ok(TransferTable {
             cells,
             unoccluded: Sh::new(total.map(|x| x as f32)),
-            block_share,
-        }
+            block_share: block_share.into_boxed_slice(),
+        })
     }
 
     /// `W(c)` of cell `(i, j)`: zero for invalid cells and outside the grid.
@@ -346,11 +362,22 @@ impl<const N: usize> TransferLut<N> {
     /// The table with chunks of `bits` bits: 8 (bytes) or 4 (nibbles); any other
     /// value is taken as 8.
     pub fn with_chunk_bits(table: TransferTable<N>, bits: u32) -> Self {
+        Self::try_with_chunk_bits(table, bits).expect("memory for a transfer lookup table")
+    }
+
+    /// [`TransferLut::new`], or an error when its `32 × 4 × 256 × N` floats cannot
+    /// be allocated.
+    pub fn try_new(table: TransferTable<N>) -> Result<Self, TryReserveError> {
+        Self::try_with_chunk_bits(table, 8)
+    }
+
+    fn try_with_chunk_bits(table: TransferTable<N>, bits: u32) -> Result<Self, TryReserveError> {
         let bits = if bits == 4 { 4 } else { 8 };
         let values = 1usize << bits;
         let chunks = GRID / bits as usize;
-        let mut entries: Vec<[f32; N]> = Vec::with_capacity(GRID * chunks * values);
-        let mut sums = vec![[0.0f64; N]; values];
+        let mut entries: Vec<[f32; N]> = Vec::new();
+        entries.try_reserve_exact(GRID * chunks * values)?;
+        let mut sums = try_filled([0.0f64; N], values)?;
         for j in 0..GRID {
             for c in 0..chunks {
                 // sums[v] = sums[v without its lowest bit] + W(lowest bit's cell),
@@ -368,11 +395,11 @@ impl<const N: usize> TransferLut<N> {
                 entries.extend(sums.iter().map(|s| s.map(|x| x as f32)));
             }
         }
-        TransferLut {
+        Ok(TransferLut {
             table,
             bits,
             entries: entries.into_boxed_slice(),
-        }
+        })
     }
 
     /// The per-cell table this one was built from.
@@ -514,13 +541,20 @@ pub fn shade_diffuse<const N: usize>(
 
 /// Gauss–Legendre nodes and weights on `[0, 1]`.
 struct GaussLegendre {
-    nodes: Vec<(f64, f64)>,
+    /// (node, weight) pairs; only the first `len` are used. A fixed array, so that
+    /// building a table allocates nothing but the table.
+    pairs: [(f64, f64); 64],
+    len: usize,
 }
 
 impl GaussLegendre {
     /// `n` nodes, by Newton's method on `P_n` from the Chebyshev guesses.
     fn new(n: usize) -> Self {
-        let mut nodes = Vec::with_capacity(n);
+        let n = n.min(64);
+        let mut rule = GaussLegendre {
+            pairs: [(0.0, 0.0); 64],
+            len: n,
+        };
         for i in 0..n {
             let mut x = libm::cos(PI * (i as f64 + 0.75) / (n as f64 + 0.5));
             let mut derivative = 1.0;
@@ -537,9 +571,13 @@ impl GaussLegendre {
             derivative = if dp != 0.0 { dp } else { derivative };
             let weight = 2.0 / ((1.0 - x * x) * derivative * derivative);
             // Mapped from [-1, 1] to [0, 1].
-            nodes.push((0.5 * (x + 1.0), 0.5 * weight));
+            rule.pairs[i] = (0.5 * (x + 1.0), 0.5 * weight);
         }
-        GaussLegendre { nodes }
+        rule
+    }
+
+    fn nodes(&self) -> &[(f64, f64)] {
+        &self.pairs[..self.len]
     }
 }
 
@@ -598,7 +636,7 @@ fn integrate_region<const N: usize>(
         if sb <= sa {
             continue;
         }
-        for &(w, ww) in &rule.nodes {
+        for &(w, ww) in rule.nodes() {
             // Smoothstep: zero derivative at both ends absorbs sqrt kinks there.
             let g = w * w * (3.0 - 2.0 * w);
             let dg = 6.0 * w * (1.0 - w);
@@ -612,7 +650,7 @@ fn integrate_region<const N: usize>(
             if tb <= ta {
                 continue;
             }
-            for &(x, wx) in &rule.nodes {
+            for &(x, wx) in rule.nodes() {
                 let t = ta + (tb - ta) * x;
                 let (sin_t, cos_t) = (libm::sin(t), libm::cos(t));
                 let weight = (tb - ta) * wx * ds * cos_s * cos_s * cos_t;

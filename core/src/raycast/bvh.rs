@@ -94,10 +94,7 @@ pub struct BvhScene {
 /// Deeper (degenerate) trees get a heap stack of their depth per query.
 const STACK_GROUPS: usize = 32;
 
-/// Largest coordinate magnitude a [`BvhScene`] accepts. obvhs's builder breaks
-/// (index out of bounds) on scenes near 1e17 and beyond; 1e12 leaves a wide margin
-/// and is far beyond any real scene in any unit.
-pub const MAX_COORDINATE: f32 = 1e12;
+pub use super::MAX_COORDINATE;
 
 /// Why a [`BvhScene`] could not be built.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -20,7 +20,13 @@
 mod bvh;
 
 #[cfg(feature = "bvh")]
-pub use bvh::{BuildQuality, BvhError, BvhScene, MAX_COORDINATE};
+pub use bvh::{BuildQuality, BvhError, BvhScene};
+
+/// Largest coordinate magnitude a [`BvhScene`](crate::raycast) accepts (and the C
+/// API accepts in every build, so both builds refuse the same meshes). obvhs's
+/// builder breaks (index out of bounds) on scenes near 1e17 and beyond; 1e12
+/// leaves a wide margin and is far beyond any real scene in any unit.
+pub const MAX_COORDINATE: f32 = 1e12;
 
 use glam::{BVec4A, Vec3, Vec4};
 

@@ -34,7 +34,6 @@
 //! everything to underflow) and edges whose bounds are not finite take the
 //! `f64` tests instead.
 
-use alloc::vec;
 use alloc::vec::Vec;
 use glam::DVec3;
 
@@ -42,6 +41,7 @@ use super::edges::Edge;
 use super::edges::EdgeGraph;
 use super::hemicube::grown_light;
 use super::wedge::{Aabb, LightShape, octants_meeting_wedge, octants_seeing_silhouette};
+use crate::fallible::{self, OutOfMemory};
 use crate::geom::{f32_down as down, f32_up as up};
 use crate::prefetch::prefetch;
 use crate::simd::edge_record::{AXES, COUNT, DIRECTION, DIRECTIONS, INVERSE, PLANES, SIDE};
@@ -104,7 +104,11 @@ impl EdgeBounds {
     /// The bounds of those edges of `potential` (of `graph`) that may be a
     /// silhouette from some point of the light (the others can never change a
     /// receiver's counters, [`super::hemicube`] module docs), by slot.
-    pub fn new(graph: &EdgeGraph, shape: &LightShape, potential: &[u32]) -> Self {
+    pub fn new(
+        graph: &EdgeGraph,
+        shape: &LightShape,
+        potential: &[u32],
+    ) -> Result<Self, OutOfMemory> {
         let k = shape.vertices.len();
         // A piece of the light has at most two more vertices than the light.
         let directions = 2 + k + 2;
@@ -126,11 +130,11 @@ impl EdgeBounds {
                 m.max(v.abs().max_element())
             });
         let piece_tol = shape.tolerance + PIECE_SLACK * light_scale;
-        let region = grown_light(shape, origin, piece_tol);
+        let region = grown_light(shape, origin, piece_tol)?;
         let mut edges = Vec::new();
         let mut records = Vec::new();
         let mut fallback = Vec::new();
-        let mut record = vec![0.0f32; stride];
+        let mut record = fallible::filled(0.0f32, stride)?;
         let mut piece = Polygon::default();
         for &e in potential {
             let edge = &graph.edges[e as usize];
@@ -141,11 +145,15 @@ impl EdgeBounds {
                     Part::Whole => (&shape.vertices, shape.tolerance),
                 };
             let slack = SLACK * scale + tol;
-            fallback.push(Self::record(graph, shape, light, e, slack, &mut record));
+            fallible::push(
+                &mut fallback,
+                Self::record(graph, shape, light, e, slack, &mut record),
+            )?;
+            records.try_reserve(record.len())?;
             records.extend_from_slice(&record);
-            edges.push(e);
+            fallible::push(&mut edges, e)?;
         }
-        EdgeBounds {
+        Ok(EdgeBounds {
             stride,
             edges,
             records,
@@ -154,7 +162,7 @@ impl EdgeBounds {
             scale,
             slack: SLACK * scale + shape.tolerance.max(piece_tol),
             light_base: shape.vertices[0],
-        }
+        })
     }
 
     /// The edge of each slot.
@@ -691,7 +699,7 @@ mod tests {
                 tolerance: 1e-6 * (1.0 + offset.abs().max_element()),
             };
             let potential: Vec<u32> = (0..graph.edges.len() as u32).collect();
-            let bounds = EdgeBounds::new(&graph, &shape, &potential);
+            let bounds = EdgeBounds::new(&graph, &shape, &potential).unwrap();
             let lo = DVec3::new(r(-3.0, 1.0), r(-3.0, 1.0), r(-1.0, 1.5)) + offset;
             let parent = Aabb {
                 min: lo,
@@ -710,7 +718,7 @@ mod tests {
                     m.max(v.abs().max_element())
                 });
             let piece_tol = shape.tolerance + PIECE_SLACK * light_scale;
-            let region = grown_light(&shape, origin, piece_tol);
+            let region = grown_light(&shape, origin, piece_tol).unwrap();
             for (slot, &e) in bounds.edges().iter().enumerate() {
                 let edge = &graph.edges[e as usize];
                 let mut piece = Polygon::default();
@@ -778,7 +786,7 @@ mod tests {
                 tolerance: 1e-6,
             };
             let potential: Vec<u32> = (0..graph.edges.len() as u32).collect();
-            let bounds = EdgeBounds::new(&graph, &shape, &potential);
+            let bounds = EdgeBounds::new(&graph, &shape, &potential).unwrap();
             let lo = DVec3::new(r(-3.0, 1.0), r(-3.0, 1.0), r(-1.0, 3.0));
             let parent = Aabb {
                 min: lo,
@@ -820,7 +828,7 @@ mod tests {
                 normal: DVec3::Z,
                 tolerance: 1e-6,
             };
-            let region = grown_light(&shape, DVec3::new(0.0, 0.0, 3.0), 1e-6);
+            let region = grown_light(&shape, DVec3::new(0.0, 0.0, 3.0), 1e-6).unwrap();
             for edge in &graph.edges {
                 let mut piece = Polygon::default();
                 let part = silhouette_part(&graph, edge, &region, 1e-6, 3.0, &mut piece);

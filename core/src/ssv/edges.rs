@@ -13,7 +13,7 @@
 //! by the reference ray caster alike: the exact oracle never counts them either
 //! (see [`super::segment_meets_triangle`]).
 
-use alloc::vec;
+use crate::fallible::{self, OutOfMemory};
 use alloc::vec::Vec;
 use glam::Vec3;
 
@@ -80,7 +80,7 @@ impl EdgeGraph {
         let indexed: Vec<[u32; 3]> = (0..tris.len() as u32)
             .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
             .collect();
-        Self::from_indexed(&positions, &indexed)
+        Self::from_indexed(&positions, &indexed).expect("memory for a test graph")
     }
 
     /// [`EdgeGraph::new`] for triangles given as indices into `positions`,
@@ -90,22 +90,20 @@ impl EdgeGraph {
     /// vertices by position (fewer than the corners), the half-edges by their
     /// lower welded end (a counting sort) and then within each end. On a
     /// 52k-triangle mesh a few milliseconds.
-    pub fn from_indexed(positions: &[Vec3], triangles: &[[u32; 3]]) -> Self {
+    pub fn from_indexed(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Self, OutOfMemory> {
         // Used input vertices by position key (96 bits), then input number.
-        let mut used = vec![false; positions.len()];
+        let mut used = fallible::filled(false, positions.len())?;
         for &v in triangles.iter().flatten() {
             used[v as usize] = true;
         }
-        let mut keyed: Vec<u128> = (0..positions.len())
-            .filter(|&v| used[v])
-            .map(|v| {
+        let mut keyed: Vec<u128> =
+            fallible::collect((0..positions.len()).filter(|&v| used[v]).map(|v| {
                 let [x, y, z] = key(positions[v]);
                 u128::from(x) << 96 | u128::from(y) << 64 | u128::from(z) << 32 | v as u128
-            })
-            .collect();
+            }))?;
         keyed.sort_unstable();
         let mut welded_positions = Vec::new();
-        let mut welded = vec![0u32; positions.len()];
+        let mut welded = fallible::filled(0u32, positions.len())?;
         let mut last = None;
         for &k in &keyed {
             let position_key = k >> 32;
@@ -113,19 +111,20 @@ impl EdgeGraph {
                 last = Some(position_key);
                 let un = |b: u32| f32::from_bits(if b >> 31 == 1 { b & 0x7FFF_FFFF } else { !b });
                 let part = |shift: u32| un((position_key >> shift) as u32);
-                welded_positions.push(Vec3::new(part(64), part(32), part(0)));
+                fallible::push(
+                    &mut welded_positions,
+                    Vec3::new(part(64), part(32), part(0)),
+                )?;
             }
             welded[(k & 0xFFFF_FFFF) as usize] = welded_positions.len() as u32 - 1;
         }
-        let triangles: Vec<[u32; 3]> = triangles
-            .iter()
-            .map(|t| t.map(|v| welded[v as usize]))
-            .collect();
+        let triangles: Vec<[u32; 3]> =
+            fallible::collect(triangles.iter().map(|t| t.map(|v| welded[v as usize])))?;
         // Half-edges `(upper end, third vertex)` bucketed by lower end, then
         // each bucket sorted: edges come out by (lower, upper), their third
         // vertices ascending.
         let vertex_count = welded_positions.len();
-        let mut starts = vec![0u32; vertex_count + 1];
+        let mut starts = fallible::filled(0u32, vertex_count + 1)?;
         for &[x, y, z] in &triangles {
             for (u, v) in [(x, y), (y, z), (z, x)] {
                 starts[u.min(v) as usize + 1] += 1;
@@ -134,8 +133,8 @@ impl EdgeGraph {
         for i in 0..vertex_count {
             starts[i + 1] += starts[i];
         }
-        let mut fill = starts.clone();
-        let mut half = vec![0u64; 3 * triangles.len()];
+        let mut fill = fallible::collect(starts.iter().copied())?;
+        let mut half = fallible::filled(0u64, 3 * triangles.len())?;
         for &[x, y, z] in &triangles {
             for (u, v, w) in [(x, y, z), (y, z, x), (z, x, y)] {
                 let slot = &mut fill[u.min(v) as usize];
@@ -144,7 +143,8 @@ impl EdgeGraph {
             }
         }
         let mut edges = Vec::new();
-        let mut third = Vec::with_capacity(half.len());
+        // (Within its capacity: pushing allocates nothing.)
+        let mut third = fallible::with_capacity(half.len())?;
         for a in 0..vertex_count {
             let bucket = &mut half[starts[a] as usize..starts[a + 1] as usize];
             bucket.sort_unstable();
@@ -156,20 +156,23 @@ impl EdgeGraph {
                     third.push(bucket[i] as u32);
                     i += 1;
                 }
-                edges.push(Edge {
-                    a: a as u32,
-                    b: b as u32,
-                    first,
-                    count: third.len() as u32 - first,
-                });
+                fallible::push(
+                    &mut edges,
+                    Edge {
+                        a: a as u32,
+                        b: b as u32,
+                        first,
+                        count: third.len() as u32 - first,
+                    },
+                )?;
             }
         }
-        EdgeGraph {
+        Ok(EdgeGraph {
             positions: welded_positions,
             triangles,
             edges,
             third,
-        }
+        })
     }
 
     /// The third vertices adjacent to `edge`.

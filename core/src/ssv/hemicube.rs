@@ -83,34 +83,34 @@ fn cell_of(x: f64, r: usize) -> usize {
 /// The in-plane outline of the region `K` that `LightPolygon::contains`
 /// accepts: every edge line moved outward by `tol` (the vertices of the grown
 /// polygon), as points of the plane through `origin` normal to the light.
-pub(crate) fn grown_light(shape: &LightShape, origin: DVec3, tol: f64) -> Vec<DVec3> {
+pub(crate) fn grown_light(
+    shape: &LightShape,
+    origin: DVec3,
+    tol: f64,
+) -> Result<Vec<DVec3>, crate::fallible::OutOfMemory> {
     let n = shape.normal;
     let (u, v) = n.any_orthonormal_pair();
     let k = shape.vertices.len();
     let flat = |p: DVec3| DVec2::new((p - origin).dot(u), (p - origin).dot(v));
     // Edge i (vertex i to i + 1) keeps the side `inward · (x - a_i) >= -tol`.
-    let lines: Vec<(DVec2, f64)> = (0..k)
-        .map(|i| {
-            let (a, b) = (shape.vertices[i], shape.vertices[(i + 1) % k]);
-            let inward = n.cross(b - a).normalize();
-            let inward = DVec2::new(inward.dot(u), inward.dot(v));
-            (inward, inward.dot(flat(a)) - tol)
-        })
-        .collect();
-    (0..k)
-        .map(|j| {
-            let (i1, d1) = lines[(j + k - 1) % k];
-            let (i2, d2) = lines[j];
-            let det = i1.x * i2.y - i1.y * i2.x;
-            let x = if det.abs() < 1e-9 && i1.dot(i2) > 0.0 {
-                // Collinear neighbours: both lines are the same line.
-                flat(shape.vertices[j]) - tol * i2
-            } else {
-                DVec2::new(d1 * i2.y - d2 * i1.y, i1.x * d2 - i2.x * d1) / det
-            };
-            origin + x.x * u + x.y * v
-        })
-        .collect()
+    let lines: Vec<(DVec2, f64)> = crate::fallible::collect((0..k).map(|i| {
+        let (a, b) = (shape.vertices[i], shape.vertices[(i + 1) % k]);
+        let inward = n.cross(b - a).normalize();
+        let inward = DVec2::new(inward.dot(u), inward.dot(v));
+        (inward, inward.dot(flat(a)) - tol)
+    }))?;
+    crate::fallible::collect((0..k).map(|j| {
+        let (i1, d1) = lines[(j + k - 1) % k];
+        let (i2, d2) = lines[j];
+        let det = i1.x * i2.y - i1.y * i2.x;
+        let x = if det.abs() < 1e-9 && i1.dot(i2) > 0.0 {
+            // Collinear neighbours: both lines are the same line.
+            flat(shape.vertices[j]) - tol * i2
+        } else {
+            DVec2::new(d1 * i2.y - d2 * i1.y, i1.x * d2 - i2.x * d1) / det
+        };
+        origin + x.x * u + x.y * v
+    }))
 }
 
 /// The parts of the grown light `region` (in-plane outline, thickness `tol`)
@@ -334,7 +334,7 @@ impl Hemicube {
                 m.max(v.abs().max_element())
             });
         let tol = shape.tolerance + SLACK * scale;
-        let region = grown_light(shape, origin, tol);
+        let region = grown_light(shape, origin, tol).expect("memory for the grown light");
         let n = shape.normal;
         let mut per_cell: Vec<Vec<u32>> = vec![Vec::new(); cells];
         // The last edge pushed to each cell (an edge's pieces may share cells).

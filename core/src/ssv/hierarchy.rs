@@ -43,7 +43,6 @@
 //! copy is dropped. Either way a node is never seen half built.
 
 use alloc::boxed::Box;
-use alloc::vec;
 use alloc::vec::Vec;
 use core::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 use glam::DVec3;
@@ -52,6 +51,7 @@ use super::SsvOptions;
 use super::edge_bounds::EdgeBounds;
 use super::edges::EdgeGraph;
 use super::wedge::{Aabb, LightShape};
+use crate::fallible::{self, OutOfMemory};
 use crate::prefetch::prefetch;
 
 /// A split is kept when the children's mean list length is at most this
@@ -97,27 +97,42 @@ impl<T> Once<T> {
     }
 
     #[cfg(feature = "std")]
-    fn with(value: T) -> Self {
-        Once(std::sync::OnceLock::from(value))
+    fn with(value: T) -> Result<Self, OutOfMemory> {
+        Ok(Once(std::sync::OnceLock::from(value)))
     }
 
     #[cfg(not(feature = "std"))]
-    fn with(value: T) -> Self {
-        Once(once_cell::race::OnceBox::with_value(Box::new(value)))
+    fn with(value: T) -> Result<Self, OutOfMemory> {
+        Ok(Once(once_cell::race::OnceBox::with_value(fallible::boxed(
+            value,
+        )?)))
     }
 
     fn get(&self) -> Option<&T> {
         self.0.get()
     }
 
+    /// The value, made by `make` if there is none yet; `None` (and still no
+    /// value) when `make` or the memory for it fails. Racing callers may each
+    /// make one; one is kept.
     #[cfg(feature = "std")]
-    fn get_or_init(&self, make: impl FnOnce() -> T) -> &T {
-        self.0.get_or_init(make)
+    fn get_or_try_init(&self, make: impl FnOnce() -> Option<T>) -> Option<&T> {
+        if let Some(value) = self.0.get() {
+            return Some(value);
+        }
+        let value = make()?;
+        Some(self.0.get_or_init(|| value))
     }
 
     #[cfg(not(feature = "std"))]
-    fn get_or_init(&self, make: impl FnOnce() -> T) -> &T {
-        self.0.get_or_init(|| Box::new(make()))
+    fn get_or_try_init(&self, make: impl FnOnce() -> Option<T>) -> Option<&T> {
+        self.0
+            .get_or_try_init(|| {
+                make()
+                    .and_then(|value| fallible::boxed(value).ok())
+                    .ok_or(())
+            })
+            .ok()
     }
 }
 
@@ -177,22 +192,22 @@ impl Hierarchy {
         potential: &[u32],
         root: Aabb,
         options: SsvOptions,
-    ) -> Self {
-        let bounds = EdgeBounds::new(graph, shape, potential);
-        let all = (0..bounds.edges().len() as u32).collect();
+    ) -> Result<Self, OutOfMemory> {
+        let bounds = EdgeBounds::new(graph, shape, potential)?;
+        let all = fallible::collect(0..bounds.edges().len() as u32)?;
         let mut h = Hierarchy {
             root: Node {
                 bounds: root,
                 levels: 0,
                 edges: Box::new([]),
                 visits: AtomicU32::new(0),
-                split: Once::with(Split::Leaf),
+                split: Once::with(Split::Leaf)?,
             },
             root_min: root.min,
             root_max: root.max,
             centre: root.center(),
             half: root.half(),
-            shells: (0..MAX_SHELLS).map(|_| Once::new()).collect(),
+            shells: fallible::collect((0..MAX_SHELLS).map(|_| Once::new()))?,
             bounds,
             all,
             leaf_edges: options.leaf_edges as usize,
@@ -204,8 +219,8 @@ impl Hierarchy {
             h.bounds.bytes() + h.all.capacity() * 4 + h.shells.capacity() * 8,
             Ordering::Relaxed,
         );
-        h.root = h.cell(graph, shape, root, h.max_depth);
-        h
+        h.root = h.cell(graph, shape, root, h.max_depth)?;
+        Ok(h)
     }
 
     pub fn nodes(&self) -> usize {
@@ -217,13 +232,19 @@ impl Hierarchy {
     }
 
     /// A node over `bounds` cut from every potential edge.
-    fn cell(&self, graph: &EdgeGraph, shape: &LightShape, bounds: Aabb, levels: u32) -> Node {
+    fn cell(
+        &self,
+        graph: &EdgeGraph,
+        shape: &LightShape,
+        bounds: Aabb,
+        levels: u32,
+    ) -> Result<Node, OutOfMemory> {
         // The box is octant 0 of a box twice its size.
         let parent = Aabb {
             min: bounds.min,
             max: bounds.max + (bounds.max - bounds.min),
         };
-        let mut masks = vec![0u8; self.all.len()];
+        let mut masks = fallible::filled(0u8, self.all.len())?;
         self.bounds.octant_masks(
             graph,
             shape,
@@ -232,34 +253,36 @@ impl Hierarchy {
             0..self.all.len(),
             &mut masks,
         );
-        let edges = self
-            .all
-            .iter()
-            .zip(&masks)
-            .filter(|&(_, &m)| m & 1 == 1)
-            .map(|(&e, _)| e)
-            .collect();
-        self.node(bounds, levels, edges)
+        let kept = masks.iter().filter(|&&m| m & 1 == 1).count();
+        let mut edges = fallible::with_capacity(kept)?;
+        edges.extend(
+            self.all
+                .iter()
+                .zip(&masks)
+                .filter(|&(_, &m)| m & 1 == 1)
+                .map(|(&e, _)| e),
+        );
+        self.node(bounds, levels, edges.into_boxed_slice())
     }
 
-    fn node(&self, bounds: Aabb, levels: u32, edges: Box<[u32]>) -> Node {
+    fn node(&self, bounds: Aabb, levels: u32, edges: Box<[u32]>) -> Result<Node, OutOfMemory> {
         let split = if edges.len() > self.leaf_edges && levels > 0 {
             Once::new()
         } else {
-            Once::with(Split::Leaf)
+            Once::with(Split::Leaf)?
         };
         self.nodes.fetch_add(1, Ordering::Relaxed);
         self.bytes.fetch_add(
             core::mem::size_of::<Node>() + edges.len() * core::mem::size_of::<u32>(),
             Ordering::Relaxed,
         );
-        Node {
+        Ok(Node {
             bounds,
             levels,
             edges,
             visits: AtomicU32::new(0),
             split,
-        }
+        })
     }
 
     /// The node's children when they pay ([`SPLIT_GAIN`]).
@@ -269,10 +292,12 @@ impl Hierarchy {
     /// octants of a root whose upper ones hold the light, and those lower
     /// octants keep nearly every edge at the first split; weighted, the split
     /// that the levels below need was refused.)
-    fn split(&self, graph: &EdgeGraph, shape: &LightShape, node: &Node) -> Split {
+    /// `None` when there is no memory for the decision (the node stays
+    /// undecided, and queries use its list).
+    fn split(&self, graph: &EdgeGraph, shape: &LightShape, node: &Node) -> Option<Split> {
         let weights = [1u32; 8];
         let edges = &node.edges;
-        let mut masks = vec![0u8; edges.len()].into_boxed_slice();
+        let mut masks = fallible::filled(0u8, edges.len()).ok()?.into_boxed_slice();
         let weight: u64 = weights.iter().map(|&w| u64::from(w)).sum();
         // Candidates the expected queries would test in the children, over
         // those they test in the node (`n` edges of `masks` looked at).
@@ -301,7 +326,7 @@ impl Hierarchy {
                 &mut masks,
             );
             if !pays(&masks, &mut sample.clone(), sample.len(), REFUSE_MARGIN) {
-                return Split::Leaf;
+                return Some(Split::Leaf);
             }
             let rest = (0..edges.len()).filter(|k| k % step != 0);
             self.bounds
@@ -311,7 +336,7 @@ impl Hierarchy {
                 .octant_masks(graph, shape, &node.bounds, edges, sample, &mut masks);
         }
         if !pays(&masks, &mut (0..edges.len()), edges.len(), 1.0) {
-            return Split::Leaf;
+            return Some(Split::Leaf);
         }
         let mut counts = [0u32; 8];
         for &m in masks.iter() {
@@ -323,17 +348,20 @@ impl Hierarchy {
             core::mem::size_of::<Children>() + masks.len(),
             Ordering::Relaxed,
         );
-        Split::Children(Box::new(Children {
+        let children = fallible::boxed(Children {
             masks,
             counts,
             nodes: core::array::from_fn(|_| Once::new()),
-        }))
+        })
+        .ok()?;
+        Some(Split::Children(children))
     }
 
     /// Child `i` of `node`, made from the parent's masks on first use.
-    fn child<'a>(&self, node: &Node, children: &'a Children, i: usize) -> &'a Node {
-        children.nodes[i].get_or_init(|| {
-            let mut edges = Vec::with_capacity(children.counts[i] as usize);
+    /// `None` when there is no memory for it (the caller stays at `node`).
+    fn child<'a>(&self, node: &Node, children: &'a Children, i: usize) -> Option<&'a Node> {
+        children.nodes[i].get_or_try_init(|| {
+            let mut edges = fallible::with_capacity(children.counts[i] as usize).ok()?;
             edges.extend(
                 node.edges
                     .iter()
@@ -341,7 +369,12 @@ impl Hierarchy {
                     .filter(|&(_, &m)| m >> i & 1 == 1)
                     .map(|(&e, _)| e),
             );
-            self.node(node.bounds.octant(i), node.levels - 1, edges.into())
+            self.node(
+                node.bounds.octant(i),
+                node.levels - 1,
+                edges.into_boxed_slice(),
+            )
+            .ok()
         })
     }
 
@@ -386,26 +419,29 @@ impl Hierarchy {
 
     /// The node of a [`TopSlot`], made (one test of every edge against its
     /// box) the first time a query starts there.
-    fn top_node(&self, graph: &EdgeGraph, shape: &LightShape, slot: TopSlot) -> &Node {
+    /// `None` when there is no memory for it (the caller tests every edge).
+    fn top_node(&self, graph: &EdgeGraph, shape: &LightShape, slot: TopSlot) -> Option<&Node> {
         let TopSlot::Cell {
             shell,
             cell,
             bounds,
         } = slot
         else {
-            return &self.root;
+            return Some(&self.root);
         };
-        let shell_cells = self.shells[shell].get_or_init(|| {
-            self.bytes
-                .fetch_add(core::mem::size_of::<Shell>(), Ordering::Relaxed);
-            Box::new(Shell {
+        let shell_cells = self.shells[shell].get_or_try_init(|| {
+            let shell = fallible::boxed(Shell {
                 cells: core::array::from_fn(|_| Once::new()),
             })
-        });
-        shell_cells.cells[cell].get_or_init(|| {
+            .ok()?;
+            self.bytes
+                .fetch_add(core::mem::size_of::<Shell>(), Ordering::Relaxed);
+            Some(shell)
+        })?;
+        shell_cells.cells[cell].get_or_try_init(|| {
             // As fine as the root's octants allow, at any distance.
             let levels = self.max_depth.saturating_sub(1) + shell as u32;
-            self.cell(graph, shape, bounds, levels)
+            self.cell(graph, shape, bounds, levels).ok()
         })
     }
 
@@ -420,19 +456,29 @@ impl Hierarchy {
     /// them. With `parallel` (and the `parallel` feature) the subtrees are
     /// built on rayon's threads. The bits of the queries are the same either
     /// way.
+    ///
+    /// Without memory for its bookkeeping it builds nothing: the queries then
+    /// build what they need themselves (or use coarser nodes).
     pub fn prepare(&self, graph: &EdgeGraph, shape: &LightShape, points: &[DVec3], parallel: bool) {
+        let _ = self.try_prepare(graph, shape, points, parallel);
+    }
+
+    fn try_prepare(
+        &self,
+        graph: &EdgeGraph,
+        shape: &LightShape,
+        points: &[DVec3],
+        parallel: bool,
+    ) -> Result<(), OutOfMemory> {
         // Receivers grouped by top node: the root's (key 0), then each shell
         // cell's (key 1 + 64 shell + cell), by a counting sort.
-        let keys: Vec<u32> = points
-            .iter()
-            .map(|&p| match self.top_slot(p) {
-                Some(TopSlot::Root) => 0,
-                Some(TopSlot::Cell { shell, cell, .. }) => 1 + 64 * shell as u32 + cell as u32,
-                None => u32::MAX,
-            })
-            .collect();
+        let keys: Vec<u32> = fallible::collect(points.iter().map(|&p| match self.top_slot(p) {
+            Some(TopSlot::Root) => 0,
+            Some(TopSlot::Cell { shell, cell, .. }) => 1 + 64 * shell as u32 + cell as u32,
+            None => u32::MAX,
+        }))?;
         let buckets = 1 + 64 * MAX_SHELLS;
-        let mut starts = vec![0u32; buckets + 1];
+        let mut starts = fallible::filled(0u32, buckets + 1)?;
         for &k in &keys {
             if k != u32::MAX {
                 starts[k as usize + 1] += 1;
@@ -441,9 +487,9 @@ impl Hierarchy {
         for b in 0..buckets {
             starts[b + 1] += starts[b];
         }
-        let mut fill = starts.clone();
+        let mut fill = fallible::collect(starts.iter().copied())?;
         let placed = starts[buckets] as usize;
-        let mut order = vec![0u32; placed];
+        let mut order = fallible::filled(0u32, placed)?;
         for (i, &k) in keys.iter().enumerate() {
             if k != u32::MAX {
                 let slot = &mut fill[k as usize];
@@ -451,7 +497,7 @@ impl Hierarchy {
                 *slot += 1;
             }
         }
-        let mut scratch = vec![0u32; placed];
+        let mut scratch = fallible::filled(0u32, placed)?;
         for b in 0..buckets {
             let (lo, hi) = (starts[b] as usize, starts[b + 1] as usize);
             if lo == hi {
@@ -461,7 +507,9 @@ impl Hierarchy {
             let Some(slot) = self.top_slot(p) else {
                 continue;
             };
-            let node = self.top_node(graph, shape, slot);
+            let Some(node) = self.top_node(graph, shape, slot) else {
+                continue;
+            };
             let job = Batch {
                 hierarchy: self,
                 graph,
@@ -471,6 +519,7 @@ impl Hierarchy {
             };
             job.refine(node, &mut order[lo..hi], &mut scratch[lo..hi]);
         }
+        Ok(())
     }
 
     /// Calls `visit` with every edge of the leaf holding `p`, building nodes
@@ -489,7 +538,13 @@ impl Hierarchy {
             visit_prefetched(graph, self.bounds.edges(), &self.all, visit);
             return;
         };
-        let mut node = self.top_node(graph, shape, slot);
+        // Where memory for a node runs out, the walk stops at the coarser node
+        // it reached (or tests every edge): its list holds every candidate of
+        // the finer ones, so the bits are the same.
+        let Some(mut node) = self.top_node(graph, shape, slot) else {
+            visit_prefetched(graph, self.bounds.edges(), &self.all, visit);
+            return;
+        };
         loop {
             let split = match node.split.get() {
                 Some(split) => split,
@@ -497,13 +552,22 @@ impl Hierarchy {
                     if node.visits.fetch_add(1, Ordering::Relaxed) + 1 < SPLIT_AFTER {
                         break;
                     }
-                    node.split.get_or_init(|| self.split(graph, shape, node))
+                    match node
+                        .split
+                        .get_or_try_init(|| self.split(graph, shape, node))
+                    {
+                        Some(split) => split,
+                        None => break,
+                    }
                 }
             };
             match split {
                 Split::Leaf => break,
                 Split::Children(children) => {
-                    node = self.child(node, children, node.bounds.octant_of(p));
+                    match self.child(node, children, node.bounds.octant_of(p)) {
+                        Some(child) => node = child,
+                        None => break,
+                    }
                 }
             }
         }
@@ -546,9 +610,13 @@ impl Batch<'_> {
         let split = match node.split.get() {
             Some(split) => split,
             None if indices.len() < BATCH_SPLIT => return,
-            None => node
+            None => match node
                 .split
-                .get_or_init(|| h.split(self.graph, self.shape, node)),
+                .get_or_try_init(|| h.split(self.graph, self.shape, node))
+            {
+                Some(split) => split,
+                None => return,
+            },
         };
         let Split::Children(children) = split else {
             return;
@@ -565,7 +633,9 @@ impl Batch<'_> {
         }
         indices.copy_from_slice(scratch);
         // The children's ranges, each with its own part of both buffers.
-        let mut parts: Vec<(usize, &mut [u32], &mut [u32])> = Vec::with_capacity(8);
+        let Ok(mut parts) = fallible::with_capacity::<(usize, &mut [u32], &mut [u32])>(8) else {
+            return;
+        };
         let (mut rest, mut rest_scratch) = (indices, scratch);
         for (i, &count) in counts.iter().enumerate() {
             let n = count as usize;
@@ -577,8 +647,9 @@ impl Batch<'_> {
             }
         }
         let run = |(i, part, part_scratch): (usize, &mut [u32], &mut [u32])| {
-            let child = h.child(node, children, i);
-            self.refine(child, part, part_scratch);
+            if let Some(child) = h.child(node, children, i) {
+                self.refine(child, part, part_scratch);
+            }
         };
         #[cfg(feature = "parallel")]
         if self.parallel && starts[8] >= PARALLEL_RECEIVERS {

@@ -48,6 +48,9 @@ pub enum LightError {
         /// The offending sample.
         index: usize,
     },
+    /// The allocator refused memory (only allocators that can run out, such as a
+    /// bare-metal application's, get here).
+    OutOfMemory,
 }
 
 impl core::fmt::Display for LightError {
@@ -73,6 +76,7 @@ impl core::fmt::Display for LightError {
             LightError::SampleOffLight { index } => {
                 write!(f, "light sample {index} is off the light polygon")
             }
+            LightError::OutOfMemory => f.write_str("no memory for the light polygon"),
         }
     }
 }
@@ -106,7 +110,11 @@ impl LightPolygon {
         if vertices.iter().any(|v| !v.is_finite()) {
             return Err(LightError::NonFinite);
         }
-        let wide: Vec<DVec3> = vertices.iter().map(|v| v.as_dvec3()).collect();
+        let mut widened = [DVec3::ZERO; MAX_LIGHT_VERTICES];
+        for (w, v) in widened.iter_mut().zip(vertices) {
+            *w = v.as_dvec3();
+        }
+        let wide = &widened[..count];
         let centroid = wide.iter().sum::<DVec3>() / count as f64;
         // Newell's normal: twice the vector area, robust for any planar polygon.
         let mut newell = DVec3::ZERO;
@@ -117,7 +125,7 @@ impl LightPolygon {
                 return Err(LightError::Degenerate);
             }
             newell += (a - centroid).cross(b - centroid);
-            for w in &wide {
+            for w in wide {
                 diameter = diameter.max((*w - a).length());
             }
         }
@@ -155,8 +163,11 @@ impl LightPolygon {
         if (turning - core::f64::consts::TAU).abs() > 1e-3 {
             return Err(LightError::NotConvex { vertex: 0 });
         }
+        let mut kept =
+            crate::fallible::with_capacity(count).map_err(|_| LightError::OutOfMemory)?;
+        kept.extend_from_slice(vertices);
         Ok(LightPolygon {
-            vertices: vertices.to_vec(),
+            vertices: kept,
             centroid: centroid.as_vec3(),
             normal: normal.as_vec3(),
             area: (0.5 * twice_area) as f32,
@@ -240,16 +251,27 @@ impl LightPolygon {
     /// takes the strata centres, [`SamplePattern::Jittered`] one uniform point in
     /// each.
     pub fn samples(&self, count: usize, pattern: SamplePattern, seed: u64) -> Vec<Vec3> {
+        self.try_samples(count, pattern, seed)
+            .expect("memory for the light samples")
+    }
+
+    /// [`LightPolygon::samples`], or [`OutOfMemory`](crate::fallible::OutOfMemory)
+    /// when the allocator refuses.
+    pub fn try_samples(
+        &self,
+        count: usize,
+        pattern: SamplePattern,
+        seed: u64,
+    ) -> Result<Vec<Vec3>, crate::fallible::OutOfMemory> {
+        use crate::fallible::{collect, with_capacity};
         let mut rng = SplitMix64::new(seed);
         let v = &self.vertices;
         // Areas in f64: in f32 the squared length of a thin or tiny light's
         // cross products underflows to zero (the polygon was accepted in f64).
-        let fan: Vec<(Vec3, Vec3, Vec3, f64)> = (1..v.len() - 1)
-            .map(|i| {
-                let (a, b, c) = (v[0].as_dvec3(), v[i].as_dvec3(), v[i + 1].as_dvec3());
-                (v[0], v[i], v[i + 1], (b - a).cross(c - a).length())
-            })
-            .collect();
+        let fan: Vec<(Vec3, Vec3, Vec3, f64)> = collect((1..v.len() - 1).map(|i| {
+            let (a, b, c) = (v[0].as_dvec3(), v[i].as_dvec3(), v[i + 1].as_dvec3());
+            (v[0], v[i], v[i + 1], (b - a).cross(c - a).length())
+        }))?;
         let total: f64 = fan.iter().map(|t| t.3).sum();
         // Equal shares if even f64 cannot weigh the triangles.
         let weight = |area: f64| {
@@ -260,20 +282,18 @@ impl LightPolygon {
             }
         };
         // Largest-remainder apportionment of `count` among the fan triangles.
-        let mut shares: Vec<(usize, f64)> = fan
-            .iter()
-            .map(|t| {
-                let exact = count as f64 * weight(t.3);
-                (exact as usize, exact - libm::floor(exact))
-            })
-            .collect();
+        let mut shares: Vec<(usize, f64)> = collect(fan.iter().map(|t| {
+            let exact = count as f64 * weight(t.3);
+            (exact as usize, exact - libm::floor(exact))
+        }))?;
         let assigned: usize = shares.iter().map(|s| s.0).sum();
-        let mut order: Vec<usize> = (0..shares.len()).collect();
-        order.sort_by(|&i, &j| shares[j].1.total_cmp(&shares[i].1).then(i.cmp(&j)));
+        let mut order: Vec<usize> = collect(0..shares.len())?;
+        // Unstable sort (no scratch memory): the index breaks every tie.
+        order.sort_unstable_by(|&i, &j| shares[j].1.total_cmp(&shares[i].1).then(i.cmp(&j)));
         for &i in order.iter().cycle().take(count.saturating_sub(assigned)) {
             shares[i].0 += 1;
         }
-        let mut out = Vec::with_capacity(count);
+        let mut out = with_capacity(count)?;
         for (t, &(m, _)) in fan.iter().zip(&shares) {
             if m == 0 {
                 continue;
@@ -282,7 +302,7 @@ impl LightPolygon {
             while k * k < m {
                 k += 1;
             }
-            let mut strata: Vec<usize> = (0..k * k).collect();
+            let mut strata: Vec<usize> = collect(0..k * k)?;
             for i in (1..strata.len()).rev() {
                 let j = (rng.next_u64() % (i as u64 + 1)) as usize;
                 strata.swap(i, j);
@@ -301,7 +321,7 @@ impl LightPolygon {
                 out.push((a + (b - a) * b1 + (c - a) * b2).as_vec3());
             }
         }
-        out
+        Ok(out)
     }
 }
 

@@ -143,6 +143,7 @@ use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicUsize, Ordering};
 use glam::{DVec3, Vec3};
 
+use crate::fallible::{self, OutOfMemory};
 use crate::geom::MeshView;
 use crate::raycast::Ray;
 
@@ -269,6 +270,16 @@ pub enum SsvError {
         /// Entries given.
         got: usize,
     },
+    /// The allocator refused memory while building the structure (only
+    /// allocators that can run out, such as a bare-metal application's, get
+    /// here; queries never fail for memory: see [`SoftShadows::query`]).
+    OutOfMemory,
+}
+
+impl From<OutOfMemory> for SsvError {
+    fn from(_: OutOfMemory) -> Self {
+        SsvError::OutOfMemory
+    }
 }
 
 impl TryFrom<u32> for Structure {
@@ -308,6 +319,7 @@ impl core::fmt::Display for SsvError {
             SsvError::BitsTooShort { needed, got } => {
                 write!(f, "output needs {needed} entries, got {got}")
             }
+            SsvError::OutOfMemory => f.write_str("no memory for the soft-shadow structure"),
         }
     }
 }
@@ -549,14 +561,10 @@ impl SoftShadows {
         // the samples (on the plane within the tolerance), with room to spare.
         let band_half_width = 4.0 * tolerance;
         let (u_axis, v_axis) = plane_normal.any_orthonormal_pair();
-        let light_uv: Vec<(f64, f64)> = light
-            .vertices()
-            .iter()
-            .map(|v| {
-                let d = v.as_dvec3() - plane_point;
-                (d.dot(u_axis), d.dot(v_axis))
-            })
-            .collect();
+        let light_uv: Vec<(f64, f64)> = fallible::collect(light.vertices().iter().map(|v| {
+            let d = v.as_dvec3() - plane_point;
+            (d.dot(u_axis), d.dot(v_axis))
+        }))?;
         let (mut umin, mut umax, mut vmin, mut vmax) = (
             f64::INFINITY,
             f64::NEG_INFINITY,
@@ -571,7 +579,8 @@ impl SoftShadows {
         }
         let margin = 4.0 * tolerance;
         // Regular triangles as indices into the occluders' positions.
-        let mut regular: Vec<[u32; 3]> = Vec::with_capacity(occluders.triangle_count());
+        // (Within its capacity: pushing allocates nothing.)
+        let mut regular: Vec<[u32; 3]> = fallible::with_capacity(occluders.triangle_count())?;
         let mut near_light = Vec::new();
         let mut band = Vec::new();
         let mut occluder_lo = DVec3::splat(f64::INFINITY);
@@ -593,7 +602,7 @@ impl SoftShadows {
                 regular.push(occluders.triangle_indices(t));
                 continue;
             }
-            band.push(tri);
+            fallible::push(&mut band, tri)?;
             // Conservative: the triangle's footprint box in the plane against the
             // light's, both grown by the margin.
             let (mut tu0, mut tu1, mut tv0, mut tv1) = (
@@ -617,25 +626,25 @@ impl SoftShadows {
             {
                 regular.push(occluders.triangle_indices(t));
             } else {
-                near_light.push(tri);
+                fallible::push(&mut near_light, tri)?;
             }
         }
-        let positions: Vec<Vec3> = (0..occluders.vertex_count())
-            .map(|v| occluders.position(v))
-            .collect();
-        let graph = EdgeGraph::from_indexed(&positions, &regular);
-        let potential: Vec<u32> = (0..graph.edges.len() as u32)
-            .filter(|&e| !graph.is_flat(&graph.edges[e as usize]))
-            .collect();
+        let positions: Vec<Vec3> =
+            fallible::collect((0..occluders.vertex_count()).map(|v| occluders.position(v)))?;
+        let graph = EdgeGraph::from_indexed(&positions, &regular)?;
+        let potential: Vec<u32> = fallible::collect(
+            (0..graph.edges.len() as u32).filter(|&e| !graph.is_flat(&graph.edges[e as usize])),
+        )?;
         let shape = LightShape {
-            vertices: light.vertices().iter().map(|v| v.as_dvec3()).collect(),
+            vertices: fallible::collect(light.vertices().iter().map(|v| v.as_dvec3()))?,
             normal: plane_normal,
             tolerance,
         };
         // The reference caster and the structure, side by side on rayon's
         // threads with `options.parallel`.
-        let structure = || -> (Option<Hierarchy>, Option<Box<Hemicube>>) {
-            match options.structure {
+        type Structures = (Option<Hierarchy>, Option<Box<Hemicube>>);
+        let structure = || -> Result<Structures, OutOfMemory> {
+            Ok(match options.structure {
                 Structure::Hierarchy => {
                     let root = match options.root_bounds {
                         Some([lo, hi]) => Aabb {
@@ -644,7 +653,7 @@ impl SoftShadows {
                         },
                         None => default_root(occluders, &light),
                     };
-                    let hierarchy = Hierarchy::new(&graph, &shape, &potential, root, options);
+                    let hierarchy = Hierarchy::new(&graph, &shape, &potential, root, options)?;
                     (Some(hierarchy), None)
                 }
                 Structure::Hemicube => {
@@ -658,21 +667,22 @@ impl SoftShadows {
                     (None, Some(Box::new(hemicube)))
                 }
                 Structure::BruteForce | Structure::RayTrace => (None, None),
-            }
+            })
         };
         #[cfg(feature = "parallel")]
-        let (caster, (hierarchy, hemicube)) = if options.parallel {
+        let (caster, structures) = if options.parallel {
             rayon::join(|| Self::build_caster(&graph), structure)
         } else {
             (Self::build_caster(&graph), structure())
         };
         #[cfg(not(feature = "parallel"))]
-        let (caster, (hierarchy, hemicube)) = (Self::build_caster(&graph), structure());
+        let (caster, structures) = (Self::build_caster(&graph), structure());
         let caster = caster?;
+        let (hierarchy, hemicube) = structures?;
         // Angular order of the samples about the centroid (receiver-independent).
         let angle_radius = 1e-3 * f64::from(light.diameter());
-        let mut keyed: Vec<(f64, u32)> = Vec::with_capacity(samples.len());
-        let mut central: Vec<u32> = Vec::new();
+        let mut keyed: Vec<(f64, u32)> = fallible::with_capacity(samples.len())?;
+        let mut central: Vec<u32> = fallible::with_capacity(samples.len())?;
         let mut sample_offset: f64 = 0.0;
         for (i, s) in samples.iter().enumerate() {
             let d = s.as_dvec3() - plane_point;
@@ -684,12 +694,15 @@ impl SoftShadows {
                 keyed.push((pseudo_angle(x, y), i as u32));
             }
         }
-        keyed.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
-        let angles: Vec<f64> = keyed.iter().map(|k| k.0).collect();
-        let angle_starts = (0..=ANGLE_BUCKETS)
-            .map(|k| angles.partition_point(|&t| t < k as f64 / ANGLE_SCALE) as u32)
-            .collect();
-        let order: Vec<u32> = keyed.iter().map(|k| k.1).chain(central).collect();
+        // Unstable sort (no scratch memory): the index breaks every tie.
+        keyed.sort_unstable_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+        let angles: Vec<f64> = fallible::collect(keyed.iter().map(|k| k.0))?;
+        let angle_starts = fallible::collect(
+            (0..=ANGLE_BUCKETS)
+                .map(|k| angles.partition_point(|&t| t < k as f64 / ANGLE_SCALE) as u32),
+        )?;
+        let mut order: Vec<u32> = fallible::with_capacity(samples.len())?;
+        order.extend(keyed.iter().map(|k| k.1).chain(central));
         let twice_area: f64 = (0..light_uv.len())
             .map(|i| {
                 let ((x0, y0), (x1, y1)) = (light_uv[i], light_uv[(i + 1) % light_uv.len()]);
@@ -697,33 +710,34 @@ impl SoftShadows {
             })
             .sum();
         let orientation = if twice_area < 0.0 { -1.0 } else { 1.0 };
-        let insets = order
-            .iter()
-            .map(|&o| {
-                inset(
-                    &light_uv,
-                    orientation,
-                    samples[o as usize].as_dvec3() - plane_point,
-                    u_axis,
-                    v_axis,
-                )
-            })
-            .collect();
-        let soa = [0, 1, 2].map(|axis| {
-            order
-                .iter()
-                .map(|&o| f64::from(samples[o as usize][axis]))
-                .collect::<Vec<f64>>()
-        });
+        let insets = fallible::collect(order.iter().map(|&o| {
+            inset(
+                &light_uv,
+                orientation,
+                samples[o as usize].as_dvec3() - plane_point,
+                u_axis,
+                v_axis,
+            )
+        }))?;
+        let axis = |axis: usize| {
+            fallible::collect(order.iter().map(|&o| f64::from(samples[o as usize][axis])))
+        };
+        let soa = [axis(0)?, axis(1)?, axis(2)?];
         let (sample_lo, sample_hi) = samples.iter().fold(
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), s| (lo.min(s.as_dvec3()), hi.max(s.as_dvec3())),
         );
         let words = samples.len().div_ceil(64);
-        let near_sides = plane_sides(&near_light, samples, words);
-        let band_sides = plane_sides(&band, samples, words);
-        let near_planes = near_light.iter().map(AxisPlane::of).collect();
-        let band_planes = band.iter().map(AxisPlane::of).collect();
+        let near_sides = plane_sides(&near_light, samples, words)?;
+        let band_sides = plane_sides(&band, samples, words)?;
+        let near_planes = fallible::collect(near_light.iter().map(AxisPlane::of))?;
+        let band_planes = fallible::collect(band.iter().map(AxisPlane::of))?;
+        let mut rank = fallible::filled(0u32, order.len())?;
+        for (k, &i) in order.iter().enumerate() {
+            rank[i as usize] = k as u32;
+        }
+        let mut sample_copy = fallible::with_capacity(samples.len())?;
+        sample_copy.extend_from_slice(samples);
         let this = SoftShadows {
             occluder_box: occluder_lo
                 .cmple(occluder_hi)
@@ -737,13 +751,7 @@ impl SoftShadows {
             band_planes,
             sample_lo,
             sample_hi,
-            rank: {
-                let mut rank = alloc::vec![0u32; order.len()];
-                for (k, &i) in order.iter().enumerate() {
-                    rank[i as usize] = k as u32;
-                }
-                rank
-            },
+            rank,
             order,
             angles,
             angle_starts,
@@ -754,7 +762,7 @@ impl SoftShadows {
             shape_diameter: f64::from(light.diameter()),
             centroid: light.centroid(),
             light,
-            samples: samples.to_vec(),
+            samples: sample_copy,
             structure: options.structure,
             graph,
             potential,
@@ -788,13 +796,9 @@ impl SoftShadows {
         #[cfg(not(feature = "bvh"))]
         {
             let p = |i: u32| graph.positions[i as usize];
-            Ok(Caster::Brute(
-                graph
-                    .triangles
-                    .iter()
-                    .map(|&[a, b, c]| [p(a), p(b), p(c)])
-                    .collect(),
-            ))
+            Ok(Caster::Brute(fallible::collect(
+                graph.triangles.iter().map(|&[a, b, c]| [p(a), p(b), p(c)]),
+            )?))
         }
     }
 
@@ -1082,11 +1086,15 @@ impl SoftShadows {
     /// points are skipped. Never changes a query's bits.
     pub fn prepare(&self, points: &[Vec3], parallel: bool) {
         if let Some(h) = &self.hierarchy {
-            let points: Vec<DVec3> = points
-                .iter()
-                .filter(|p| p.is_finite())
-                .map(|p| p.as_dvec3())
-                .collect();
+            // Preparing only saves the queries work: without memory, skip it.
+            let Ok(points) = fallible::collect(
+                points
+                    .iter()
+                    .filter(|p| p.is_finite())
+                    .map(|p| p.as_dvec3()),
+            ) else {
+                return;
+            };
             h.prepare(&self.graph, &self.shape, &points, parallel);
         }
     }
@@ -1444,8 +1452,12 @@ impl AxisPlane {
 /// [`segment_meets_triangle`] computes it (`orient3d(a, b, c, s)`, exact): per
 /// triangle `words` words with bit `i` set where sample `i` is strictly above
 /// (`> 0`), then `words` words where it is strictly below (`< 0`).
-fn plane_sides(triangles: &[[Vec3; 3]], samples: &[Vec3], words: usize) -> Vec<u64> {
-    let mut sides = alloc::vec![0u64; 2 * words * triangles.len()];
+fn plane_sides(
+    triangles: &[[Vec3; 3]],
+    samples: &[Vec3],
+    words: usize,
+) -> Result<Vec<u64>, OutOfMemory> {
+    let mut sides = fallible::filled(0u64, 2 * words * triangles.len())?;
     for (&[a, b, c], side) in triangles.iter().zip(sides.chunks_exact_mut(2 * words)) {
         for (i, &s) in samples.iter().enumerate() {
             match orient3d(a, b, c, s) {
@@ -1455,7 +1467,7 @@ fn plane_sides(triangles: &[[Vec3; 3]], samples: &[Vec3], words: usize) -> Vec<u
             }
         }
     }
-    sides
+    Ok(sides)
 }
 
 /// Per-receiver state of the depth-complexity integration. A sample relative

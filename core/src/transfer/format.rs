@@ -90,6 +90,14 @@ pub enum FormatError {
         /// Index of the offending `f32` (or vector, for normals) in that array.
         index: u64,
     },
+    /// The allocator could not supply memory for an array of the file (only
+    /// allocators that can run out, such as a bare-metal application's, get here).
+    OutOfMemory {
+        /// The array, named as in [`FormatError::Value`].
+        field: &'static str,
+        /// Bytes asked for.
+        bytes: u64,
+    },
 }
 
 impl fmt::Display for FormatError {
@@ -109,6 +117,9 @@ impl fmt::Display for FormatError {
             }
             FormatError::Value { field, index } => {
                 write!(f, "{field}[{index}] is not finite (or not a unit normal)")
+            }
+            FormatError::OutOfMemory { field, bytes } => {
+                write!(f, "no memory for {field} ({bytes} bytes)")
             }
         }
     }
@@ -190,24 +201,28 @@ impl TransferSet {
 
     /// The set as a version-1 bake file (format in the [module docs](self)).
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(self.byte_len());
-        out.resize(HEADER_LEN, 0);
+        let mut out = alloc::vec![0u8; self.byte_len()];
+        self.write_to(&mut out);
+        out
+    }
+
+    /// Writes the bake file of [`TransferSet::to_bytes`] into `out`, which must
+    /// hold exactly [`TransferSet::byte_len`] bytes (allocates nothing).
+    ///
+    /// # Panics
+    /// When `out` has another length.
+    pub fn write_to(&self, out: &mut [u8]) {
+        assert_eq!(out.len(), self.byte_len(), "a bake file's length");
         let components = self.pca().map_or(0, |p| p.components);
-        for v in &self.positions {
-            for x in v {
-                out.extend_from_slice(&x.to_le_bytes());
-            }
-        }
-        for v in &self.normals {
-            for x in v {
-                out.extend_from_slice(&x.to_le_bytes());
-            }
-        }
+        let mut at = HEADER_LEN;
         let mut put = |values: &[f32]| {
             for x in values {
-                out.extend_from_slice(&x.to_le_bytes());
+                out[at..at + 4].copy_from_slice(&x.to_le_bytes());
+                at += 4;
             }
         };
+        put(self.positions.as_flattened());
+        put(self.normals.as_flattened());
         match &self.payload {
             Payload::Dense(d) => put(d),
             Payload::Pca(p) => {
@@ -219,6 +234,7 @@ impl TransferSet {
         let payload_len = (out.len() - HEADER_LEN) as u64;
         let payload_crc = crc32(&out[HEADER_LEN..]);
         let h = &mut out[..HEADER_LEN];
+        h.fill(0);
         h[0..8].copy_from_slice(&MAGIC);
         let fields = [
             VERSION,
@@ -241,7 +257,6 @@ impl TransferSet {
         h[64..68].copy_from_slice(&payload_crc.to_le_bytes());
         let header_crc = crc32(&h[..68]);
         h[68..72].copy_from_slice(&header_crc.to_le_bytes());
-        out
     }
 
     /// Reads and validates a bake file (format in the [module docs](self)).
@@ -362,7 +377,12 @@ impl TransferSet {
         let mut take = |count: usize, name: &'static str| -> Result<Vec<f32>, FormatError> {
             let bytes = &payload[cursor..cursor + 4 * count];
             cursor += 4 * count;
-            let mut out = Vec::with_capacity(count);
+            let mut out = Vec::new();
+            out.try_reserve_exact(count)
+                .map_err(|_| FormatError::OutOfMemory {
+                    field: name,
+                    bytes: 4 * count as u64,
+                })?;
             for (i, c) in bytes.chunks_exact(4).enumerate() {
                 let x = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
                 if !x.is_finite() {
@@ -376,11 +396,18 @@ impl TransferSet {
             Ok(out)
         };
         let v = vertices as usize;
-        let to_vec3 = |flat: Vec<f32>| -> Vec<[f32; 3]> {
-            flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+        let to_vec3 = |flat: Vec<f32>, name: &'static str| -> Result<Vec<[f32; 3]>, FormatError> {
+            let mut out = Vec::new();
+            out.try_reserve_exact(flat.len() / 3)
+                .map_err(|_| FormatError::OutOfMemory {
+                    field: name,
+                    bytes: 4 * flat.len() as u64,
+                })?;
+            out.extend(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+            Ok(out)
         };
-        let positions = to_vec3(take(3 * v, "positions")?);
-        let normals = to_vec3(take(3 * v, "normals")?);
+        let positions = to_vec3(take(3 * v, "positions")?, "positions")?;
+        let normals = to_vec3(take(3 * v, "normals")?, "normals")?;
         for (i, n) in normals.iter().enumerate() {
             if !super::engine::unit_normal(glam::Vec3::from(*n)) {
                 return Err(FormatError::Value {
@@ -420,7 +447,10 @@ impl TransferSet {
                 },
             },
             positions,
-            frames: super::frames_of(&normals),
+            frames: super::try_frames_of(&normals).map_err(|_| FormatError::OutOfMemory {
+                field: "frames",
+                bytes: (v * core::mem::size_of::<crate::Frame>()) as u64,
+            })?,
             normals,
             payload,
         })

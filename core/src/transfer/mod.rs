@@ -399,10 +399,22 @@ pub struct TransferSet {
 
 /// The vertex frames of unit normals (the bake's and the run time's).
 pub(crate) fn frames_of(normals: &[[f32; 3]]) -> Vec<crate::Frame> {
-    normals
-        .iter()
-        .map(|n| crate::Frame::from_normal(glam::Vec3::from_array(*n)))
-        .collect()
+    try_frames_of(normals).expect("memory for the vertex frames")
+}
+
+/// [`frames_of`], or the allocation's error (for loading with an allocator that
+/// can run out).
+pub(crate) fn try_frames_of(
+    normals: &[[f32; 3]],
+) -> Result<Vec<crate::Frame>, alloc::collections::TryReserveError> {
+    let mut frames = Vec::new();
+    frames.try_reserve_exact(normals.len())?;
+    frames.extend(
+        normals
+            .iter()
+            .map(|n| crate::Frame::from_normal(glam::Vec3::from_array(*n))),
+    );
+    Ok(frames)
 }
 
 /// Why [`TransferSet::concat`] refused its parts.

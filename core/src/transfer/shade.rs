@@ -7,7 +7,7 @@
 //! each fast kernel has a slow, obviously right twin it is tested against
 //! (`*_reference`, coefficient-major `[[f32; 3]]` lighting, serial sums).
 
-use alloc::vec;
+use alloc::vec::Vec;
 use core::fmt;
 
 use glam::{Vec3, Vec4};
@@ -522,6 +522,12 @@ pub enum ShadeError {
         /// Which argument.
         argument: &'static str,
     },
+    /// The per-frame products of a PCA set (`grid² × (K + 1)` RGB values) could
+    /// not be allocated (only allocators that can run out get here).
+    OutOfMemory {
+        /// Bytes asked for.
+        bytes: usize,
+    },
 }
 
 impl fmt::Display for ShadeError {
@@ -540,6 +546,12 @@ impl fmt::Display for ShadeError {
                 write!(f, "view has {found} directions for {expected} vertices")
             }
             ShadeError::NonFinite { argument } => write!(f, "{argument} is not valid"),
+            ShadeError::OutOfMemory { bytes } => {
+                write!(
+                    f,
+                    "no memory for the per-frame PCA products ({bytes} bytes)"
+                )
+            }
         }
     }
 }
@@ -756,7 +768,12 @@ impl TransferSet {
             }
             (Payload::Pca(pca), _) => {
                 let k = components.unwrap_or(usize::MAX).min(pca.components());
-                let mut terms = vec![[0.0f32; 3]; pca.frame_terms_len(k)];
+                let len = pca.frame_terms_len(k);
+                let mut terms = Vec::new();
+                terms
+                    .try_reserve_exact(len)
+                    .map_err(|_| ShadeError::OutOfMemory { bytes: 12 * len })?;
+                terms.resize(len, [0.0f32; 3]);
                 pca.frame_terms(lighting, k, &mut terms);
                 let baked = pca.components();
                 let grid = self.grid;
