@@ -1,8 +1,9 @@
 # Antumbra: the two commands of the README.
 #   make demo   the main job: render the demo pictures with built-in data
 #   make test   every check: fmt, clippy, API docs, cargo tests, no_std build, header,
-#               C examples (static, shared, valgrind, sanitizers), install with CMake
-#               and pkg-config consumers, Embree cross-checks, the C ABI from Python
+#               C examples (static, shared, valgrind, sanitizers), the bare-metal
+#               library as Cortex-M4 firmware under QEMU, install with CMake and
+#               pkg-config consumers, Embree cross-checks, the C ABI from Python
 #               (ctypes) against Embree
 # Each `test` step is also a target of its own (make clippy, make c-examples, ...).
 # Also: make install PREFIX=/usr/local [DESTDIR=...]   make docs   make perf
@@ -22,7 +23,7 @@ export PROPTEST_RNG_SEED ?= 20261122
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
 TEST_STEPS := fmt clippy docs no-std cargo-test header oracle-selfcheck embree c-examples \
-              install-check python-abi
+              embedded install-check python-abi
 PREFIX ?= /usr/local
 DESTDIR ?=
 
@@ -57,6 +58,16 @@ system-packages:
 	  $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq \
 	    $$(echo $$missing | sed -e 's/python3/python3 python3-venv/' -e 's/pkg-config/pkgconf/'); \
 	fi
+	@# The bare-metal check: the Arm cross compiler with newlib, and QEMU.
+	@missing=""; \
+	command -v arm-none-eabi-gcc >/dev/null || missing="$$missing gcc-arm-none-eabi"; \
+	[ -e /usr/lib/arm-none-eabi/newlib/thumb/v7e-m+fp/hard/libc_nano.a ] || \
+	  missing="$$missing libnewlib-arm-none-eabi"; \
+	command -v qemu-system-arm >/dev/null || missing="$$missing qemu-system-arm"; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing:$$missing"; \
+	  $(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
 
 pyenv:
 	tests/oracle/setup_venv.sh $(PYENV)
@@ -69,6 +80,7 @@ clippy:
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
 	$(CARGO) clippy -p antumbra-core --no-default-features -- -D warnings
 	$(CARGO) clippy -p antumbra-core --all-features --all-targets -- -D warnings
+	$(CARGO) clippy -p antumbra-ffi --no-default-features --target $(NO_STD_TARGET) -- -D warnings
 
 # The API references, warnings as errors: rustdoc for the crates (every public item
 # documented, no broken intra-doc links) into target/doc, and Doxygen for the C
@@ -115,6 +127,10 @@ embree:
 c-examples:
 	$(CARGO) build --release -p antumbra-ffi
 	$(MAKE) -C c_examples check
+
+# The C library without std, as Cortex-M4 firmware under QEMU, against the host.
+embedded:
+	CARGO="$(CARGO)" tools/check_embedded.sh
 
 # libantumbra.so through ctypes, against Embree directly: the ABI as a foreign caller sees it.
 python-abi:
