@@ -11,7 +11,6 @@
 //! indices, the seed and the ray offset.
 
 use std::ops::Range;
-use std::path::Path;
 
 use antumbra_core::transfer::{TransferSet, format::crc32};
 
@@ -272,16 +271,11 @@ pub fn read_parts(paths: &[std::path::PathBuf]) -> Result<Vec<(String, PartHeade
         .iter()
         .map(|path| {
             let name = path.display().to_string();
-            let bytes =
-                std::fs::read(path).with_context(|| format!("cannot read {}", name_of(path)))?;
+            let bytes = std::fs::read(path).with_context(|| format!("cannot read {name}"))?;
             let (header, set) = read_part(&bytes, &name)?;
             Ok((name, header, set))
         })
         .collect()
-}
-
-fn name_of(path: &Path) -> String {
-    path.display().to_string()
 }
 
 #[cfg(test)]

@@ -475,8 +475,14 @@ impl TransferSet {
                 Payload::Pca(_) => return Err(ConcatError::Compressed { index }),
             }
         }
-        let positions: Vec<[f32; 3]> = parts.iter().flat_map(|p| p.positions.clone()).collect();
-        let normals: Vec<[f32; 3]> = parts.iter().flat_map(|p| p.normals.clone()).collect();
+        let positions: Vec<[f32; 3]> = parts
+            .iter()
+            .flat_map(|p| p.positions.iter().copied())
+            .collect();
+        let normals: Vec<[f32; 3]> = parts
+            .iter()
+            .flat_map(|p| p.normals.iter().copied())
+            .collect();
         Ok(TransferSet {
             kind: first.kind,
             bands: first.bands,
