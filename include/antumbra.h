@@ -1021,7 +1021,9 @@ void antumbra_set_error_callback(antumbra_error_callback callback, void *user_da
  *         `alloc` and `free` is NULL (both NULL removes the allocator, after which
  *         every call that needs memory fails with ANTUMBRA_RESULT_OUT_OF_MEMORY);
  *         ANTUMBRA_RESULT_INVALID_ARGUMENT while blocks from the previous
- *         allocator are still held (destroy every handle first).
+ *         allocator are still held (destroy every handle first; the shared
+ *         tables that antumbra_hemi_transfer and antumbra_hemi_shade build on
+ *         first use are held for the rest of the program).
  *
  * Call it before any other Antumbra call that allocates. What each function
  * allocates is in its documentation; the queries (masks, soft-shadow queries,
@@ -1955,9 +1957,9 @@ void antumbra_ssv_destroy(struct antumbra_ssv *ssv);
  * call's points need (it splits a node where eight or more of them fall and
  * the split shortens the lists; a few arrays of `point_count` entries for
  * that), so pass a frame's receivers in one call rather than one by one.
- * Memory never makes a query fail: where a node cannot be allocated the walk
- * stops at the coarser node it reached, whose candidates include the finer
- * one's (the same bits, more work).
+ * Without ANTUMBRA_HAS_STD memory never makes a query fail: where a node cannot
+ * be allocated the walk stops at the coarser node it reached, whose candidates
+ * include the finer one's (the same bits, more work).
  * Ownership: borrows every array for the call only; the outputs must not overlap
  * each other or `points`.
  * Thread safety: any number of threads may query the same handle at once

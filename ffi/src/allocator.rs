@@ -102,7 +102,9 @@ impl ApplicationAllocator {
 ///         `alloc` and `free` is NULL (both NULL removes the allocator, after which
 ///         every call that needs memory fails with ANTUMBRA_RESULT_OUT_OF_MEMORY);
 ///         ANTUMBRA_RESULT_INVALID_ARGUMENT while blocks from the previous
-///         allocator are still held (destroy every handle first).
+///         allocator are still held (destroy every handle first; the shared
+///         tables that antumbra_hemi_transfer and antumbra_hemi_shade build on
+///         first use are held for the rest of the program).
 ///
 /// Call it before any other Antumbra call that allocates. What each function
 /// allocates is in its documentation; the queries (masks, soft-shadow queries,

@@ -1005,6 +1005,19 @@ fn build_far_mesh(
     // Simplification allocates in ways the bare-metal build cannot report yet;
     // there a far mesh comes from the caller.
     if cfg!(not(feature = "std")) {
+        // The count is checked as the hosted build checks it, so that bad input
+        // gets the same code in both builds.
+        let available = input.mesh.triangle_count();
+        if config.far_triangles >= available {
+            return Err(Error::invalid(message!(
+                "options->far_triangles is {}: {}",
+                config.far_triangles,
+                antumbra_core::hemi::FarMeshError::TriangleCount {
+                    requested: config.far_triangles,
+                    available,
+                }
+            )));
+        }
         return Err(Error::new(
             ANTUMBRA_RESULT_UNSUPPORTED,
             message!(

@@ -698,9 +698,9 @@ impl Work {
 /// call's points need (it splits a node where eight or more of them fall and
 /// the split shortens the lists; a few arrays of `point_count` entries for
 /// that), so pass a frame's receivers in one call rather than one by one.
-/// Memory never makes a query fail: where a node cannot be allocated the walk
-/// stops at the coarser node it reached, whose candidates include the finer
-/// one's (the same bits, more work).
+/// Without ANTUMBRA_HAS_STD memory never makes a query fail: where a node cannot
+/// be allocated the walk stops at the coarser node it reached, whose candidates
+/// include the finer one's (the same bits, more work).
 /// Ownership: borrows every array for the call only; the outputs must not overlap
 /// each other or `points`.
 /// Thread safety: any number of threads may query the same handle at once

@@ -113,15 +113,18 @@ impl<T> Once<T> {
     }
 
     /// The value, made by `make` if there is none yet; `None` (and still no
-    /// value) when `make` or the memory for it fails. Racing callers may each
-    /// make one; one is kept.
+    /// value) when `make` or the memory for it fails.
+    ///
+    /// Hosted, racing callers wait for the one that makes it, so a node is built
+    /// once; a failure there (the system allocator refusing) panics, which the
+    /// C boundary returns as ANTUMBRA_RESULT_PANIC. Without std, racing callers
+    /// may each make one; one is kept.
     #[cfg(feature = "std")]
     fn get_or_try_init(&self, make: impl FnOnce() -> Option<T>) -> Option<&T> {
-        if let Some(value) = self.0.get() {
-            return Some(value);
-        }
-        let value = make()?;
-        Some(self.0.get_or_init(|| value))
+        Some(
+            self.0
+                .get_or_init(|| make().expect("memory for a soft-shadow hierarchy node")),
+        )
     }
 
     #[cfg(not(feature = "std"))]

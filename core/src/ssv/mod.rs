@@ -272,7 +272,8 @@ pub enum SsvError {
     },
     /// The allocator refused memory while building the structure (only
     /// allocators that can run out, such as a bare-metal application's, get
-    /// here; queries never fail for memory: see [`SoftShadows::query`]).
+    /// here). Without `std`, queries never fail for memory: a hierarchy node
+    /// that cannot be allocated is replaced by the coarser node above it.
     OutOfMemory,
 }
 
