@@ -251,14 +251,25 @@ static antumbra_result shade_bake(const struct bake *bake, float *rgb, int print
     return result;
 }
 
-static void transfer(void)
+/* Loads and shades every bake, printing the results when `print`; returns the
+ * first failure. */
+static antumbra_result shade_bakes(int print)
 {
     static float rgb[3 * SCENE_VERTICES];
     for (size_t b = 0; b < sizeof bakes / sizeof bakes[0]; b++) {
-        antumbra_result result = shade_bake(&bakes[b], rgb, 1);
+        antumbra_result result = shade_bake(&bakes[b], rgb, print);
         if (result != ANTUMBRA_RESULT_OK) {
-            fail(bakes[b].name, result);
+            return result;
         }
+    }
+    return ANTUMBRA_RESULT_OK;
+}
+
+static void transfer(void)
+{
+    antumbra_result result = shade_bakes(1);
+    if (result != ANTUMBRA_RESULT_OK) {
+        fail("loading and shading the bakes", result);
     }
 }
 
@@ -413,14 +424,7 @@ static antumbra_result attempt_save(void)
 
 static antumbra_result attempt_bakes(void)
 {
-    static float rgb[3 * SCENE_VERTICES];
-    for (size_t b = 0; b < sizeof bakes / sizeof bakes[0]; b++) {
-        antumbra_result result = shade_bake(&bakes[b], rgb, 0);
-        if (result != ANTUMBRA_RESULT_OK) {
-            return result;
-        }
-    }
-    return ANTUMBRA_RESULT_OK;
+    return shade_bakes(0);
 }
 
 /* The sweep queries one row of the ground points (each attempt repeats the

@@ -28,7 +28,7 @@ impl core::fmt::Display for OutOfMemory {
 impl core::error::Error for OutOfMemory {}
 
 /// An empty vector with room for exactly `len` elements.
-pub(crate) fn with_capacity<T>(len: usize) -> Result<Vec<T>, OutOfMemory> {
+pub fn with_capacity<T>(len: usize) -> Result<Vec<T>, OutOfMemory> {
     let mut items = Vec::new();
     items.try_reserve_exact(len)?;
     Ok(items)
@@ -39,6 +39,13 @@ pub(crate) fn filled<T: Clone>(value: T, len: usize) -> Result<Vec<T>, OutOfMemo
     let mut items = with_capacity(len)?;
     items.resize(len, value);
     Ok(items)
+}
+
+/// `items.to_vec()`.
+pub(crate) fn copied<T: Copy>(items: &[T]) -> Result<Vec<T>, OutOfMemory> {
+    let mut out = with_capacity(items.len())?;
+    out.extend_from_slice(items);
+    Ok(out)
 }
 
 /// `items.collect()`, growing as `Vec` does.
@@ -58,7 +65,7 @@ pub(crate) fn push<T>(items: &mut Vec<T>, item: T) -> Result<(), OutOfMemory> {
 }
 
 /// `Box::new(value)`.
-pub(crate) fn boxed<T>(value: T) -> Result<Box<T>, OutOfMemory> {
+pub fn boxed<T>(value: T) -> Result<Box<T>, OutOfMemory> {
     let layout = Layout::new::<T>();
     if layout.size() == 0 {
         return Ok(Box::new(value));

@@ -1,10 +1,12 @@
 //! Allocation that reports failure instead of aborting: the bare-metal build's
 //! allocator is the application's, and running out of it is a result code
-//! (`ANTUMBRA_RESULT_OUT_OF_MEMORY`), never a stop.
+//! (`ANTUMBRA_RESULT_OUT_OF_MEMORY`), never a stop. Core's `fallible` module
+//! allocates; this one names what was refused in the error.
 
 use alloc::boxed::Box;
 use alloc::vec::Vec;
-use core::alloc::Layout;
+
+use antumbra_core::fallible;
 
 use crate::error::Error;
 use crate::result::ANTUMBRA_RESULT_OUT_OF_MEMORY;
@@ -19,27 +21,11 @@ pub(crate) fn out_of_memory(what: &str, bytes: usize) -> Error {
 
 /// `Box::new(value)`, or OUT_OF_MEMORY naming `what`.
 pub(crate) fn boxed<T>(value: T, what: &str) -> Result<Box<T>, Error> {
-    let layout = Layout::new::<T>();
-    if layout.size() == 0 {
-        return Ok(Box::new(value));
-    }
-    // SAFETY: the layout has a non-zero size.
-    let block = unsafe { alloc::alloc::alloc(layout) }.cast::<T>();
-    if block.is_null() {
-        return Err(out_of_memory(what, layout.size()));
-    }
-    // SAFETY: a fresh, aligned block for one `T`, owned by the Box from here on.
-    unsafe {
-        block.write(value);
-        Ok(Box::from_raw(block))
-    }
+    fallible::boxed(value).map_err(|_| out_of_memory(what, core::mem::size_of::<T>()))
 }
 
 /// An empty vector with room for `len` elements, or OUT_OF_MEMORY naming `what`.
 pub(crate) fn vec_with_capacity<T>(len: usize, what: &str) -> Result<Vec<T>, Error> {
-    let mut items = Vec::new();
-    items
-        .try_reserve_exact(len)
-        .map_err(|_| out_of_memory(what, len.saturating_mul(core::mem::size_of::<T>())))?;
-    Ok(items)
+    fallible::with_capacity(len)
+        .map_err(|_| out_of_memory(what, len.saturating_mul(core::mem::size_of::<T>())))
 }

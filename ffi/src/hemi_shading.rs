@@ -283,7 +283,7 @@ fn shared<T: Any + Send + Sync>(
     slots: &'static Slots,
     bands: usize,
     what: &str,
-    build: impl FnOnce() -> Result<T, alloc::collections::TryReserveError>,
+    build: impl FnOnce() -> Result<T, antumbra_core::fallible::OutOfMemory>,
 ) -> Result<&'static T, Error> {
     let slot = slots[bands - 1].get_or_try_init(|| {
         let table =

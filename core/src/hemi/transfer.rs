@@ -82,12 +82,12 @@
 //! fixed-size arrays on the stack.
 
 use alloc::boxed::Box;
-use alloc::collections::TryReserveError;
 use alloc::vec::Vec;
 
 use glam::{Mat3, Vec3};
 
 use super::mask::{GRID, HemiMask, ROW_FIRST, ROW_LAST};
+use crate::fallible::{self, OutOfMemory};
 use crate::geom::Frame;
 use crate::sh::{Sh, ShRgb, ShRotation, eval_basis};
 
@@ -140,14 +140,6 @@ impl<const N: usize> Default for TransferTable<N> {
     }
 }
 
-/// `len` copies of `value`, or the allocation's error.
-fn try_filled<T: Clone>(value: T, len: usize) -> Result<Vec<T>, TryReserveError> {
-    let mut items = Vec::new();
-    items.try_reserve_exact(len)?;
-    items.resize(len, value);
-    Ok(items)
-}
-
 impl<const N: usize> TransferTable<N> {
     /// Integrates every cell with [`QUADRATURE_NODES`] nodes per direction.
     pub fn new() -> Self {
@@ -162,14 +154,14 @@ impl<const N: usize> TransferTable<N> {
 
     /// [`TransferTable::new`], or an error when its `GRID² × N` floats cannot be
     /// allocated (for callers whose allocator may run out, such as bare metal).
-    pub fn try_new() -> Result<Self, TryReserveError> {
+    pub fn try_new() -> Result<Self, OutOfMemory> {
         Self::try_with_nodes(QUADRATURE_NODES)
     }
 
-    fn try_with_nodes(nodes: usize) -> Result<Self, TryReserveError> {
+    fn try_with_nodes(nodes: usize) -> Result<Self, OutOfMemory> {
         let _ = Sh::<N>::BANDS;
         let rule = GaussLegendre::new(nodes.clamp(2, 64));
-        let mut cells = try_filled([0.0f32; N], GRID * GRID)?.into_boxed_slice();
+        let mut cells = fallible::filled([0.0f32; N], GRID * GRID)?.into_boxed_slice();
         let mut total = [0.0f64; N];
         let mut blocks = [[0.0f64; N]; BLOCKS * BLOCKS];
         let mut block_valid = [0u32; BLOCKS * BLOCKS];
@@ -199,8 +191,7 @@ impl<const N: usize> TransferTable<N> {
                 }
             }
         }
-        let mut block_share = Vec::new();
-        block_share.try_reserve_exact(blocks.len())?;
+        let mut block_share = fallible::with_capacity(blocks.len())?;
         block_share.extend(blocks.iter().zip(block_valid).map(|(w, count)| {
             if count == 0 {
                 [0.0; N]
@@ -367,17 +358,16 @@ impl<const N: usize> TransferLut<N> {
 
     /// [`TransferLut::new`], or an error when its `32 × 4 × 256 × N` floats cannot
     /// be allocated.
-    pub fn try_new(table: TransferTable<N>) -> Result<Self, TryReserveError> {
+    pub fn try_new(table: TransferTable<N>) -> Result<Self, OutOfMemory> {
         Self::try_with_chunk_bits(table, 8)
     }
 
-    fn try_with_chunk_bits(table: TransferTable<N>, bits: u32) -> Result<Self, TryReserveError> {
+    fn try_with_chunk_bits(table: TransferTable<N>, bits: u32) -> Result<Self, OutOfMemory> {
         let bits = if bits == 4 { 4 } else { 8 };
         let values = 1usize << bits;
         let chunks = GRID / bits as usize;
-        let mut entries: Vec<[f32; N]> = Vec::new();
-        entries.try_reserve_exact(GRID * chunks * values)?;
-        let mut sums = try_filled([0.0f64; N], values)?;
+        let mut entries: Vec<[f32; N]> = fallible::with_capacity(GRID * chunks * values)?;
+        let mut sums = fallible::filled([0.0f64; N], values)?;
         for j in 0..GRID {
             for c in 0..chunks {
                 // sums[v] = sums[v without its lowest bit] + W(lowest bit's cell),

@@ -163,9 +163,7 @@ impl LightPolygon {
         if (turning - core::f64::consts::TAU).abs() > 1e-3 {
             return Err(LightError::NotConvex { vertex: 0 });
         }
-        let mut kept =
-            crate::fallible::with_capacity(count).map_err(|_| LightError::OutOfMemory)?;
-        kept.extend_from_slice(vertices);
+        let kept = crate::fallible::copied(vertices).map_err(|_| LightError::OutOfMemory)?;
         Ok(LightPolygon {
             vertices: kept,
             centroid: centroid.as_vec3(),

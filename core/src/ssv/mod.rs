@@ -683,14 +683,14 @@ impl SoftShadows {
         // Angular order of the samples about the centroid (receiver-independent).
         let angle_radius = 1e-3 * f64::from(light.diameter());
         let mut keyed: Vec<(f64, u32)> = fallible::with_capacity(samples.len())?;
-        let mut central: Vec<u32> = fallible::with_capacity(samples.len())?;
+        let mut central: Vec<u32> = Vec::new();
         let mut sample_offset: f64 = 0.0;
         for (i, s) in samples.iter().enumerate() {
             let d = s.as_dvec3() - plane_point;
             sample_offset = sample_offset.max(d.dot(plane_normal).abs());
             let (x, y) = (d.dot(u_axis), d.dot(v_axis));
             if libm::hypot(x, y) < angle_radius {
-                central.push(i as u32);
+                fallible::push(&mut central, i as u32)?;
             } else {
                 keyed.push((pseudo_angle(x, y), i as u32));
             }
@@ -737,8 +737,6 @@ impl SoftShadows {
         for (k, &i) in order.iter().enumerate() {
             rank[i as usize] = k as u32;
         }
-        let mut sample_copy = fallible::with_capacity(samples.len())?;
-        sample_copy.extend_from_slice(samples);
         let this = SoftShadows {
             occluder_box: occluder_lo
                 .cmple(occluder_hi)
@@ -763,7 +761,7 @@ impl SoftShadows {
             shape_diameter: f64::from(light.diameter()),
             centroid: light.centroid(),
             light,
-            samples: sample_copy,
+            samples: fallible::copied(samples)?,
             structure: options.structure,
             graph,
             potential,

@@ -42,6 +42,8 @@
 use alloc::vec::Vec;
 use core::fmt;
 
+use crate::fallible;
+
 use super::pca::Pca;
 use super::{BakeInfo, BrdfInfo, MAX_BOUNCES, MAX_GRID, Payload, TransferKind, TransferSet};
 
@@ -374,40 +376,43 @@ impl TransferSet {
             });
         }
         let mut cursor = 0usize;
-        let mut take = |count: usize, name: &'static str| -> Result<Vec<f32>, FormatError> {
-            let bytes = &payload[cursor..cursor + 4 * count];
-            cursor += 4 * count;
-            let mut out = Vec::new();
-            out.try_reserve_exact(count)
-                .map_err(|_| FormatError::OutOfMemory {
-                    field: name,
-                    bytes: 4 * count as u64,
-                })?;
-            for (i, c) in bytes.chunks_exact(4).enumerate() {
-                let x = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
-                if !x.is_finite() {
-                    return Err(FormatError::Value {
-                        field: name,
-                        index: i as u64,
-                    });
+        // Reads the next `count` floats of `payload` as `N`-float items,
+        // refusing non-finite values (named by their float index).
+        fn read<const N: usize>(
+            payload: &[u8],
+            cursor: &mut usize,
+            count: usize,
+            name: &'static str,
+        ) -> Result<Vec<[f32; N]>, FormatError> {
+            let bytes = &payload[*cursor..*cursor + 4 * N * count];
+            *cursor += 4 * N * count;
+            let mut out = fallible::with_capacity(count).map_err(|_| FormatError::OutOfMemory {
+                field: name,
+                bytes: (4 * N * count) as u64,
+            })?;
+            for (k, item) in bytes.chunks_exact(4 * N).enumerate() {
+                let mut values = [0.0f32; N];
+                for (j, (x, c)) in values.iter_mut().zip(item.chunks_exact(4)).enumerate() {
+                    *x = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+                    if !x.is_finite() {
+                        return Err(FormatError::Value {
+                            field: name,
+                            index: (N * k + j) as u64,
+                        });
+                    }
                 }
-                out.push(x);
+                out.push(values);
             }
             Ok(out)
-        };
+        }
         let v = vertices as usize;
-        let to_vec3 = |flat: Vec<f32>, name: &'static str| -> Result<Vec<[f32; 3]>, FormatError> {
-            let mut out = Vec::new();
-            out.try_reserve_exact(flat.len() / 3)
-                .map_err(|_| FormatError::OutOfMemory {
-                    field: name,
-                    bytes: 4 * flat.len() as u64,
-                })?;
-            out.extend(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
-            Ok(out)
+        let positions = read::<3>(payload, &mut cursor, v, "positions")?;
+        let normals = read::<3>(payload, &mut cursor, v, "normals")?;
+        let mut take = |count: usize, name: &'static str| -> Result<Vec<f32>, FormatError> {
+            let items = read::<1>(payload, &mut cursor, count, name)?;
+            // `[f32; 1]` and `f32` share size and alignment: no copy.
+            Ok(bytemuck::allocation::cast_vec(items))
         };
-        let positions = to_vec3(take(3 * v, "positions")?, "positions")?;
-        let normals = to_vec3(take(3 * v, "normals")?, "normals")?;
         for (i, n) in normals.iter().enumerate() {
             if !super::engine::unit_normal(glam::Vec3::from(*n)) {
                 return Err(FormatError::Value {

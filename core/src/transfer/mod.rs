@@ -406,9 +406,8 @@ pub(crate) fn frames_of(normals: &[[f32; 3]]) -> Vec<crate::Frame> {
 /// can run out).
 pub(crate) fn try_frames_of(
     normals: &[[f32; 3]],
-) -> Result<Vec<crate::Frame>, alloc::collections::TryReserveError> {
-    let mut frames = Vec::new();
-    frames.try_reserve_exact(normals.len())?;
+) -> Result<Vec<crate::Frame>, crate::fallible::OutOfMemory> {
+    let mut frames = crate::fallible::with_capacity(normals.len())?;
     frames.extend(
         normals
             .iter()

@@ -7,7 +7,6 @@
 //! each fast kernel has a slow, obviously right twin it is tested against
 //! (`*_reference`, coefficient-major `[[f32; 3]]` lighting, serial sums).
 
-use alloc::vec::Vec;
 use core::fmt;
 
 use glam::{Vec3, Vec4};
@@ -769,11 +768,8 @@ impl TransferSet {
             (Payload::Pca(pca), _) => {
                 let k = components.unwrap_or(usize::MAX).min(pca.components());
                 let len = pca.frame_terms_len(k);
-                let mut terms = Vec::new();
-                terms
-                    .try_reserve_exact(len)
+                let mut terms = crate::fallible::filled([0.0f32; 3], len)
                     .map_err(|_| ShadeError::OutOfMemory { bytes: 12 * len })?;
-                terms.resize(len, [0.0f32; 3]);
                 pca.frame_terms(lighting, k, &mut terms);
                 let baked = pca.components();
                 let grid = self.grid;
