@@ -94,6 +94,7 @@
 //! per receiver. [`TriangleCone::new`] and [`rasterize_triangles_into`] take the
 //! corners as given (unscaled).
 
+mod clusters;
 mod far_mesh;
 mod half_space;
 mod lod;
@@ -106,12 +107,13 @@ mod triangle;
 #[cfg(test)]
 mod tests;
 
+pub use clusters::{Aabb, ClusteredMesh, TriangleClusters};
 pub use far_mesh::{FarMesh, FarMeshError};
 pub use half_space::{half_space_mask, half_space_mask_reference};
 pub use lod::{
-    Aabb, BatchError, BatchOptions, ClusteredMesh, HemiScene, Material, TransferSpace,
-    TriangleClusters, VertexShading, scene_mask, scene_mask_with_counts, shade_batch,
-    shade_batch_split, shade_vertex, transfer_batch, vertex_normals, vertex_transfer,
+    BatchError, BatchOptions, HemiScene, Material, TransferSpace, VertexShading, scene_mask,
+    scene_mask_with_counts, shade_batch, shade_batch_split, shade_vertex, transfer_batch,
+    vertex_normals, vertex_transfer,
 };
 pub use mask::{
     GRID, HemiMask, VALID_CELL_COUNT, cell_coordinate, cell_direction, cell_directions,

@@ -1,0 +1,286 @@
+//! Triangle clusters of a deforming mesh: the triangles grouped once by the
+//! Morton order of their centroids, each cluster split into chunks with their
+//! own vertex lists, and the boxes recomputed every frame
+//! ([`TriangleClusters::update`]). A receiver skips whole clusters below its
+//! horizon; the batch loop that reads them is in the `lod` module.
+
+use alloc::vec::Vec;
+
+use glam::Vec3;
+
+use crate::geom::MeshView;
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    /// Smallest coordinates.
+    pub min: Vec3,
+    /// Largest coordinates.
+    pub max: Vec3,
+}
+
+impl Aabb {
+    /// The box that contains nothing (`min = +inf`, `max = -inf`).
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::INFINITY,
+        max: Vec3::NEG_INFINITY,
+    };
+
+    #[inline]
+    fn grow(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    /// Whether every point `x` of the box has `n.dot(x - o) <= 0` as evaluated in
+    /// `f32` (the per-triangle horizon test): true when the corner maximising it
+    /// does (see the module docs for why that is exact).
+    #[inline(always)]
+    pub(super) fn below_plane(&self, n: Vec3, o: Vec3) -> bool {
+        let q = Vec3::select(n.cmpge(Vec3::ZERO), self.max, self.min);
+        n.dot(q - o) <= 0.0
+    }
+
+    /// The squared distances from `p` to the nearest and farthest point of the
+    /// box, each as a lower or upper bound of `(c - p).length_squared()` in `f32`
+    /// for every point `c` of the box.
+    #[inline(always)]
+    pub(super) fn distance_range_sq(&self, p: Vec3) -> (f32, f32) {
+        let near = p.clamp(self.min, self.max);
+        let lo = self.min - p;
+        let hi = self.max - p;
+        let far = lo.abs().max(hi.abs());
+        ((near - p).length_squared(), far.length_squared())
+    }
+}
+
+/// Triangles grouped into clusters of nearby triangles, with each cluster's
+/// bounding box for the current frame: lets a receiver skip whole clusters below
+/// its horizon (see the module docs).
+///
+/// The grouping (a Morton order of the triangle centroids) is computed once from
+/// the positions given to [`TriangleClusters::new`] (the rest pose) and kept while
+/// the mesh deforms; the boxes are recomputed every frame by
+/// [`TriangleClusters::update`], which is the only way to get a
+/// [`ClusteredMesh`], so boxes and positions always belong together.
+#[derive(Clone, Debug)]
+pub struct TriangleClusters {
+    pub(super) size: usize,
+    /// Triangle indices in cluster order.
+    pub(super) order: Vec<u32>,
+    /// One box per cluster of `size` consecutive entries of `order`.
+    pub(super) bounds: Vec<Aabb>,
+    /// Each cluster's triangles in chunks of at most [`CHUNK`], each with its
+    /// own list of distinct vertices, so a receiver moves every vertex of a
+    /// chunk into its frame once instead of once per corner: cluster `c`'s
+    /// chunks are `chunks[cluster_chunks[c]..cluster_chunks[c + 1]]`.
+    pub(super) chunks: Vec<Chunk>,
+    pub(super) cluster_chunks: Vec<u32>,
+    /// The chunks' vertex lists (mesh vertex indices), back to back.
+    pub(super) chunk_vertices: Vec<u32>,
+    /// Per entry of `order`, its corners as positions in its chunk's vertex list.
+    pub(super) corners: Vec<[u8; 3]>,
+    /// The index buffer the chunks were built from: a mesh whose indices
+    /// changed is regrouped by [`TriangleClusters::update`].
+    pub(super) indices: Vec<u32>,
+}
+
+/// Triangles per chunk: at most `3 CHUNK` distinct vertices, so a chunk's
+/// corners fit in a `u8` and its vertices in a small stack buffer.
+pub(super) const CHUNK: usize = 32;
+
+/// The most distinct vertices a chunk can have.
+pub(super) const CHUNK_VERTICES: usize = 3 * CHUNK;
+
+// The projection writes four vertices at a time.
+const _: () = assert!(CHUNK_VERTICES.is_multiple_of(4));
+
+/// A run of at most [`CHUNK`] triangles of one cluster with its vertex list.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Chunk {
+    /// Entries `triangles.0..triangles.1` of `order` (and of `corners`).
+    pub(super) triangles: (u32, u32),
+    /// Entries `vertices.0..vertices.1` of `chunk_vertices`.
+    pub(super) vertices: (u32, u32),
+}
+
+impl TriangleClusters {
+    /// Triangles per cluster of the default grouping. On the bunny and the bumpy
+    /// sphere 16, 32 and 64 cost about the same (`lod_receiver_*` in
+    /// `core/benches/hemi.rs`); 32 needs half the boxes of 16.
+    pub const DEFAULT_SIZE: usize = 32;
+
+    /// Groups the triangles of `mesh` into clusters of `triangles_per_cluster`
+    /// (at least 1) by the Morton order of their centroids in these positions.
+    pub fn new(mesh: &MeshView<'_>, triangles_per_cluster: usize) -> Self {
+        let mut clusters = TriangleClusters {
+            size: triangles_per_cluster.max(1),
+            order: Vec::new(),
+            bounds: Vec::new(),
+            chunks: Vec::new(),
+            cluster_chunks: Vec::new(),
+            chunk_vertices: Vec::new(),
+            corners: Vec::new(),
+            indices: Vec::new(),
+        };
+        clusters.reorder(mesh);
+        clusters
+    }
+
+    /// Recomputes the grouping from the current positions of `mesh` (for a mesh
+    /// whose shape changed so much that the rest-pose clusters are no longer
+    /// compact). Allocates when the triangle count grew.
+    pub fn reorder(&mut self, mesh: &MeshView<'_>) {
+        let count = mesh.triangle_count();
+        let mut bounds = Aabb::EMPTY;
+        for t in 0..count {
+            let [a, b, c] = mesh.triangle(t);
+            bounds.grow((a + b + c) * (1.0 / 3.0));
+        }
+        let extent = (bounds.max - bounds.min).max(Vec3::splat(f32::MIN_POSITIVE));
+        let mut keyed: Vec<(u32, u32)> = (0..count)
+            .map(|t| {
+                let [a, b, c] = mesh.triangle(t);
+                let centroid = (a + b + c) * (1.0 / 3.0);
+                let cell = ((centroid - bounds.min) / extent * 1023.0)
+                    .clamp(Vec3::ZERO, Vec3::splat(1023.0));
+                let code = spread_bits(cell.x as u32)
+                    | spread_bits(cell.y as u32) << 1
+                    | spread_bits(cell.z as u32) << 2;
+                (code, t as u32)
+            })
+            .collect();
+        keyed.sort_unstable();
+        self.order.clear();
+        self.order.extend(keyed.iter().map(|&(_, t)| t));
+        self.bounds.clear();
+        self.bounds.resize(count.div_ceil(self.size), Aabb::EMPTY);
+        self.compute_bounds(mesh);
+        self.build_chunks(mesh);
+    }
+
+    /// Splits every cluster into chunks and lists each chunk's distinct vertices.
+    fn build_chunks(&mut self, mesh: &MeshView<'_>) {
+        self.indices.clear();
+        self.indices.extend_from_slice(mesh.indices());
+        self.chunks.clear();
+        self.cluster_chunks.clear();
+        self.chunk_vertices.clear();
+        self.corners.clear();
+        // Position of each mesh vertex in the current chunk's list, u32::MAX
+        // when absent (reset after each chunk).
+        let mut slot = alloc::vec![u32::MAX; mesh.vertex_count()];
+        let count = self.order.len();
+        let mut start = 0;
+        while start < count {
+            self.cluster_chunks.push(self.chunks.len() as u32);
+            let cluster_end = (start + self.size).min(count);
+            while start < cluster_end {
+                let end = (start + CHUNK).min(cluster_end);
+                let first_vertex = self.chunk_vertices.len();
+                for &t in &self.order[start..end] {
+                    let corners = mesh.triangle_indices(t as usize).map(|v| {
+                        let v = v as usize;
+                        if slot[v] == u32::MAX {
+                            slot[v] = (self.chunk_vertices.len() - first_vertex) as u32;
+                            self.chunk_vertices.push(v as u32);
+                        }
+                        slot[v] as u8
+                    });
+                    self.corners.push(corners);
+                }
+                for &v in &self.chunk_vertices[first_vertex..] {
+                    slot[v as usize] = u32::MAX;
+                }
+                self.chunks.push(Chunk {
+                    triangles: (start as u32, end as u32),
+                    vertices: (first_vertex as u32, self.chunk_vertices.len() as u32),
+                });
+                start = end;
+            }
+        }
+        self.cluster_chunks.push(self.chunks.len() as u32);
+    }
+
+    /// Recomputes every cluster's box from the current positions of `mesh` and
+    /// returns the mesh with its clusters, for one frame. One pass over the
+    /// triangles, no allocation unless the index buffer changed (then the
+    /// grouping is recomputed too).
+    pub fn update<'a>(&'a mut self, mesh: MeshView<'a>) -> ClusteredMesh<'a> {
+        if self.indices != mesh.indices() {
+            self.reorder(&mesh);
+        } else {
+            self.compute_bounds(&mesh);
+        }
+        ClusteredMesh {
+            mesh,
+            clusters: Some(self),
+        }
+    }
+
+    /// Triangles per cluster.
+    #[inline]
+    pub fn triangles_per_cluster(&self) -> usize {
+        self.size
+    }
+
+    /// Number of clusters.
+    #[inline]
+    pub fn cluster_count(&self) -> usize {
+        self.bounds.len()
+    }
+
+    fn compute_bounds(&mut self, mesh: &MeshView<'_>) {
+        for (bounds, triangles) in self.bounds.iter_mut().zip(self.order.chunks(self.size)) {
+            let mut b = Aabb::EMPTY;
+            for &t in triangles {
+                let [p, q, r] = mesh.triangle(t as usize);
+                b.grow(p);
+                b.grow(q);
+                b.grow(r);
+            }
+            *bounds = b;
+        }
+    }
+}
+
+/// Morton spreading: bit `k` of a 10-bit value to bit `3k`.
+#[inline]
+fn spread_bits(v: u32) -> u32 {
+    let mut x = v & 0x3ff;
+    x = (x | x << 16) & 0x0300_00ff;
+    x = (x | x << 8) & 0x0300_f00f;
+    x = (x | x << 4) & 0x030c_30c3;
+    (x | x << 2) & 0x0924_9249
+}
+
+/// A mesh for one frame, with or without cluster boxes. Copy it freely; it only
+/// borrows.
+#[derive(Clone, Copy, Debug)]
+pub struct ClusteredMesh<'a> {
+    pub(super) mesh: MeshView<'a>,
+    pub(super) clusters: Option<&'a TriangleClusters>,
+}
+
+impl<'a> ClusteredMesh<'a> {
+    /// The mesh without clusters: every triangle is read and culled on its own.
+    #[inline]
+    pub fn unclustered(mesh: MeshView<'a>) -> Self {
+        ClusteredMesh {
+            mesh,
+            clusters: None,
+        }
+    }
+
+    /// The mesh.
+    #[inline]
+    pub fn mesh(&self) -> &MeshView<'a> {
+        &self.mesh
+    }
+
+    /// Whether cluster boxes are used.
+    #[inline]
+    pub fn is_clustered(&self) -> bool {
+        self.clusters.is_some()
+    }
+}
