@@ -94,6 +94,7 @@
 //! per receiver. [`TriangleCone::new`] and [`rasterize_triangles_into`] take the
 //! corners as given (unscaled).
 
+mod batch;
 mod clusters;
 mod far_mesh;
 mod half_space;
@@ -107,14 +108,14 @@ mod triangle;
 #[cfg(test)]
 mod tests;
 
+pub use batch::{
+    BatchError, Material, TransferSpace, VertexShading, shade_batch, shade_batch_split,
+    shade_vertex, transfer_batch, vertex_normals, vertex_transfer,
+};
 pub use clusters::{Aabb, ClusteredMesh, TriangleClusters};
 pub use far_mesh::{FarMesh, FarMeshError};
 pub use half_space::{half_space_mask, half_space_mask_reference};
-pub use lod::{
-    BatchError, BatchOptions, HemiScene, Material, TransferSpace, VertexShading, scene_mask,
-    scene_mask_with_counts, shade_batch, shade_batch_split, shade_vertex, transfer_batch,
-    vertex_normals, vertex_transfer,
-};
+pub use lod::{BatchOptions, HemiScene, scene_mask, scene_mask_with_counts};
 pub use mask::{
     GRID, HemiMask, VALID_CELL_COUNT, cell_coordinate, cell_direction, cell_directions,
     is_valid_cell,

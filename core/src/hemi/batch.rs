@@ -1,0 +1,317 @@
+//! The per-vertex API of a deforming mesh's frame: each vertex a receiver of
+//! [`HemiScene`], its mask summed into a transfer vector ([`vertex_transfer`],
+//! [`transfer_batch`]) or shaded under SH lighting ([`shade_vertex`],
+//! [`shade_batch`]), with area-weighted [`vertex_normals`] for meshes that come
+//! without them. The masks come from the `lod` module's loop.
+
+use core::fmt;
+
+use glam::Vec3;
+
+use super::lod::{BatchOptions, HemiScene, scene_mask};
+use super::shading::{PhongLobe, glossy_transfer, mirror_direction, shade_glossy};
+use super::transfer::{TransferMethod, TransferRotation, shade_diffuse};
+use crate::geom::{MeshView, unit_or_zero};
+use crate::sh::{Sh, ShRgb};
+
+/// Why a batch call rejected its arguments (nothing was written).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BatchError {
+    /// The normals slice does not hold one normal per vertex of the mesh.
+    NormalCount {
+        /// Vertices of the mesh.
+        expected: usize,
+        /// Normals given.
+        got: usize,
+    },
+    /// An output slice does not hold one entry per vertex of the mesh.
+    OutputLength {
+        /// Vertices of the mesh.
+        expected: usize,
+        /// Entries given.
+        got: usize,
+    },
+    /// `near_radius` is NaN or negative.
+    NearRadius,
+}
+
+impl fmt::Display for BatchError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            BatchError::NormalCount { expected, got } => {
+                write!(f, "{got} normals given for a mesh of {expected} vertices")
+            }
+            BatchError::OutputLength { expected, got } => write!(
+                f,
+                "the output holds {got} entries for a mesh of {expected} vertices"
+            ),
+            BatchError::NearRadius => write!(f, "near_radius must be a number >= 0"),
+        }
+    }
+}
+
+impl core::error::Error for BatchError {}
+
+/// Area-weighted vertex normals: per vertex, the sum of the unnormalised geometric
+/// normals `(b - a) × (c - a)` of its triangles, normalised; zero where the sum is
+/// zero or not finite (such vertices are skipped by the batch functions). The sum is
+/// computed in `f32`: it overflows for edges beyond about `1e19` and is zero for
+/// edges below about `1e-22` (their cross products underflow); anything between
+/// normalises, whatever its size.
+///
+/// `out` must hold one normal per vertex.
+pub fn vertex_normals(mesh: &MeshView<'_>, out: &mut [Vec3]) -> Result<(), BatchError> {
+    if out.len() != mesh.vertex_count() {
+        return Err(BatchError::OutputLength {
+            expected: mesh.vertex_count(),
+            got: out.len(),
+        });
+    }
+    out.fill(Vec3::ZERO);
+    for t in 0..mesh.triangle_count() {
+        let [i, j, k] = mesh.triangle_indices(t);
+        let [a, b, c] = mesh.triangle(t);
+        let n = (b - a).cross(c - a);
+        out[i as usize] += n;
+        out[j as usize] += n;
+        out[k as usize] += n;
+    }
+    for n in out.iter_mut() {
+        // Edges above about 4e9 or below 1e-12 once gave zero normals: squaring
+        // the sum's components overflowed or underflowed.
+        *n = unit_or_zero(*n);
+    }
+    Ok(())
+}
+
+/// The space transfer vectors are written in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TransferSpace {
+    /// World coefficients: dot them with world-space lighting.
+    #[default]
+    World,
+    /// The receiver's local frame `(t, b, n)` of
+    /// [`Frame::from_normal`](crate::Frame::from_normal).
+    Local,
+}
+
+/// A surface's reflectance for [`shade_batch`]: Lambertian plus an optional
+/// modified Phong lobe about the mirror direction of the view (see
+/// [`PhongLobe`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Material<'a> {
+    /// Diffuse albedo per channel (`L = albedo/π · Σ T_k l_k`).
+    pub albedo: Vec3,
+    /// Specular reflectance `ρ_s` per channel (`L = ρ_s Σ G_k l_k`); the glossy
+    /// term is skipped when it is zero or `lobe` is `None`.
+    pub specular: Vec3,
+    /// The glossy lobe, built once for its exponent.
+    pub lobe: Option<&'a PhongLobe>,
+    /// The viewer's world position, for the mirror directions.
+    pub eye: Vec3,
+}
+
+/// Diffuse and glossy outgoing radiance of one vertex (linear RGB).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VertexShading {
+    /// `albedo/π · Σ T_k l_k`.
+    pub diffuse: Vec3,
+    /// `ρ_s Σ G_k l_k`.
+    pub glossy: Vec3,
+}
+
+/// Whether a vertex normal can carry a receiver.
+#[inline]
+fn usable(normal: Vec3) -> bool {
+    normal.is_finite() && normal != Vec3::ZERO
+}
+
+/// The transfer vector of the receiver at `position` with unit `normal`: mask,
+/// sum by `method`, and rotation to world space when asked. Allocation-free.
+pub fn vertex_transfer<const N: usize>(
+    scene: &HemiScene<'_>,
+    position: Vec3,
+    normal: Vec3,
+    options: &BatchOptions<'_>,
+    method: TransferMethod<'_, N>,
+    space: TransferSpace,
+) -> Sh<N> {
+    let mask = scene_mask(scene, position, normal, options);
+    let local = method.transfer(&mask);
+    match space {
+        TransferSpace::Local => local,
+        TransferSpace::World => {
+            TransferRotation::new(&crate::Frame::from_normal(normal)).to_world(&local)
+        }
+    }
+}
+
+/// Diffuse and glossy radiance of the receiver at `position` with unit `normal`
+/// under world-space SH `lighting` (incident radiance). Allocation-free.
+///
+/// The diffuse transfer uses `method`; the glossy one always sums the mask per
+/// cell ([`glossy_transfer`] on `method.table()`), since its weights depend on the
+/// view. The viewer behind the surface, or at the vertex, gets no glossy term.
+pub fn shade_vertex<const N: usize>(
+    scene: &HemiScene<'_>,
+    position: Vec3,
+    normal: Vec3,
+    options: &BatchOptions<'_>,
+    method: TransferMethod<'_, N>,
+    lighting: &ShRgb<N>,
+    material: &Material<'_>,
+) -> VertexShading {
+    let mask = scene_mask(scene, position, normal, options);
+    let frame = crate::Frame::from_normal(normal);
+    // One SH rotation per vertex, applied to the one or two local vectors: cheaper
+    // than rotating the three lighting channels into the local frame.
+    let rotation = TransferRotation::new(&frame);
+    let transfer = rotation.to_world(&method.transfer(&mask));
+    let diffuse = shade_diffuse(&transfer, lighting, material.albedo);
+    let glossy = match material.lobe {
+        Some(lobe) if material.specular != Vec3::ZERO => {
+            // A far eye (beyond about 1e19) must not overflow the squared
+            // length into a zero direction.
+            let to_eye = unit_or_zero(material.eye - position);
+            let mirror = frame.to_local(mirror_direction(normal, to_eye));
+            let g = glossy_transfer(method.table(), &mask, lobe, mirror);
+            shade_glossy(&rotation.to_world(&g), lighting, material.specular)
+        }
+        _ => Vec3::ZERO,
+    };
+    VertexShading { diffuse, glossy }
+}
+
+fn check(scene: &HemiScene<'_>, normals: &[Vec3], out_len: usize) -> Result<(), BatchError> {
+    let expected = scene.mesh.mesh.vertex_count();
+    if normals.len() != expected {
+        return Err(BatchError::NormalCount {
+            expected,
+            got: normals.len(),
+        });
+    }
+    if out_len != expected {
+        return Err(BatchError::OutputLength {
+            expected,
+            got: out_len,
+        });
+    }
+    if scene.near_radius.is_nan() || scene.near_radius < 0.0 {
+        return Err(BatchError::NearRadius);
+    }
+    Ok(())
+}
+
+/// `out[v] = f(v)` for every vertex, in parallel with the `parallel` feature.
+#[inline]
+fn for_each_vertex<T: Send>(out: &mut [T], f: impl Fn(usize) -> T + Sync) {
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        out.par_iter_mut()
+            .enumerate()
+            .with_min_len(VERTEX_GRAIN)
+            .for_each(|(v, o)| *o = f(v));
+    }
+    #[cfg(not(feature = "parallel"))]
+    for (v, o) in out.iter_mut().enumerate() {
+        *o = f(v);
+    }
+}
+
+/// Vertices per rayon task: a receiver costs tens of microseconds, so a few
+/// dozen amortise the scheduling.
+#[cfg(feature = "parallel")]
+const VERTEX_GRAIN: usize = 16;
+
+/// Transfer vectors of every vertex of `scene.mesh`, each vertex a receiver with
+/// its normal from `normals` (unit length; zero or non-finite normals give a zero
+/// vector). `out[v]` in the requested `space`.
+///
+/// Errors (nothing written): `normals` or `out` not one per vertex, a negative or
+/// NaN `near_radius`. Allocation-free; safe to call from several threads; with
+/// the `parallel` feature, spread over rayon's pool with identical results.
+pub fn transfer_batch<const N: usize>(
+    scene: &HemiScene<'_>,
+    normals: &[Vec3],
+    options: &BatchOptions<'_>,
+    method: TransferMethod<'_, N>,
+    space: TransferSpace,
+    out: &mut [Sh<N>],
+) -> Result<(), BatchError> {
+    check(scene, normals, out.len())?;
+    let mesh = scene.mesh.mesh;
+    for_each_vertex(out, |v| {
+        let n = normals[v];
+        if !usable(n) {
+            return Sh::ZERO;
+        }
+        vertex_transfer(scene, mesh.position(v), n, options, method, space)
+    });
+    Ok(())
+}
+
+/// Outgoing radiance (diffuse + glossy, linear RGB) of every vertex of
+/// `scene.mesh` under world-space SH `lighting`, each vertex a receiver with its
+/// normal from `normals` (unit; zero or non-finite normals give black).
+///
+/// Errors, allocation and threading as [`transfer_batch`].
+pub fn shade_batch<const N: usize>(
+    scene: &HemiScene<'_>,
+    normals: &[Vec3],
+    options: &BatchOptions<'_>,
+    method: TransferMethod<'_, N>,
+    lighting: &ShRgb<N>,
+    material: &Material<'_>,
+    out: &mut [Vec3],
+) -> Result<(), BatchError> {
+    check(scene, normals, out.len())?;
+    let mesh = scene.mesh.mesh;
+    for_each_vertex(out, |v| {
+        let n = normals[v];
+        if !usable(n) {
+            return Vec3::ZERO;
+        }
+        let s = shade_vertex(
+            scene,
+            mesh.position(v),
+            n,
+            options,
+            method,
+            lighting,
+            material,
+        );
+        s.diffuse + s.glossy
+    });
+    Ok(())
+}
+
+/// [`shade_batch`] keeping the diffuse and glossy parts apart.
+pub fn shade_batch_split<const N: usize>(
+    scene: &HemiScene<'_>,
+    normals: &[Vec3],
+    options: &BatchOptions<'_>,
+    method: TransferMethod<'_, N>,
+    lighting: &ShRgb<N>,
+    material: &Material<'_>,
+    out: &mut [VertexShading],
+) -> Result<(), BatchError> {
+    check(scene, normals, out.len())?;
+    let mesh = scene.mesh.mesh;
+    for_each_vertex(out, |v| {
+        let n = normals[v];
+        if !usable(n) {
+            return VertexShading::default();
+        }
+        shade_vertex(
+            scene,
+            mesh.position(v),
+            n,
+            options,
+            method,
+            lighting,
+            material,
+        )
+    });
+    Ok(())
+}
