@@ -74,8 +74,8 @@ pub enum Command {
     /// into a text or CSV file (`--kind ao`, the default).
     ///
     /// Transfer (`--kind diffuse|glossy-sh|mrt`): for every vertex, `--rays`
-    /// stratified rays over the hemisphere of its smooth normal (pushed off the
-    /// surface by 1e-4 of the bounding-box diagonal) gather the transfer of every
+    /// stratified rays over the hemisphere of its smooth normal (their origins
+    /// moved `--ray-offset` mesh units along it) gather the transfer of every
     /// SH lighting coefficient at once, plus `--bounces` diffuse interreflections
     /// of albedo `--albedo`. MRT bakes a `--grid`² × bands² matrix per vertex for
     /// the chosen BRDF (Phong, or Ward's anisotropic one with --ward) and can be
@@ -85,7 +85,8 @@ pub enum Command {
     /// --bake`.
     ///
     /// Ambient occlusion (`--kind ao`): for each vertex, rays leave from the vertex
-    /// in cosine-weighted directions around its smooth normal; the value is the
+    /// (moved `--ray-offset` mesh units along its smooth normal) in
+    /// cosine-weighted directions around that normal; the value is the
     /// fraction that escape. Output: with a .csv extension, a CSV table
     /// `vertex,x,y,z,nx,ny,nz,visibility` with one header row; otherwise a text
     /// file whose first line is a `#` header describing the contents, followed by
@@ -603,5 +604,33 @@ mod tests {
         assert_eq!(args.ray_offset, crate::prt::default_ray_offset());
         assert!(parse_ray_offset("-1").is_err());
         assert!(parse_ray_offset("nan").is_err());
+    }
+
+    #[test]
+    fn bake_help_gives_the_ray_offset_one_unit() {
+        let mut command = Cli::command();
+        let help = command
+            .find_subcommand_mut("bake")
+            .expect("a bake subcommand")
+            .render_long_help()
+            .to_string();
+        // One paragraph per idea in the rendered help, its lines joined.
+        let flat = help.split_whitespace().collect::<Vec<_>>().join(" ");
+        assert!(
+            flat.contains("Move ray origins this far along the vertex normal, in mesh units"),
+            "the flag's own help names its unit:\n{help}"
+        );
+        // The description says how far rays are pushed off only through the
+        // flag, never in another unit.
+        for paragraph in [
+            "their origins moved `--ray-offset` mesh units along it",
+            "moved `--ray-offset` mesh units along its smooth normal",
+        ] {
+            assert!(flat.contains(paragraph), "missing {paragraph:?}:\n{help}");
+        }
+        assert!(
+            !flat.contains("of the bounding-box diagonal"),
+            "the bake's help must not give the offset relative to the diagonal:\n{help}"
+        );
     }
 }
