@@ -58,34 +58,14 @@ fn main() {
 
 /// A closed UV sphere with its radius modulated by `0.2 sin 5θ sin 4φ`.
 fn bumpy_sphere(rings: u32, segments: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
-    let mut positions = Vec::new();
-    for r in 0..=rings {
-        let theta = core::f32::consts::PI * r as f32 / rings as f32;
-        for s in 0..segments {
-            let phi = core::f32::consts::TAU * s as f32 / segments as f32;
-            let radius = 1.0 + 0.2 * (5.0 * theta).sin() * (4.0 * phi).sin();
-            positions.push([
-                radius * theta.sin() * phi.cos(),
-                radius * theta.sin() * phi.sin(),
-                radius * theta.cos(),
-            ]);
-        }
-    }
-    let mut indices = Vec::new();
-    for r in 0..rings {
-        for s in 0..segments {
-            let a = r * segments + s;
-            let b = r * segments + (s + 1) % segments;
-            let (c, d) = (a + segments, b + segments);
-            if r != 0 {
-                indices.extend_from_slice(&[a, c, b]);
-            }
-            if r != rings - 1 {
-                indices.extend_from_slice(&[b, c, d]);
-            }
-        }
-    }
-    (positions, indices)
+    antumbra_core::geom::uv_sphere(rings, segments, |theta, phi| {
+        let radius = 1.0 + 0.2 * (5.0 * theta).sin() * (4.0 * phi).sin();
+        [
+            radius * theta.sin() * phi.cos(),
+            radius * theta.sin() * phi.sin(),
+            radius * theta.cos(),
+        ]
+    })
 }
 
 struct Scene {

@@ -29,37 +29,20 @@ struct Blob {
 }
 
 fn blob(rings: u32, segments: u32) -> Blob {
-    let (mut positions, mut normals, mut indices) = (Vec::new(), Vec::new(), Vec::new());
-    for r in 0..=rings {
-        let theta = std::f32::consts::PI * r as f32 / rings as f32;
-        for s in 0..segments {
-            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
-            let radius = 1.0 + 0.25 * (5.0 * theta).sin() * (4.0 * phi).sin();
-            let n = Vec3::new(
-                theta.sin() * phi.cos(),
-                theta.sin() * phi.sin(),
-                theta.cos(),
-            )
-            .normalize();
-            positions.extend_from_slice(&(n * radius).to_array());
-            normals.extend_from_slice(&n.to_array());
-        }
-    }
-    for r in 0..rings {
-        for s in 0..segments {
-            let a = r * segments + s;
-            let b = r * segments + (s + 1) % segments;
-            let (c, d) = (a + segments, b + segments);
-            if r != 0 {
-                indices.extend_from_slice(&[a, c, b]);
-            }
-            if r != rings - 1 {
-                indices.extend_from_slice(&[b, c, d]);
-            }
-        }
-    }
+    let mut normals = Vec::new();
+    let (positions, indices) = antumbra_core::geom::uv_sphere(rings, segments, |theta, phi| {
+        let radius = 1.0 + 0.25 * (5.0 * theta).sin() * (4.0 * phi).sin();
+        let n = Vec3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        )
+        .normalize();
+        normals.extend_from_slice(&n.to_array());
+        (n * radius).to_array()
+    });
     Blob {
-        positions,
+        positions: positions.into_iter().flatten().collect(),
         normals,
         indices,
     }

@@ -77,35 +77,20 @@ struct Mesh {
 }
 
 fn blob(rings: u32, segments: u32, twist: f32) -> Mesh {
-    let (mut positions, mut indices) = (Vec::new(), Vec::new());
-    for r in 0..=rings {
-        let theta = std::f32::consts::PI * r as f32 / rings as f32;
-        for s in 0..segments {
-            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
-            let radius = 1.0 + 0.25 * (5.0 * theta).sin() * (4.0 * phi).sin();
-            let z = radius * theta.cos();
-            let angle = phi + twist * z;
-            positions.extend_from_slice(&[
-                radius * theta.sin() * angle.cos(),
-                radius * theta.sin() * angle.sin(),
-                z,
-            ]);
-        }
+    let (positions, indices) = antumbra_core::geom::uv_sphere(rings, segments, |theta, phi| {
+        let radius = 1.0 + 0.25 * (5.0 * theta).sin() * (4.0 * phi).sin();
+        let z = radius * theta.cos();
+        let angle = phi + twist * z;
+        [
+            radius * theta.sin() * angle.cos(),
+            radius * theta.sin() * angle.sin(),
+            z,
+        ]
+    });
+    Mesh {
+        positions: positions.into_iter().flatten().collect(),
+        indices,
     }
-    for r in 0..rings {
-        for s in 0..segments {
-            let a = r * segments + s;
-            let b = r * segments + (s + 1) % segments;
-            let (c, d) = (a + segments, b + segments);
-            if r != 0 {
-                indices.extend_from_slice(&[a, c, b]);
-            }
-            if r != rings - 1 {
-                indices.extend_from_slice(&[b, c, d]);
-            }
-        }
-    }
-    Mesh { positions, indices }
 }
 
 impl Mesh {

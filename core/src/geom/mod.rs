@@ -1,12 +1,15 @@
 //! Geometry shared by every algorithm: validated mesh views and receiver frames.
 //!
-//! Everything here borrows caller data; nothing allocates.
+//! Everything here borrows caller data and allocates nothing, except
+//! [`uv_sphere`], which builds a procedural mesh.
 
 mod frame;
 mod mesh;
+mod uv_sphere;
 
 pub use frame::Frame;
 pub use mesh::{MeshError, MeshView, POSITION_BYTES};
+pub use uv_sphere::uv_sphere;
 
 use glam::Vec3;
 

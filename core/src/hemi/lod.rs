@@ -753,36 +753,16 @@ mod tests {
     /// A closed UV sphere with its radius modulated (concave regions), twisted about
     /// +z by `twist` radians per unit of height.
     fn twisted_sphere(rings: u32, segments: u32, twist: f32) -> (Vec<[f32; 3]>, Vec<u32>) {
-        let mut positions = Vec::new();
-        for r in 0..=rings {
-            let theta = core::f32::consts::PI * r as f32 / rings as f32;
-            for s in 0..segments {
-                let phi = core::f32::consts::TAU * s as f32 / segments as f32;
-                let radius = 1.0 + 0.25 * libm::sinf(5.0 * theta) * libm::sinf(4.0 * phi);
-                let z = radius * libm::cosf(theta);
-                let angle = phi + twist * z;
-                positions.push([
-                    radius * libm::sinf(theta) * libm::cosf(angle),
-                    radius * libm::sinf(theta) * libm::sinf(angle),
-                    z,
-                ]);
-            }
-        }
-        let mut indices = Vec::new();
-        for r in 0..rings {
-            for s in 0..segments {
-                let a = r * segments + s;
-                let b = r * segments + (s + 1) % segments;
-                let (c, d) = (a + segments, b + segments);
-                if r != 0 {
-                    indices.extend_from_slice(&[a, c, b]);
-                }
-                if r != rings - 1 {
-                    indices.extend_from_slice(&[b, c, d]);
-                }
-            }
-        }
-        (positions, indices)
+        crate::geom::uv_sphere(rings, segments, |theta, phi| {
+            let radius = 1.0 + 0.25 * libm::sinf(5.0 * theta) * libm::sinf(4.0 * phi);
+            let z = radius * libm::cosf(theta);
+            let angle = phi + twist * z;
+            [
+                radius * libm::sinf(theta) * libm::cosf(angle),
+                radius * libm::sinf(theta) * libm::sinf(angle),
+                z,
+            ]
+        })
     }
 
     fn normals_of(mesh: &MeshView<'_>) -> Vec<Vec3> {

@@ -21,35 +21,14 @@ use crate::raycast::BruteForceCaster;
 /// A closed UV sphere, counter-clockwise seen from outside, with its radius
 /// modulated by `bump` (0 = round) so that it has concave regions.
 fn bumpy_sphere(rings: u32, segments: u32, bump: f32) -> (Vec<[f32; 3]>, Vec<u32>) {
-    let mut positions = Vec::new();
-    for r in 0..=rings {
-        let theta = core::f32::consts::PI * r as f32 / rings as f32;
-        for s in 0..segments {
-            let phi = core::f32::consts::TAU * s as f32 / segments as f32;
-            let radius = 1.0 + bump * libm::sinf(5.0 * theta) * libm::sinf(4.0 * phi);
-            positions.push([
-                radius * libm::sinf(theta) * libm::cosf(phi),
-                radius * libm::sinf(theta) * libm::sinf(phi),
-                radius * libm::cosf(theta),
-            ]);
-        }
-    }
-    let mut indices = Vec::new();
-    for r in 0..rings {
-        for s in 0..segments {
-            let a = r * segments + s;
-            let b = r * segments + (s + 1) % segments;
-            let (c, d) = (a + segments, b + segments);
-            // The pole rows collapse to a point: leave out the zero-area halves.
-            if r != 0 {
-                indices.extend_from_slice(&[a, c, b]);
-            }
-            if r != rings - 1 {
-                indices.extend_from_slice(&[b, c, d]);
-            }
-        }
-    }
-    (positions, indices)
+    crate::geom::uv_sphere(rings, segments, |theta, phi| {
+        let radius = 1.0 + bump * libm::sinf(5.0 * theta) * libm::sinf(4.0 * phi);
+        [
+            radius * libm::sinf(theta) * libm::cosf(phi),
+            radius * libm::sinf(theta) * libm::sinf(phi),
+            radius * libm::cosf(theta),
+        ]
+    })
 }
 
 /// `count` random triangles with corners within `size` of centers in the cube
