@@ -224,6 +224,27 @@ fn for_each_vertex<T: Send>(out: &mut [T], f: impl Fn(usize) -> T + Sync) {
 #[cfg(feature = "parallel")]
 const VERTEX_GRAIN: usize = 16;
 
+/// Checks the arguments, then `out[v] = receiver(position, normal)` for every
+/// vertex whose normal is usable and `T::default()` (zero, black) for the rest.
+fn for_each_receiver<T: Send + Default>(
+    scene: &HemiScene<'_>,
+    normals: &[Vec3],
+    out: &mut [T],
+    receiver: impl Fn(Vec3, Vec3) -> T + Sync,
+) -> Result<(), BatchError> {
+    check(scene, normals, out.len())?;
+    let mesh = scene.mesh.mesh;
+    for_each_vertex(out, |v| {
+        let n = normals[v];
+        if usable(n) {
+            receiver(mesh.position(v), n)
+        } else {
+            T::default()
+        }
+    });
+    Ok(())
+}
+
 /// Transfer vectors of every vertex of `scene.mesh`, each vertex a receiver with
 /// its normal from `normals` (unit length; zero or non-finite normals give a zero
 /// vector). `out[v]` in the requested `space`.
@@ -239,16 +260,9 @@ pub fn transfer_batch<const N: usize>(
     space: TransferSpace,
     out: &mut [Sh<N>],
 ) -> Result<(), BatchError> {
-    check(scene, normals, out.len())?;
-    let mesh = scene.mesh.mesh;
-    for_each_vertex(out, |v| {
-        let n = normals[v];
-        if !usable(n) {
-            return Sh::ZERO;
-        }
-        vertex_transfer(scene, mesh.position(v), n, options, method, space)
-    });
-    Ok(())
+    for_each_receiver(scene, normals, out, |p, n| {
+        vertex_transfer(scene, p, n, options, method, space)
+    })
 }
 
 /// Outgoing radiance (diffuse + glossy, linear RGB) of every vertex of
@@ -265,25 +279,10 @@ pub fn shade_batch<const N: usize>(
     material: &Material<'_>,
     out: &mut [Vec3],
 ) -> Result<(), BatchError> {
-    check(scene, normals, out.len())?;
-    let mesh = scene.mesh.mesh;
-    for_each_vertex(out, |v| {
-        let n = normals[v];
-        if !usable(n) {
-            return Vec3::ZERO;
-        }
-        let s = shade_vertex(
-            scene,
-            mesh.position(v),
-            n,
-            options,
-            method,
-            lighting,
-            material,
-        );
+    for_each_receiver(scene, normals, out, |p, n| {
+        let s = shade_vertex(scene, p, n, options, method, lighting, material);
         s.diffuse + s.glossy
-    });
-    Ok(())
+    })
 }
 
 /// [`shade_batch`] keeping the diffuse and glossy parts apart.
@@ -296,22 +295,7 @@ pub fn shade_batch_split<const N: usize>(
     material: &Material<'_>,
     out: &mut [VertexShading],
 ) -> Result<(), BatchError> {
-    check(scene, normals, out.len())?;
-    let mesh = scene.mesh.mesh;
-    for_each_vertex(out, |v| {
-        let n = normals[v];
-        if !usable(n) {
-            return VertexShading::default();
-        }
-        shade_vertex(
-            scene,
-            mesh.position(v),
-            n,
-            options,
-            method,
-            lighting,
-            material,
-        )
-    });
-    Ok(())
+    for_each_receiver(scene, normals, out, |p, n| {
+        shade_vertex(scene, p, n, options, method, lighting, material)
+    })
 }
