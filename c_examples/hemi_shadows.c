@@ -971,7 +971,7 @@ int main(int argc, char **argv)
     if (antumbra_last_error_message()[0] != '\0' || memcmp(&shading_options.raster, &options, sizeof options) != 0 ||
         shading_options.bands != 3 || shading_options.method != ANTUMBRA_HEMI_METHOD_CELLS ||
         shading_options.space != ANTUMBRA_HEMI_SPACE_WORLD || shading_options.near_radius != INFINITY ||
-        shading_options.far_triangles != 0 || shading_options.reserved != 0) {
+        shading_options.far_triangles != 0 || shading_options.far_levels != 0) {
         fail("antumbra_hemi_shading_options_init did not write the documented defaults");
     }
     shading_options.bands = SH_BANDS;

@@ -80,7 +80,7 @@ _Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, method, uint32_t), "
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, space, uint32_t), "space type");
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, near_radius, float), "near_radius type");
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, far_triangles, uint32_t), "far_triangles type");
-_Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, reserved, uint32_t), "reserved type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_shading_options, far_levels, uint32_t), "far_levels type");
 _Static_assert(offsetof(antumbra_hemi_shading_options, raster) == 0, "shading_options.raster offset");
 _Static_assert(offsetof(antumbra_hemi_shading_options, bands) == sizeof(antumbra_hemi_options),
                "shading_options.bands offset");
@@ -92,8 +92,8 @@ _Static_assert(offsetof(antumbra_hemi_shading_options, near_radius) == sizeof(an
                "shading_options.near_radius offset");
 _Static_assert(offsetof(antumbra_hemi_shading_options, far_triangles) == sizeof(antumbra_hemi_options) + 16,
                "shading_options.far_triangles offset");
-_Static_assert(offsetof(antumbra_hemi_shading_options, reserved) == sizeof(antumbra_hemi_options) + 20,
-               "shading_options.reserved offset");
+_Static_assert(offsetof(antumbra_hemi_shading_options, far_levels) == sizeof(antumbra_hemi_options) + 20,
+               "shading_options.far_levels offset");
 _Static_assert(sizeof(antumbra_hemi_shading_options) == sizeof(antumbra_hemi_options) + 24, "shading_options size");
 _Static_assert(alignof(antumbra_hemi_shading_options) == alignof(void *), "shading_options alignment");
 

@@ -132,6 +132,12 @@
 #define ANTUMBRA_HEMI_SPACE_LOCAL 1
 
 /**
+ * The most far meshes `antumbra_hemi_shading_options.far_levels` asks for
+ * (core's `MAX_FAR_LEVELS`).
+ */
+#define ANTUMBRA_HEMI_MAX_FAR_LEVELS 8
+
+/**
  * The library's near radius with its own far mesh, in edges of the far mesh's
  * clustering cubes (`antumbra_hemi_shading_options.near_radius`; core's
  * `FarMesh::NEAR_CELLS`).
@@ -462,7 +468,9 @@ typedef struct antumbra_hemi_shading_options {
    * means the full mesh everywhere (the far mesh unused); with the library's
    * own (`far_triangles` > 0) it means the library's rule: three edges of the
    * far mesh's clustering cubes (`ANTUMBRA_HEMI_NEAR_CELLS`), so the coarse
-   * surface starts where its error is about a third of the distance.
+   * surface starts where its error is about a third of the distance. With
+   * several levels (`far_levels`) this is the first level's radius, and each
+   * further level's is twice the one before.
    * Ignored without a far mesh.
    */
   float near_radius;
@@ -478,9 +486,21 @@ typedef struct antumbra_hemi_shading_options {
    */
   uint32_t far_triangles;
   /**
-   * Must be 0 (keeps the struct free of padding; a later field may use it).
+   * With the library's own far mesh (`far_triangles` > 0): how many far
+   * meshes it makes, 1 to `ANTUMBRA_HEMI_MAX_FAR_LEVELS` (8); 0, the default,
+   * means 1. The first has about `far_triangles` triangles; each further one
+   * clusters with cubes of twice the edge (about a quarter of the triangles)
+   * and is used beyond twice the radius of the one before (`near_radius`
+   * doubling from level to level), so a receiver rasterizes about as many far
+   * triangles per level, and the work per vertex grows with the logarithm of
+   * the mesh's size rather than its area. Levels coarser than 8 triangles are
+   * not made. What it trades: each level keeps its surface within about a
+   * third of the distance, but thin parts vanish sooner in the coarse
+   * levels, so the error grows with the first few levels and then settles
+   * (figures in docs/performance.md, from `antumbra bench hemi`). Must be 0
+   * or 1 without `far_triangles`.
    */
-  uint32_t reserved;
+  uint32_t far_levels;
 } antumbra_hemi_shading_options;
 
 /**
@@ -1286,7 +1306,8 @@ void antumbra_hemi_material_init(struct antumbra_hemi_material *material);
  *         with a non-zero count); INVALID_ARGUMENT (an option out of its range,
  *         misaligned array or struct, stride below 12, count overflow, a
  *         coordinate beyond ±1e12, options->far_triangles not below the mesh's
- *         triangle count or given with far_mesh, options->reserved not 0);
+ *         triangle count or given with far_mesh, options->far_levels above 8 or
+ *         above 1 without far_triangles);
  *         INDEX_OUT_OF_RANGE (an index of either
  *         mesh); NON_FINITE (a position, options->raster.normal_offset, a NaN
  *         options->near_radius); OUT_OF_MEMORY (the per-frame memory or the
@@ -1491,7 +1512,8 @@ antumbra_result antumbra_hemi_shader_shade(struct antumbra_hemi_shader *shader,
  *         range, misaligned array or struct, stride below 12, count overflow, a
  *         coordinate beyond ±1e12, a normal that is neither unit nor zero,
  *         overlapping output, options->far_triangles not below the mesh's
- *         triangle count or given with far_mesh, options->reserved not 0);
+ *         triangle count or given with far_mesh, options->far_levels above 8 or
+ *         above 1 without far_triangles);
  *         INDEX_OUT_OF_RANGE (an index of either mesh);
  *         NON_FINITE (a position, a normal, options->raster.normal_offset, a NaN
  *         near_radius); OUT_OF_MEMORY (scratch memory, or the shared half-space

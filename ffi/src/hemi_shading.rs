@@ -46,10 +46,10 @@ use core::sync::atomic::Ordering;
 use std::sync::{Mutex, PoisonError};
 
 use antumbra_core::hemi::{
-    BatchOptions, ClusteredMesh, FarMesh, HemiScene, Material, PhongLobe, Quality, TransferLut,
-    TransferMethod, TransferRotation, TransferSpace, TransferTable, TriangleClusters,
-    VertexShading, glossy_transfer, mirror_direction, scene_mask, shade_diffuse, shade_glossy,
-    shade_vertex, vertex_normals, vertex_transfer,
+    BatchOptions, ClusteredMesh, FarField, FarLevels, HemiScene, MAX_FAR_LEVELS, Material,
+    PhongLobe, Quality, TransferLut, TransferMethod, TransferRotation, TransferSpace,
+    TransferTable, TriangleClusters, VertexShading, glossy_transfer, mirror_direction, scene_mask,
+    shade_diffuse, shade_glossy, shade_vertex, vertex_normals, vertex_transfer,
 };
 use antumbra_core::raycast::MAX_COORDINATE;
 use antumbra_core::sh::{Sh, ShRgb};
@@ -132,7 +132,9 @@ pub struct antumbra_hemi_shading_options {
     /// means the full mesh everywhere (the far mesh unused); with the library's
     /// own (`far_triangles` > 0) it means the library's rule: three edges of the
     /// far mesh's clustering cubes (`ANTUMBRA_HEMI_NEAR_CELLS`), so the coarse
-    /// surface starts where its error is about a third of the distance.
+    /// surface starts where its error is about a third of the distance. With
+    /// several levels (`far_levels`) this is the first level's radius, and each
+    /// further level's is twice the one before.
     /// Ignored without a far mesh.
     pub near_radius: f32,
     /// 0 (the default): no far mesh but the one a caller passes. Otherwise the
@@ -144,9 +146,27 @@ pub struct antumbra_hemi_shading_options {
     /// triangle count; with a caller's `far_mesh` it is INVALID_ARGUMENT. A few
     /// thousand suit meshes of 10k–100k triangles.
     pub far_triangles: u32,
-    /// Must be 0 (keeps the struct free of padding; a later field may use it).
-    pub reserved: u32,
+    /// With the library's own far mesh (`far_triangles` > 0): how many far
+    /// meshes it makes, 1 to `ANTUMBRA_HEMI_MAX_FAR_LEVELS` (8); 0, the default,
+    /// means 1. The first has about `far_triangles` triangles; each further one
+    /// clusters with cubes of twice the edge (about a quarter of the triangles)
+    /// and is used beyond twice the radius of the one before (`near_radius`
+    /// doubling from level to level), so a receiver rasterizes about as many far
+    /// triangles per level, and the work per vertex grows with the logarithm of
+    /// the mesh's size rather than its area. Levels coarser than 8 triangles are
+    /// not made. What it trades: each level keeps its surface within about a
+    /// third of the distance, but thin parts vanish sooner in the coarse
+    /// levels, so the error grows with the first few levels and then settles
+    /// (figures in docs/performance.md, from `antumbra bench hemi`). Must be 0
+    /// or 1 without `far_triangles`.
+    pub far_levels: u32,
 }
+
+/// The most far meshes `antumbra_hemi_shading_options.far_levels` asks for
+/// (core's `MAX_FAR_LEVELS`).
+pub const ANTUMBRA_HEMI_MAX_FAR_LEVELS: u32 = 8;
+
+const _: () = assert!(ANTUMBRA_HEMI_MAX_FAR_LEVELS as usize == MAX_FAR_LEVELS);
 
 /// The library's near radius with its own far mesh, in edges of the far mesh's
 /// clustering cubes (`antumbra_hemi_shading_options.near_radius`; core's
@@ -203,7 +223,7 @@ const DEFAULT_SHADING_OPTIONS: antumbra_hemi_shading_options = antumbra_hemi_sha
     space: ANTUMBRA_HEMI_SPACE_WORLD,
     near_radius: f32::INFINITY,
     far_triangles: 0,
-    reserved: 0,
+    far_levels: 0,
 };
 
 const DEFAULT_EXPONENT: f32 = 16.0;
@@ -396,6 +416,8 @@ struct Config {
     near_radius: f32,
     /// Triangles of the library's own far mesh; 0 for none.
     far_triangles: usize,
+    /// Levels of the library's own far field (at least 1).
+    far_levels: usize,
     cull_backfaces: bool,
     normal_offset: f32,
     parallel: bool,
@@ -499,10 +521,18 @@ unsafe fn read_shading_options(
              everywhere)"
         )));
     }
-    if options.reserved != 0 {
+    if options.far_levels > ANTUMBRA_HEMI_MAX_FAR_LEVELS {
         return Err(Error::invalid(message!(
-            "options->reserved is {}; it must be 0",
-            options.reserved
+            "options->far_levels is {}; expected 0 to ANTUMBRA_HEMI_MAX_FAR_LEVELS \
+             ({ANTUMBRA_HEMI_MAX_FAR_LEVELS})",
+            options.far_levels
+        )));
+    }
+    if options.far_levels > 1 && options.far_triangles == 0 {
+        return Err(Error::invalid(message!(
+            "options->far_levels is {} but options->far_triangles is 0: levels are of the \
+             library's own far mesh; set far_triangles, or far_levels to 0",
+            options.far_levels
         )));
     }
     let half_space = match (options.raster.quality, user_table) {
@@ -516,6 +546,7 @@ unsafe fn read_shading_options(
         space,
         near_radius: radius,
         far_triangles: options.far_triangles as usize,
+        far_levels: options.far_levels.max(1) as usize,
         cull_backfaces: options.raster.cull_backfaces == 1,
         normal_offset: options.raster.normal_offset,
         parallel: options.raster.parallel == 1,
@@ -865,8 +896,9 @@ struct Workspace {
     lobe: Option<Box<PhongLobe>>,
     clusters: Option<TriangleClusters>,
     far_clusters: Option<TriangleClusters>,
-    /// The library's own far mesh (`far_triangles`), posed from each frame's mesh.
-    far_mesh: Option<FarMesh>,
+    /// The library's own far field (`far_triangles`, `far_levels`), posed from
+    /// each frame's mesh; it groups its own levels' clusters.
+    far_field: Option<FarField>,
 }
 
 fn reserve<T: Clone>(count: usize, value: T, what: &str) -> Result<Vec<T>, Error> {
@@ -902,7 +934,7 @@ impl Workspace {
             },
             clusters: None,
             far_clusters: None,
-            far_mesh: None,
+            far_field: None,
         })
     }
 
@@ -919,19 +951,20 @@ impl Workspace {
             &input.mesh,
             TriangleClusters::DEFAULT_SIZE,
         ));
-        let far = self.far_mesh.as_ref().map(FarMesh::view).or(input.far);
-        self.far_clusters =
-            far.map(|far| TriangleClusters::new(&far, TriangleClusters::DEFAULT_SIZE));
+        self.far_clusters = input
+            .far
+            .map(|far| TriangleClusters::new(&far, TriangleClusters::DEFAULT_SIZE));
     }
 
-    /// Fills `normals` from the caller's or computes them; returns the scene of
-    /// this frame (with the cluster boxes updated) and the normals.
+    /// Fills `normals` from the caller's or computes them; returns the meshes of
+    /// this frame (with the cluster boxes updated and the library's far field
+    /// posed) and the normals.
     fn frame<'a>(
         &'a mut self,
         input: &FrameInput<'a>,
         near_radius: f32,
     ) -> (
-        HemiScene<'a>,
+        FrameMeshes<'a>,
         &'a [Vec3],
         &'a mut [VertexShading],
         &'a mut Option<Box<PhongLobe>>,
@@ -942,18 +975,13 @@ impl Workspace {
             lobe,
             clusters,
             far_clusters,
-            far_mesh,
+            far_field,
         } = self;
-        if let Some(built) = far_mesh.as_mut() {
-            built
+        let levels = far_field.as_mut().map(|field| {
+            field
                 .pose(&input.mesh)
-                .expect("the frame's vertex count was checked against the shader's");
-        }
-        let far_mesh: &'a Option<FarMesh> = far_mesh;
-        let far_view = match far_mesh {
-            Some(built) => Some(built.view()),
-            None => input.far,
-        };
+                .expect("the frame's vertex count was checked against the shader's")
+        });
         match input.normals {
             Some(given) => {
                 for (v, n) in normals.iter_mut().enumerate() {
@@ -971,27 +999,51 @@ impl Workspace {
         };
         // A match, not `Option::map`: Rust 1.88, the declared minimum, does not
         // accept the closure's borrow of `far_clusters`.
-        let far = match (far_view, far_clusters) {
+        let far = match (input.far, far_clusters) {
             (Some(far), Some(c)) => Some(c.update(far)),
             (Some(far), None) => Some(ClusteredMesh::unclustered(far)),
             (None, _) => None,
         };
-        let scene = HemiScene {
+        let meshes = FrameMeshes {
             mesh,
             far,
+            levels,
             near_radius,
         };
-        (scene, normals, shading, lobe)
+        (meshes, normals, shading, lobe)
     }
 }
 
-/// The library's far mesh of this frame's mesh when `config.far_triangles` asks for
-/// one (refused together with a caller's far mesh), and the options with the
+/// One frame's occluders: the full mesh, and the caller's far mesh or the
+/// library's far levels.
+struct FrameMeshes<'a> {
+    mesh: ClusteredMesh<'a>,
+    far: Option<ClusteredMesh<'a>>,
+    levels: Option<FarLevels<'a>>,
+    near_radius: f32,
+}
+
+impl FrameMeshes<'_> {
+    fn scene(&self) -> HemiScene<'_> {
+        match &self.levels {
+            Some(levels) => levels.scene(self.mesh),
+            None => HemiScene {
+                mesh: self.mesh,
+                far: self.far,
+                near_radius: self.near_radius,
+                coarser: &[],
+            },
+        }
+    }
+}
+
+/// The library's far field of this frame's mesh when `config.far_triangles` asks
+/// for one (refused together with a caller's far mesh), and the options with the
 /// near radius it implies.
-fn build_far_mesh(
+fn build_far_field(
     config: &Config,
     input: &FrameInput<'_>,
-) -> Result<(Option<FarMesh>, Config), Error> {
+) -> Result<(Option<FarField>, Config), Error> {
     if config.far_triangles == 0 {
         return Ok((None, *config));
     }
@@ -1027,17 +1079,20 @@ fn build_far_mesh(
             ),
         ));
     }
-    let far = FarMesh::with_triangles(&input.mesh, config.far_triangles).map_err(|e| {
-        Error::invalid(message!(
-            "options->far_triangles is {}: {e}",
-            config.far_triangles
-        ))
-    })?;
+    let mut field =
+        FarField::new(&input.mesh, config.far_triangles, config.far_levels).map_err(|e| {
+            Error::invalid(message!(
+                "options->far_triangles is {}: {e}",
+                config.far_triangles
+            ))
+        })?;
     let mut config = *config;
-    if config.near_radius.is_infinite() {
-        config.near_radius = far.default_near_radius();
+    if config.near_radius.is_finite() {
+        field.set_near_radius(config.near_radius);
+    } else {
+        config.near_radius = field.near_radius(0);
     }
-    Ok((Some(far), config))
+    Ok((Some(field), config))
 }
 
 /// Whether a normal carries a receiver (core's batch rule: zero normals, such as
@@ -1084,7 +1139,8 @@ fn transfer_frame<const N: usize>(
 ) -> Result<(), Error> {
     let method = transfer_method::<N>(config.method)?;
     let options = config.batch_options(quality);
-    let (scene, normals, _, _) = workspace.frame(input, config.near_radius);
+    let (meshes, normals, _, _) = workspace.frame(input, config.near_radius);
+    let scene = meshes.scene();
     let positions = input.mesh;
     for_each_chunk(out, N, config.parallel, |v, chunk| {
         let n = normals[v];
@@ -1156,7 +1212,8 @@ fn shade_frame<const N: usize>(
     let method = transfer_method::<N>(config.method)?;
     let options = config.batch_options(quality);
     let lighting = lighting_rgb::<N>(lighting);
-    let (scene, normals, shading, lobe) = workspace.frame(input, config.near_radius);
+    let (meshes, normals, shading, lobe) = workspace.frame(input, config.near_radius);
+    let scene = meshes.scene();
     let lobe: Option<&PhongLobe> = if material.glossy() {
         let exponent = material.exponent;
         let new_lobe = || PhongLobe::new(exponent).expect("the exponent was checked to be >= 0");
@@ -1327,7 +1384,8 @@ const _: () = {
 ///         with a non-zero count); INVALID_ARGUMENT (an option out of its range,
 ///         misaligned array or struct, stride below 12, count overflow, a
 ///         coordinate beyond ±1e12, options->far_triangles not below the mesh's
-///         triangle count or given with far_mesh, options->reserved not 0);
+///         triangle count or given with far_mesh, options->far_levels above 8 or
+///         above 1 without far_triangles);
 ///         INDEX_OUT_OF_RANGE (an index of either
 ///         mesh); NON_FINITE (a position, options->raster.normal_offset, a NaN
 ///         options->near_radius); OUT_OF_MEMORY (the per-frame memory or the
@@ -1367,7 +1425,7 @@ pub unsafe extern "C" fn antumbra_hemi_shader_create(
         let config = unsafe { read_shading_options(options) }?;
         // SAFETY: caller contract on the meshes.
         let input = unsafe { read_frame(mesh, core::ptr::null(), far_mesh) }?;
-        let (built, config) = build_far_mesh(&config, &input)?;
+        let (built, config) = build_far_field(&config, &input)?;
         // SAFETY: a user table is alive by the caller's contract.
         unsafe { config.quality() }?;
         with_coefficients!(config.bands, prepare_tables(&config))?;
@@ -1377,11 +1435,11 @@ pub unsafe extern "C" fn antumbra_hemi_shader_create(
             &input.mesh,
             TriangleClusters::DEFAULT_SIZE,
         ));
-        let far_view = built.as_ref().map(FarMesh::view).or(input.far);
-        workspace.far_clusters =
-            far_view.map(|far| TriangleClusters::new(&far, TriangleClusters::DEFAULT_SIZE));
+        workspace.far_clusters = input
+            .far
+            .map(|far| TriangleClusters::new(&far, TriangleClusters::DEFAULT_SIZE));
         let builds_far = built.is_some();
-        workspace.far_mesh = built;
+        workspace.far_field = built;
         let shader = Box::new(antumbra_hemi_shader {
             config,
             vertex_count: input.mesh.vertex_count(),
@@ -1532,13 +1590,10 @@ pub unsafe extern "C" fn antumbra_hemi_shader_regroup(
             if let (Some(far), Some(clusters)) = (input.far, workspace.far_clusters.as_mut()) {
                 clusters.reorder(&far);
             }
-            if let (Some(built), Some(clusters)) =
-                (workspace.far_mesh.as_mut(), workspace.far_clusters.as_mut())
-            {
-                built
-                    .pose(&input.mesh)
+            if let Some(field) = workspace.far_field.as_mut() {
+                field
+                    .regroup(&input.mesh)
                     .expect("the vertex count was checked against the shader's");
-                clusters.reorder(&built.view());
             }
             Ok(())
         },
@@ -1724,10 +1779,10 @@ unsafe fn transfer_call(
     let (workspace, config) = match workspace {
         Some(workspace) => (workspace, config),
         None => {
-            let (built, with_far) = build_far_mesh(config, &input)?;
+            let (built, with_far) = build_far_field(config, &input)?;
             one_shot_config = with_far;
             fresh = Workspace::new(input.mesh.vertex_count(), false, None)?;
-            fresh.far_mesh = built;
+            fresh.far_field = built;
             fresh.cluster_if_worth_it(&input);
             (&mut fresh, &one_shot_config)
         }
@@ -1777,14 +1832,14 @@ unsafe fn shade_call(
     let (workspace, config) = match workspace {
         Some(workspace) => (workspace, config),
         None => {
-            let (built, with_far) = build_far_mesh(config, &input)?;
+            let (built, with_far) = build_far_field(config, &input)?;
             one_shot_config = with_far;
             fresh = Workspace::new(
                 vertex_count,
                 true,
                 material.glossy().then_some(material.exponent),
             )?;
-            fresh.far_mesh = built;
+            fresh.far_field = built;
             fresh.cluster_if_worth_it(&input);
             (&mut fresh, &one_shot_config)
         }
@@ -1865,7 +1920,8 @@ fn one_shot(
 ///         range, misaligned array or struct, stride below 12, count overflow, a
 ///         coordinate beyond ±1e12, a normal that is neither unit nor zero,
 ///         overlapping output, options->far_triangles not below the mesh's
-///         triangle count or given with far_mesh, options->reserved not 0);
+///         triangle count or given with far_mesh, options->far_levels above 8 or
+///         above 1 without far_triangles);
 ///         INDEX_OUT_OF_RANGE (an index of either mesh);
 ///         NON_FINITE (a position, a normal, options->raster.normal_offset, a NaN
 ///         near_radius); OUT_OF_MEMORY (scratch memory, or the shared half-space

@@ -909,7 +909,7 @@ fn init_functions_write_the_documented_defaults() {
         space: 9,
         near_radius: f32::NAN,
         far_triangles: 9,
-        reserved: 9,
+        far_levels: 9,
     };
     // SAFETY: a valid struct.
     unsafe { antumbra_hemi_shading_options_init(&mut options) };
@@ -923,7 +923,7 @@ fn init_functions_write_the_documented_defaults() {
         (3, ANTUMBRA_HEMI_METHOD_CELLS, ANTUMBRA_HEMI_SPACE_WORLD)
     );
     assert_eq!(options.near_radius, f32::INFINITY);
-    assert_eq!((options.far_triangles, options.reserved), (0, 0));
+    assert_eq!((options.far_triangles, options.far_levels), (0, 0));
     let mut material = antumbra_hemi_material {
         albedo: [f32::NAN; 3],
         specular: [f32::NAN; 3],
@@ -964,7 +964,7 @@ fn init_functions_write_the_documented_defaults() {
         raster_size + 16
     );
     assert_eq!(
-        offset_of!(antumbra_hemi_shading_options, reserved),
+        offset_of!(antumbra_hemi_shading_options, far_levels),
         raster_size + 20
     );
     assert_eq!(size_of::<antumbra_hemi_shading_options>(), raster_size + 24);
@@ -1145,6 +1145,71 @@ fn the_librarys_far_mesh_follows_the_full_mesh_as_a_callers_would() {
         "{}",
         last_error()
     );
+}
+
+/// The library's far field in several levels (`far_levels`): a shader gives
+/// the bits of core's `FarField` scene, posed from each frame's full mesh; a
+/// one-shot call on the rest pose gives the same; 0 and 1 level are the same
+/// single far mesh, and more levels change the result.
+#[test]
+fn far_levels_are_cores_far_field_posed_per_frame() {
+    let rest = blob(32, 48, 0.0);
+    let levels = 3;
+    // A near radius of a tenth of the blob: every level has a band on it.
+    let radius = 0.2;
+    let options = options_with(|o| {
+        o.far_triangles = 400;
+        o.far_levels = levels;
+        o.near_radius = radius;
+    });
+    let one_level = options_with(|o| {
+        o.far_triangles = 400;
+        o.near_radius = radius;
+    });
+    let explicit_one = antumbra_hemi_shading_options {
+        far_levels: 1,
+        ..one_level
+    };
+    let mut field = antumbra_core::hemi::FarField::new(&rest.core(), 400, levels as usize).unwrap();
+    field.set_near_radius(radius);
+    assert_eq!(field.level_count(), levels as usize);
+    let shader = Shader::new(&rest.view(), None, Some(&options));
+    let single = Shader::new(&rest.view(), None, Some(&one_level));
+    let table = HalfSpaceTable::default();
+    let mut differs_from_one_level = false;
+    for twist in [0.0f32, 0.9] {
+        let mesh = blob(32, 48, twist);
+        let view = mesh.view();
+        let what = format!("twist {twist}");
+        let posed = field.pose(&mesh.core()).unwrap();
+        let scene = posed.scene(ClusteredMesh::unclustered(mesh.core()));
+        let reference = Reference::new(&mesh, None, None, options, &table);
+        let mut want = vec![Sh::<9>::ZERO; mesh.vertex_count()];
+        transfer_batch(
+            &scene,
+            &reference.normals,
+            &reference.batch_options(),
+            TransferMethod::Cells(&TransferTable::<9>::new()),
+            TransferSpace::World,
+            &mut want,
+        )
+        .unwrap();
+        let want: Vec<f32> = want.iter().flat_map(|t| t.coeffs).collect();
+        let (result, by_shader) = shader.transfer(&view, None, None, 3);
+        assert_eq!(result, ANTUMBRA_RESULT_OK, "{what}: {}", last_error());
+        assert_bits_eq(&by_shader, &want, &what);
+        if twist == 0.0 {
+            let (result, once) = transfer(&view, None, None, Some(&options), 3);
+            assert_eq!(result, ANTUMBRA_RESULT_OK, "{what}: {}", last_error());
+            assert_bits_eq(&once, &want, &what);
+            let (_, zero) = transfer(&view, None, None, Some(&one_level), 3);
+            let (_, one) = transfer(&view, None, None, Some(&explicit_one), 3);
+            assert_bits_eq(&zero, &one, &what);
+        }
+        let (_, by_single) = single.transfer(&view, None, None, 3);
+        differs_from_one_level |= bits(&by_single) != bits(&by_shader);
+    }
+    assert!(differs_from_one_level, "the coarser levels were never used");
 }
 
 fn bytemuck_positions(flat: &[f32]) -> &[[f32; 3]] {
@@ -1437,10 +1502,20 @@ fn every_bad_input_has_its_code_a_message_naming_it_and_leaves_outputs_untouched
             ),
         ),
         (
-            options_with(|o| o.reserved = 1),
+            options_with(|o| {
+                o.far_triangles = 20;
+                o.far_levels = ANTUMBRA_HEMI_MAX_FAR_LEVELS + 1;
+            }),
             expect(
                 ANTUMBRA_RESULT_INVALID_ARGUMENT,
-                "options->reserved is 1; it must be 0",
+                "options->far_levels is 9; expected 0 to ANTUMBRA_HEMI_MAX_FAR_LEVELS (8)",
+            ),
+        ),
+        (
+            options_with(|o| o.far_levels = 2),
+            expect(
+                ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                "options->far_levels is 2 but options->far_triangles is 0",
             ),
         ),
         (

@@ -16,8 +16,8 @@ use std::time::{Duration, Instant};
 
 use antumbra_core::Frame;
 use antumbra_core::hemi::{
-    BatchOptions, FarMesh, HemiMask, HemiScene, Material, Quality, RasterOptions, Receiver,
-    TransferMethod, TransferRotation, TransferSpace, TransferTable, TriangleClusters,
+    BatchOptions, FarField, FarMesh, HemiMask, HemiScene, Material, Quality, RasterOptions,
+    Receiver, TransferMethod, TransferRotation, TransferSpace, TransferTable, TriangleClusters,
     VertexShading, cell_direction, cell_directions, rasterize_receiver_with_counts,
     scene_mask_with_counts, vertex_transfer,
 };
@@ -352,7 +352,11 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
 
 /// Far mesh sizes (triangles) the far-mesh table tries, those below half the
 /// mesh's count.
-const FAR_TABLE_TRIANGLES: [usize; 4] = [500, 1_000, 2_000, 4_000];
+const FAR_TABLE_TRIANGLES: [usize; 6] = [500, 1_000, 2_000, 4_000, 8_000, 16_000];
+
+/// Far-field levels the far-mesh table tries (the first level of each size
+/// above, then coarser ones).
+const FAR_TABLE_LEVELS: [usize; 2] = [3, 6];
 
 /// Near radii the far-mesh table tries besides the library's rule, as fractions of
 /// the bounding-box diagonal.
@@ -409,25 +413,19 @@ fn far_mesh_table(
          error of the luminance against those rays"
     );
     println!(
-        "{:>14} {:>22} {:>16} {:>14} {:>12}",
-        "far triangles", "near radius", "µs per vertex", "rays / this", "error"
+        "{:>14} {:>22} {:>16} {:>14} {:>12} {:>12}",
+        "far triangles", "near radius", "µs per vertex", "rays / this", "error", "rasterized"
     );
-    let mut row = |far: Option<&FarMesh>, radius: f32, radius_name: &str| {
-        let mut far_clusters =
-            far.map(|f| TriangleClusters::new(&f.view(), TriangleClusters::DEFAULT_SIZE));
-        let full = full_clusters.update(view);
-        let scene = match (far, far_clusters.as_mut()) {
-            (Some(f), Some(c)) => HemiScene::with_far(full, c.update(f.view()), radius),
-            _ => HemiScene::new(full),
-        };
-        let transfer = |p: Vec3, n: Vec3| {
-            vertex_transfer(&scene, p, n, &options, method, TransferSpace::World)
-        };
-        let (mut error, mut worst) = (0.0f64, 0.0f64);
+    let full = full_clusters.update(view);
+    let row = |scene: &HemiScene<'_>, far_name: &str, radius_name: &str| {
+        let transfer =
+            |p: Vec3, n: Vec3| vertex_transfer(scene, p, n, &options, method, TransferSpace::World);
+        let mut error = 0.0f64;
+        let mut rasterized = 0u64;
         for (&(p, n), &want) in chosen.iter().zip(&reference) {
             let got = luminance(&transfer(p, n));
             error += (got - want) * (got - want);
-            worst = worst.max((got - want).abs());
+            rasterized += u64::from(scene_mask_with_counts(scene, p, n, &options).1.rasterized);
         }
         let elapsed = time_per_call(min_time, || {
             for &(p, n) in chosen {
@@ -436,28 +434,45 @@ fn far_mesh_table(
         });
         let micros = elapsed.as_secs_f64() * 1e6 / count;
         println!(
-            "{:>14} {:>22} {micros:>16.2} {:>13.2}x {:>11.3}%",
-            far.map_or("none".to_string(), |f| f.triangle_count().to_string()),
-            radius_name,
+            "{far_name:>14} {radius_name:>22} {micros:>16.2} {:>13.2}x {:>11.3}% {:>12.0}",
             reference_micros / micros,
             100.0 * (error / reference_power.max(f64::MIN_POSITIVE)).sqrt(),
+            rasterized as f64 / count,
         );
     };
-    row(None, f32::INFINITY, "(full mesh)");
+    row(&HemiScene::new(full), "none", "(full mesh)");
     for target in FAR_TABLE_TRIANGLES {
         if 2 * target > mesh.triangle_count() {
             continue;
         }
         let far = FarMesh::with_triangles(&view, target)
             .map_err(|e| Error::msg(format!("cannot simplify {}: {e}", mesh.name())))?;
+        let mut far_clusters = TriangleClusters::new(&far.view(), TriangleClusters::DEFAULT_SIZE);
+        let far_mesh = far_clusters.update(far.view());
         let rule = far.default_near_radius();
-        row(Some(&far), rule, &format!("{rule:.4} (3 cells)"));
+        let name = far.triangle_count().to_string();
+        row(
+            &HemiScene::with_far(full, far_mesh, rule),
+            &name,
+            &format!("{rule:.4} (3 cells)"),
+        );
         for fraction in FAR_TABLE_RADII_OF_DIAGONAL {
             let radius = fraction * diagonal;
             row(
-                Some(&far),
-                radius,
+                &HemiScene::with_far(full, far_mesh, radius),
+                &name,
                 &format!("{radius:.4} (diag/{:.0})", 1.0 / fraction),
+            );
+        }
+        for levels in FAR_TABLE_LEVELS {
+            let mut field = FarField::new(&view, target, levels)
+                .map_err(|e| Error::msg(format!("cannot simplify {}: {e}", mesh.name())))?;
+            let built = field.level_count();
+            let posed = field.pose(&view).map_err(|e| Error::msg(e.to_string()))?;
+            row(
+                &posed.scene(full),
+                &format!("{name} +{}", built - 1),
+                &format!("{rule:.4} x 2^k ({built} levels)"),
             );
         }
     }

@@ -85,8 +85,9 @@ use super::{Accumulator, Culled, Quality, Receiver, TriangleCone, TriangleCounts
 use crate::geom::MeshView;
 
 /// One frame of a deforming mesh as the receivers see it: the full mesh (whose
-/// vertices are the receivers), an optional simplified far mesh with its own
-/// current positions, and the near radius (see the module docs for the rule).
+/// vertices are the receivers), optional simplified far meshes with their own
+/// current positions, and the radii between them (see the module docs for the
+/// rule).
 #[derive(Clone, Copy, Debug)]
 pub struct HemiScene<'a> {
     /// The full-resolution mesh.
@@ -96,6 +97,24 @@ pub struct HemiScene<'a> {
     /// Distance from a receiver's vertex within which occluders come from the full
     /// mesh (mesh units, `>= 0`; `+inf` uses the full mesh everywhere). Unused
     /// without a far mesh.
+    pub near_radius: f32,
+    /// Coarser far meshes beyond `far`, from fine to coarse, each used beyond
+    /// its own radius, which must grow from level to level and exceed
+    /// `near_radius` (a [`FarField`](super::FarField) makes them). Empty for the
+    /// two-level scene; unused without `far`.
+    pub coarser: &'a [FarLevel<'a>],
+}
+
+/// A far mesh of a multi-level scene and the distance beyond which it stands in
+/// for the finer levels (see [`HemiScene::coarser`]).
+#[derive(Clone, Copy, Debug)]
+pub struct FarLevel<'a> {
+    /// The simplified mesh with its current positions.
+    pub mesh: ClusteredMesh<'a>,
+    /// Distance from a receiver's vertex within which the finer levels are used:
+    /// a triangle of this level is rasterized when all its corners are beyond
+    /// it (and, unless this is the coarsest level, at least one corner is within
+    /// the next level's radius).
     pub near_radius: f32,
 }
 
@@ -107,6 +126,7 @@ impl<'a> HemiScene<'a> {
             mesh,
             far: None,
             near_radius: f32::INFINITY,
+            coarser: &[],
         }
     }
 
@@ -117,6 +137,7 @@ impl<'a> HemiScene<'a> {
             mesh,
             far: Some(far),
             near_radius,
+            coarser: &[],
         }
     }
 }
@@ -145,15 +166,35 @@ impl Default for BatchOptions<'_> {
     }
 }
 
-/// Which triangles of a mesh a receiver takes, by distance.
+/// Which triangles of a mesh a receiver takes, by distance (the radii are the
+/// pass's).
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Select {
     /// Every triangle.
     All,
-    /// Triangles with a corner within the radius.
+    /// Triangles with a corner within the outer radius.
     Near,
-    /// Triangles with every corner beyond the radius.
+    /// Triangles with every corner beyond the inner radius.
     Far,
+    /// Triangles with every corner beyond the inner radius and a corner within
+    /// the outer one: a far level between two others.
+    Band,
+}
+
+impl Select {
+    /// Whether a triangle is taken, from its corners' flags: within the inner
+    /// radius, within the outer one.
+    #[inline(always)]
+    fn takes(self, inner: [bool; 3], outer: [bool; 3]) -> bool {
+        let any_inner = inner[0] | inner[1] | inner[2];
+        let any_outer = outer[0] | outer[1] | outer[2];
+        match self {
+            Select::All => true,
+            Select::Near => any_outer,
+            Select::Far => !any_inner,
+            Select::Band => !any_inner & any_outer,
+        }
+    }
 }
 
 /// The mask of the receiver at vertex position `position` with unit `normal`
@@ -261,16 +302,22 @@ impl ConeMask for TableCones<'_> {
 struct Pass<M> {
     /// The receiver's vertex position, for the near/far rule.
     position: Vec3,
-    /// `near_radius²`.
-    r2: f32,
+    /// The squared radius within which finer levels stand in for this mesh
+    /// ([`Select::Far`] and [`Select::Band`]).
+    inner_r2: f32,
+    /// The squared radius within which this mesh stands in for coarser levels
+    /// ([`Select::Near`] and [`Select::Band`]).
+    outer_r2: f32,
     cull: bool,
     cone_mask: M,
 }
 
 impl<M: ConeMask> Pass<M> {
+    /// Whether `p` is within the inner and the outer radius.
     #[inline(always)]
-    fn near(&self, p: Vec3) -> bool {
-        (p - self.position).length_squared() <= self.r2
+    fn within(&self, p: Vec3) -> (bool, bool) {
+        let d2 = (p - self.position).length_squared();
+        (d2 <= self.inner_r2, d2 <= self.outer_r2)
     }
 }
 
@@ -282,14 +329,18 @@ struct Projected {
     local: [Vec4; CHUNK_VERTICES],
     /// Not local `z <= 0`.
     above: [bool; CHUNK_VERTICES],
-    near: [bool; CHUNK_VERTICES],
+    /// Within the pass's inner radius.
+    inner: [bool; CHUNK_VERTICES],
+    /// Within the pass's outer radius.
+    outer: [bool; CHUNK_VERTICES],
 }
 
 impl Projected {
     const EMPTY: Projected = Projected {
         local: [Vec4::ZERO; CHUNK_VERTICES],
         above: [false; CHUNK_VERTICES],
-        near: [false; CHUNK_VERTICES],
+        inner: [false; CHUNK_VERTICES],
+        outer: [false; CHUNK_VERTICES],
     };
 }
 
@@ -301,22 +352,45 @@ fn scene_loop(
     cull: bool,
     cone_mask: impl ConeMask,
 ) -> (HemiMask, TriangleCounts) {
-    // One scale for both meshes (see Receiver::scaled_frame).
+    // One scale for every mesh (see Receiver::scaled_frame).
+    let levels = match scene.far {
+        Some(_) => scene.coarser,
+        None => &[],
+    };
     let far_bounds = scene.far.as_ref().map(|far| far.mesh.bounds());
-    let bounds = core::iter::once(scene.mesh.mesh.bounds()).chain(far_bounds);
+    let bounds = core::iter::once(scene.mesh.mesh.bounds())
+        .chain(far_bounds)
+        .chain(levels.iter().map(|level| level.mesh.mesh.bounds()));
     let mut acc = Accumulator::new(receiver, bounds);
-    let pass = Pass {
+    let pass = |inner: f32, outer: f32| Pass {
         position,
-        r2: scene.near_radius * scene.near_radius,
+        inner_r2: inner * inner,
+        outer_r2: outer * outer,
         cull,
         cone_mask,
     };
     let mut projected = Projected::EMPTY;
-    match &scene.far {
-        None => mesh_loop(&scene.mesh, &mut acc, &pass, Select::All, &mut projected),
-        Some(far) => {
-            mesh_loop(&scene.mesh, &mut acc, &pass, Select::Near, &mut projected);
-            mesh_loop(far, &mut acc, &pass, Select::Far, &mut projected);
+    let Some(far) = &scene.far else {
+        let all = pass(f32::INFINITY, f32::INFINITY);
+        mesh_loop(&scene.mesh, &mut acc, &all, Select::All, &mut projected);
+        return (acc.mask, acc.counts);
+    };
+    let near = pass(0.0, scene.near_radius);
+    mesh_loop(&scene.mesh, &mut acc, &near, Select::Near, &mut projected);
+    // Each far level between its own radius and the next one's.
+    let radii = core::iter::once(scene.near_radius).chain(levels.iter().map(|l| l.near_radius));
+    let meshes = core::iter::once(far).chain(levels.iter().map(|l| &l.mesh));
+    let mut outer = levels.iter().map(|l| l.near_radius);
+    for (mesh, inner) in meshes.zip(radii) {
+        match outer.next() {
+            Some(outer) => {
+                let band = pass(inner, outer);
+                mesh_loop(mesh, &mut acc, &band, Select::Band, &mut projected);
+            }
+            None => {
+                let far = pass(inner, f32::INFINITY);
+                mesh_loop(mesh, &mut acc, &far, Select::Far, &mut projected);
+            }
         }
     }
     (acc.mask, acc.counts)
@@ -347,16 +421,27 @@ fn mesh_loop<M: ConeMask>(
         }
         let here = match select {
             Select::All => Select::All,
-            Select::Near | Select::Far => {
+            Select::Near | Select::Far | Select::Band => {
                 let (near, far) = bounds.distance_range_sq(pass.position);
-                match (select, near > pass.r2, far <= pass.r2) {
-                    // Full mesh: no corner within the radius, or every corner.
-                    (Select::Near, true, _) => continue,
-                    (Select::Near, false, true) => Select::All,
-                    // Far mesh: every corner within the radius, or none.
-                    (_, _, true) => continue,
-                    (_, true, false) => Select::All,
-                    _ => select,
+                // Which of the two tests every corner passes or fails alike.
+                let needs_inner = select != Select::Near;
+                let needs_outer = select != Select::Far;
+                let (all_beyond_inner, all_within_inner) =
+                    (near > pass.inner_r2, far <= pass.inner_r2);
+                let (all_beyond_outer, all_within_outer) =
+                    (near > pass.outer_r2, far <= pass.outer_r2);
+                if (needs_inner && all_within_inner) || (needs_outer && all_beyond_outer) {
+                    // Every corner within the inner radius, or none within the outer.
+                    continue;
+                }
+                match (
+                    needs_inner && !all_beyond_inner,
+                    needs_outer && !all_within_outer,
+                ) {
+                    (false, false) => Select::All,
+                    (false, true) => Select::Near,
+                    (true, false) => Select::Far,
+                    (true, true) => Select::Band,
                 }
             }
         };
@@ -399,12 +484,11 @@ fn chunk_loop<M: ConeMask>(
         // one triangle at a time.
         for &corners in &clusters.corners[triangles] {
             let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
-            let near = &projected.near;
-            let taken = match select {
-                Select::All => true,
-                Select::Near => near[ia] | near[ib] | near[ic],
-                Select::Far => !(near[ia] | near[ib] | near[ic]),
-            };
+            let (inner, outer) = (&projected.inner, &projected.outer);
+            let taken = select.takes(
+                [inner[ia], inner[ib], inner[ic]],
+                [outer[ia], outer[ib], outer[ic]],
+            );
             if !taken {
                 acc.counts.skipped += 1;
             } else if !(projected.above[ia] | projected.above[ib] | projected.above[ic]) {
@@ -418,12 +502,11 @@ fn chunk_loop<M: ConeMask>(
     let (mut skipped, mut below) = (0u32, 0u32);
     for &corners in &clusters.corners[triangles] {
         let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
-        let near = &projected.near;
-        let taken = match select {
-            Select::All => true,
-            Select::Near => near[ia] | near[ib] | near[ic],
-            Select::Far => !(near[ia] | near[ib] | near[ic]),
-        };
+        let (inner, outer) = (&projected.inner, &projected.outer);
+        let taken = select.takes(
+            [inner[ia], inner[ib], inner[ic]],
+            [outer[ia], outer[ib], outer[ic]],
+        );
         let above = projected.above[ia] | projected.above[ib] | projected.above[ic];
         batch[batched] = corners;
         batched += usize::from(taken & above);
@@ -492,7 +575,8 @@ fn batched_loop(
     };
     let pass = Pass {
         position: receiver.origin,
-        r2: f32::INFINITY,
+        inner_r2: f32::INFINITY,
+        outer_r2: f32::INFINITY,
         cull,
         cone_mask,
     };
@@ -651,7 +735,7 @@ fn project_chunk<M: ConeMask>(
     let (nx, ny, nz) = splat(frame.normal);
     let (ox, oy, oz) = splat(o);
     let (qx, qy, qz) = splat(pass.position);
-    let r2 = Vec4::splat(pass.r2);
+    let (inner_r2, outer_r2) = (Vec4::splat(pass.inner_r2), Vec4::splat(pass.outer_r2));
     let mut in_range = true;
     let last = vertices.len() - 1;
     let mut g = 0;
@@ -673,16 +757,18 @@ fn project_chunk<M: ConeMask>(
         let local = glam::Mat4::from_cols(x, y, z, Vec4::ZERO).transpose();
         // Not `z <= 0` (NaN included), the horizon test's negation.
         let above = !z.cmple(Vec4::ZERO).bitmask() & 0xf;
-        let near = if select == Select::All {
-            0
+        let (inner, outer) = if select == Select::All {
+            (0, 0)
         } else {
             let (dx, dy, dz) = (px - qx, py - qy, pz - qz);
-            (dx * dx + dy * dy + dz * dz).cmple(r2).bitmask()
+            let d2 = dx * dx + dy * dy + dz * dz;
+            (d2.cmple(inner_r2).bitmask(), d2.cmple(outer_r2).bitmask())
         };
         for k in 0..4 {
             projected.local[g + k] = local.col(k);
             projected.above[g + k] = above >> k & 1 == 1;
-            projected.near[g + k] = near >> k & 1 == 1;
+            projected.inner[g + k] = inner >> k & 1 == 1;
+            projected.outer[g + k] = outer >> k & 1 == 1;
         }
         g += 4;
     }
@@ -720,11 +806,8 @@ fn take<M: ConeMask>(
         view.position(i1 as usize),
         view.position(i2 as usize),
     );
-    let taken = match select {
-        Select::All => true,
-        Select::Near => pass.near(a) || pass.near(b) || pass.near(c),
-        Select::Far => !(pass.near(a) || pass.near(b) || pass.near(c)),
-    };
+    let ((ia, oa), (ib, ob), (ic, oc)) = (pass.within(a), pass.within(b), pass.within(c));
+    let taken = select.takes([ia, ib, ic], [oa, ob, oc]);
     if taken {
         let m = pass.cone_mask;
         acc.add(a, b, c, pass.cull, |a, b, c, cull, mask| {
@@ -853,6 +936,100 @@ mod tests {
                         false,
                     );
                     assert_eq!(a, expected, "twist {twist} radius {radius} vertex {v}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn far_levels_take_their_bands_with_and_without_clusters() {
+        // The full mesh and three coarser spheres, posed together.
+        let grids = [(20, 32), (12, 18), (8, 12), (5, 8)];
+        let rest: Vec<_> = grids.map(|(r, s)| twisted_sphere(r, s, 0.0)).into();
+        let mut clusters: Vec<TriangleClusters> = rest
+            .iter()
+            .map(|(p, i)| TriangleClusters::new(&MeshView::new(p, i).unwrap(), 8))
+            .collect();
+        for twist in [0.0f32, 0.9] {
+            let posed: Vec<_> = grids.map(|(r, s)| twisted_sphere(r, s, twist).0).into();
+            let views: Vec<MeshView<'_>> = posed
+                .iter()
+                .zip(&rest)
+                .map(|(p, (_, i))| MeshView::new(p, i).unwrap())
+                .collect();
+            let fast: Vec<ClusteredMesh<'_>> = clusters
+                .iter_mut()
+                .zip(&views)
+                .map(|(c, &v)| c.update(v))
+                .collect();
+            let mesh = views[0];
+            let normals = normals_of(&mesh);
+            let options = BatchOptions {
+                normal_offset: 0.005,
+                ..BatchOptions::default()
+            };
+            // Radii of the far mesh and its two coarser levels: growing, a
+            // band left empty by equal radii, and everything far.
+            for radii in [
+                [0.3f32, 0.6, 1.2],
+                [0.2, 0.2, 0.9],
+                [0.0, 0.5, 0.5],
+                [0.4, 0.8, f32::INFINITY],
+            ] {
+                fn level<'m>(
+                    meshes: &[ClusteredMesh<'m>],
+                    radii: [f32; 3],
+                    k: usize,
+                ) -> FarLevel<'m> {
+                    FarLevel {
+                        mesh: meshes[k + 1],
+                        near_radius: radii[k],
+                    }
+                }
+                let plain_meshes: Vec<_> = views
+                    .iter()
+                    .map(|&v| ClusteredMesh::unclustered(v))
+                    .collect();
+                let plain_levels = [
+                    level(&plain_meshes, radii, 1),
+                    level(&plain_meshes, radii, 2),
+                ];
+                let fast_levels = [level(&fast, radii, 1), level(&fast, radii, 2)];
+                let plain = HemiScene {
+                    coarser: &plain_levels,
+                    ..HemiScene::with_far(plain_meshes[0], plain_meshes[1], radii[0])
+                };
+                let clustered = HemiScene {
+                    coarser: &fast_levels,
+                    ..HemiScene::with_far(fast[0], fast[1], radii[0])
+                };
+                for v in (0..mesh.vertex_count()).step_by(5) {
+                    let (p, n) = (mesh.position(v), normals[v]);
+                    let (a, counts) = scene_mask_with_counts(&plain, p, n, &options);
+                    let (b, fast_counts) = scene_mask_with_counts(&clustered, p, n, &options);
+                    assert_eq!(a, b, "twist {twist} radii {radii:?} vertex {v}");
+                    assert_eq!(counts.rasterized, fast_counts.rasterized);
+                    // The rule, spelled out: level k's triangles with every
+                    // corner beyond its radius and one within the next's.
+                    let within = |q: Vec3, r: f32| (q - p).length_squared() <= r * r;
+                    let bounds = [0.0, radii[0], radii[1], radii[2], f32::INFINITY];
+                    let mut expected = HemiMask::EMPTY;
+                    let receiver = Receiver::new(p, n, options.normal_offset);
+                    for (k, view) in views.iter().enumerate() {
+                        let (inner, outer) = (bounds[k], bounds[k + 1]);
+                        let taken = view.triangles().filter(|t| {
+                            (k == 0 || t.iter().all(|&q| !within(q, inner)))
+                                && (k == 3 || t.iter().any(|&q| within(q, outer)))
+                        });
+                        rasterize_triangles_into(
+                            &mut expected,
+                            &receiver,
+                            taken,
+                            Quality::Exact,
+                            false,
+                        );
+                    }
+                    assert_eq!(a, expected, "twist {twist} radii {radii:?} vertex {v}");
                 }
             }
         }

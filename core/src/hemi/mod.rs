@@ -96,6 +96,7 @@
 
 mod batch;
 mod clusters;
+mod far_field;
 mod far_mesh;
 mod half_space;
 mod lod;
@@ -113,9 +114,10 @@ pub use batch::{
     shade_vertex, transfer_batch, vertex_normals, vertex_transfer,
 };
 pub use clusters::{Aabb, ClusteredMesh, TriangleClusters};
+pub use far_field::{FarField, FarLevels, MAX_FAR_LEVELS};
 pub use far_mesh::{FarMesh, FarMeshError};
 pub use half_space::{half_space_mask, half_space_mask_reference};
-pub use lod::{BatchOptions, HemiScene, scene_mask, scene_mask_with_counts};
+pub use lod::{BatchOptions, FarLevel, HemiScene, scene_mask, scene_mask_with_counts};
 pub use mask::{
     GRID, HemiMask, VALID_CELL_COUNT, cell_coordinate, cell_direction, cell_directions,
     is_valid_cell,
