@@ -25,6 +25,12 @@
 //! Without a far mesh every full-mesh triangle is rasterized and the radius is
 //! unused.
 //!
+//! With coarser levels ([`HemiScene::coarser`], made by
+//! [`FarField`](super::FarField)) the rule repeats outwards: each far level's
+//! triangle is rasterized when all its corners are beyond that level's radius
+//! and at least one is within the next level's (the coarsest has no outer
+//! bound), so every distance band has exactly one level.
+//!
 //! Speed: most triangles of a closed mesh lie below a receiver's horizon, and each
 //! is still read and culled. With [`TriangleClusters`] the triangles are grouped
 //! once into clusters of nearby triangles (a Morton order of their centroids), each
