@@ -70,6 +70,10 @@ pub struct TriangleClusters {
     pub(super) order: Vec<u32>,
     /// One box per cluster of `size` consecutive entries of `order`.
     pub(super) bounds: Vec<Aabb>,
+    /// One box per [`GROUP`] consecutive clusters (neighbours in the Morton
+    /// order), the union of theirs: a receiver skips a whole group with one
+    /// test, exactly when it would skip each of its clusters.
+    pub(super) group_bounds: Vec<Aabb>,
     /// Each cluster's triangles in chunks of at most [`CHUNK`], each with its
     /// own list of distinct vertices, so a receiver moves every vertex of a
     /// chunk into its frame once instead of once per corner: cluster `c`'s
@@ -91,6 +95,9 @@ pub(super) const CHUNK: usize = 32;
 
 /// The most distinct vertices a chunk can have.
 pub(super) const CHUNK_VERTICES: usize = 3 * CHUNK;
+
+/// Clusters per group of [`TriangleClusters::group_bounds`].
+pub(super) const GROUP: usize = 16;
 
 // The projection writes four vertices at a time.
 const _: () = assert!(CHUNK_VERTICES.is_multiple_of(4));
@@ -117,6 +124,7 @@ impl TriangleClusters {
             size: triangles_per_cluster.max(1),
             order: Vec::new(),
             bounds: Vec::new(),
+            group_bounds: Vec::new(),
             chunks: Vec::new(),
             cluster_chunks: Vec::new(),
             chunk_vertices: Vec::new(),
@@ -155,6 +163,9 @@ impl TriangleClusters {
         self.order.extend(keyed.iter().map(|&(_, t)| t));
         self.bounds.clear();
         self.bounds.resize(count.div_ceil(self.size), Aabb::EMPTY);
+        self.group_bounds.clear();
+        self.group_bounds
+            .resize(self.bounds.len().div_ceil(GROUP), Aabb::EMPTY);
         self.compute_bounds(mesh);
         self.build_chunks(mesh);
     }
@@ -240,6 +251,14 @@ impl TriangleClusters {
                 b.grow(r);
             }
             *bounds = b;
+        }
+        for (group, clusters) in self.group_bounds.iter_mut().zip(self.bounds.chunks(GROUP)) {
+            let mut b = Aabb::EMPTY;
+            for cluster in clusters {
+                b.grow(cluster.min);
+                b.grow(cluster.max);
+            }
+            *group = b;
         }
     }
 }

@@ -37,7 +37,11 @@
 //! cluster's bounding box is recomputed every frame ([`TriangleClusters::update`]),
 //! and a whole cluster is skipped when its box is at or below the receiver's
 //! tangent plane through the center of projection, or entirely inside (far mesh) or
-//! outside (full mesh) the near radius. The results are identical to the
+//! outside (full mesh) the near radius; groups of 16 neighbouring clusters are
+//! tested first on the union of their boxes, which fails every test any of its
+//! clusters would. Inside a box of cells that the mask already covers, a
+//! cone's exact rasterization adds nothing and is skipped. The results are
+//! identical to the
 //! unclustered loop, bit for bit: the box tests evaluate the same `f32` expressions
 //! as the per-triangle tests on the box corner that maximises them, and `f32`
 //! subtraction, multiplication by a fixed factor and addition are monotone, so a
@@ -83,7 +87,7 @@
 
 use glam::{Vec3, Vec4};
 
-use super::clusters::{CHUNK, CHUNK_VERTICES, Chunk, ClusteredMesh, TriangleClusters};
+use super::clusters::{Aabb, CHUNK, CHUNK_VERTICES, Chunk, ClusteredMesh, GROUP, TriangleClusters};
 use super::mask::HemiMask;
 use super::table::HalfSpaceTable;
 use super::triangle::classify_four;
@@ -421,41 +425,66 @@ fn mesh_loop<M: ConeMask>(
     };
     // The scaled normal: the same expression as the triangles' horizon test.
     let (n, o) = (acc.frame.normal, acc.receiver.origin);
-    for (c, bounds) in clusters.bounds.iter().enumerate() {
-        if bounds.below_plane(n, o) {
+    // Groups first: a group's box holds its clusters' boxes, so each test it
+    // fails, every cluster in it fails too (the tests are monotone in the box).
+    for (g, group) in clusters.group_bounds.iter().enumerate() {
+        let Some(group_select) = narrow(group, n, o, pass, select) else {
             continue;
-        }
-        let here = match select {
-            Select::All => Select::All,
-            Select::Near | Select::Far | Select::Band => {
-                let (near, far) = bounds.distance_range_sq(pass.position);
-                // Which of the two tests every corner passes or fails alike.
-                let needs_inner = select != Select::Near;
-                let needs_outer = select != Select::Far;
-                let (all_beyond_inner, all_within_inner) =
-                    (near > pass.inner_r2, far <= pass.inner_r2);
-                let (all_beyond_outer, all_within_outer) =
-                    (near > pass.outer_r2, far <= pass.outer_r2);
-                if (needs_inner && all_within_inner) || (needs_outer && all_beyond_outer) {
-                    // Every corner within the inner radius, or none within the outer.
-                    continue;
-                }
-                match (
-                    needs_inner && !all_beyond_inner,
-                    needs_outer && !all_within_outer,
-                ) {
-                    (false, false) => Select::All,
-                    (false, true) => Select::Near,
-                    (true, false) => Select::Far,
-                    (true, true) => Select::Band,
-                }
-            }
         };
-        let chunks = clusters.cluster_chunks[c] as usize..clusters.cluster_chunks[c + 1] as usize;
-        for chunk in &clusters.chunks[chunks] {
-            chunk_loop(view, clusters, chunk, acc, pass, here, projected);
+        let first = g * GROUP;
+        let last = (first + GROUP).min(clusters.bounds.len());
+        for c in first..last {
+            let Some(here) = narrow(&clusters.bounds[c], n, o, pass, group_select) else {
+                continue;
+            };
+            let chunks =
+                clusters.cluster_chunks[c] as usize..clusters.cluster_chunks[c + 1] as usize;
+            for chunk in &clusters.chunks[chunks] {
+                chunk_loop(view, clusters, chunk, acc, pass, here, projected);
+            }
         }
     }
+}
+
+/// What a receiver takes of the triangles in box `bounds` under `select`: `None`
+/// when none (the box at or below the tangent plane through `o` with scaled
+/// normal `n`, every corner within the inner radius, or none within the outer
+/// one), else the rule that still needs testing per triangle (`All` when every
+/// corner passes the distance tests alike).
+#[inline(always)]
+fn narrow<M: ConeMask>(
+    bounds: &Aabb,
+    n: Vec3,
+    o: Vec3,
+    pass: &Pass<M>,
+    select: Select,
+) -> Option<Select> {
+    if bounds.below_plane(n, o) {
+        return None;
+    }
+    if select == Select::All {
+        return Some(Select::All);
+    }
+    let (near, far) = bounds.distance_range_sq(pass.position);
+    // Which of the two tests every corner passes or fails alike.
+    let needs_inner = select != Select::Near;
+    let needs_outer = select != Select::Far;
+    let (all_beyond_inner, all_within_inner) = (near > pass.inner_r2, far <= pass.inner_r2);
+    let (all_beyond_outer, all_within_outer) = (near > pass.outer_r2, far <= pass.outer_r2);
+    if (needs_inner && all_within_inner) || (needs_outer && all_beyond_outer) {
+        return None;
+    }
+    Some(
+        match (
+            needs_inner && !all_beyond_inner,
+            needs_outer && !all_within_outer,
+        ) {
+            (false, false) => Select::All,
+            (false, true) => Select::Near,
+            (true, false) => Select::Far,
+            (true, true) => Select::Band,
+        },
+    )
 }
 
 /// The triangles of one chunk: its vertices moved into the receiver's frame
@@ -703,7 +732,11 @@ fn classify_batch<M: ConeMask>(
                 first_j[k] as usize,
                 last_j[k] as usize,
             );
-            TriangleCone::or_exact_in_box(local(k), cells, &mut acc.mask);
+            // Every cell the cone can set is in its box: when the box is
+            // already occluded, ORing the cone in changes nothing.
+            if !acc.mask.box_is_full(cells) {
+                TriangleCone::or_exact_in_box(local(k), cells, &mut acc.mask);
+            }
         }
         // The rest (wide or tiny cones, table planes): the one-triangle path.
         let mut rest = used & !settled & !exact;

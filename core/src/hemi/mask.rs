@@ -54,6 +54,17 @@ impl HemiMask {
     /// Every valid cell occluded: the cells whose centers satisfy `u² + v² < 1`.
     pub const VALID: HemiMask = HemiMask { rows: valid_rows() };
 
+    /// Whether every valid cell of the inclusive box `(i0, i1, j0, j1)` (inside
+    /// the grid) is set: a cone whose cells lie in the box then adds nothing.
+    #[inline]
+    pub(crate) fn box_is_full(&self, (i0, i1, j0, j1): (usize, usize, usize, usize)) -> bool {
+        let columns = ((2u64 << i1) - (1u64 << i0)) as u32;
+        (j0..=j1).all(|j| {
+            let wanted = columns & HemiMask::VALID.rows[j];
+            self.rows[j] & wanted == wanted
+        })
+    }
+
     /// Whether cell `(i, j)` is set; `false` outside the grid.
     #[inline]
     pub fn get(&self, i: usize, j: usize) -> bool {
@@ -362,6 +373,39 @@ const fn sqrt_of_integer(n: u64) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_box_is_full_when_each_valid_cell_in_it_is_set() {
+        let boxes = [
+            (0, 31, 0, 31),
+            (3, 9, 1, 4),
+            (14, 17, 14, 17),
+            (30, 31, 12, 19),
+            (5, 5, 7, 7),
+        ];
+        for (i0, i1, j0, j1) in boxes {
+            // The reference: every valid cell of the box, one by one.
+            let full = |mask: &HemiMask| {
+                (j0..=j1).all(|j| (i0..=i1).all(|i| !is_valid_cell(i, j) || mask.get(i, j)))
+            };
+            let mut mask = HemiMask::EMPTY;
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    mask.set(i, j, true);
+                }
+            }
+            assert!(mask.box_is_full((i0, i1, j0, j1)) && full(&mask));
+            assert!(HemiMask::VALID.box_is_full((i0, i1, j0, j1)));
+            // Clearing any valid cell of the box empties it.
+            for j in j0..=j1 {
+                for i in (i0..=i1).filter(|&i| is_valid_cell(i, j)) {
+                    let mut holed = mask;
+                    holed.set(i, j, false);
+                    assert!(!holed.box_is_full((i0, i1, j0, j1)) && !full(&holed));
+                }
+            }
+        }
+    }
 
     #[test]
     fn valid_cells_are_the_disk() {
