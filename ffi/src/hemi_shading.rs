@@ -45,15 +45,15 @@ use core::sync::atomic::Ordering;
 #[cfg(feature = "std")]
 use std::sync::{Mutex, PoisonError};
 
+use antumbra_core::MeshView;
 use antumbra_core::hemi::{
     BatchOptions, ClusteredMesh, FarField, FarLevels, HemiScene, MAX_FAR_LEVELS, Material,
-    PhongLobe, Quality, TransferLut, TransferMethod, TransferRotation, TransferSpace,
-    TransferTable, TriangleClusters, VertexShading, glossy_transfer, mirror_direction, scene_mask,
-    shade_diffuse, shade_glossy, shade_vertex, vertex_normals, vertex_transfer,
+    PhongLobe, Quality, TransferLut, TransferMethod, TransferSpace, TransferTable,
+    TriangleClusters, VertexShading, shade_vertex, shade_vertex_towards, vertex_normals,
+    vertex_transfer,
 };
 use antumbra_core::raycast::MAX_COORDINATE;
 use antumbra_core::sh::{Sh, ShRgb};
-use antumbra_core::{Frame, MeshView};
 use glam::Vec3;
 
 #[cfg(feature = "std")]
@@ -1161,38 +1161,6 @@ fn transfer_frame<const N: usize>(
     Ok(())
 }
 
-/// `shade_vertex` for a view direction instead of an eye point: the same steps in
-/// the same order (the tests hold the two equal bit for bit when the direction is
-/// `normalize_or_zero(eye - p)`).
-#[allow(clippy::too_many_arguments)]
-fn shade_towards<const N: usize>(
-    scene: &HemiScene<'_>,
-    position: Vec3,
-    normal: Vec3,
-    options: &BatchOptions<'_>,
-    method: TransferMethod<'_, N>,
-    lighting: &ShRgb<N>,
-    albedo: Vec3,
-    specular: Vec3,
-    lobe: Option<&PhongLobe>,
-    to_eye: Vec3,
-) -> VertexShading {
-    let mask = scene_mask(scene, position, normal, options);
-    let frame = Frame::from_normal(normal);
-    let rotation = TransferRotation::new(&frame);
-    let transfer = rotation.to_world(&method.transfer(&mask));
-    let diffuse = shade_diffuse(&transfer, lighting, albedo);
-    let glossy = match lobe {
-        Some(lobe) if specular != Vec3::ZERO => {
-            let mirror = frame.to_local(mirror_direction(normal, to_eye));
-            let g = glossy_transfer(method.table(), &mask, lobe, mirror);
-            shade_glossy(&rotation.to_world(&g), lighting, specular)
-        }
-        _ => Vec3::ZERO,
-    };
-    VertexShading { diffuse, glossy }
-}
-
 /// Where the shaded colours go; each NULL when not wanted.
 struct Outputs {
     rgb: *mut f32,
@@ -1237,31 +1205,22 @@ fn shade_frame<const N: usize>(
         let albedo = material
             .vertex_albedo
             .map_or(material.albedo, |a| Vec3::from_slice(&a[3 * v..]));
+        let surface = Material {
+            albedo,
+            specular: material.specular,
+            lobe,
+            eye: material.eye,
+        };
         out[0] = match material.view_directions {
-            None => shade_vertex(
+            None => shade_vertex(&scene, p, n, &options, method, &lighting, &surface),
+            Some(d) => shade_vertex_towards(
                 &scene,
                 p,
                 n,
                 &options,
                 method,
                 &lighting,
-                &Material {
-                    albedo,
-                    specular: material.specular,
-                    lobe,
-                    eye: material.eye,
-                },
-            ),
-            Some(d) => shade_towards(
-                &scene,
-                p,
-                n,
-                &options,
-                method,
-                &lighting,
-                albedo,
-                material.specular,
-                lobe,
+                &surface,
                 Vec3::from_slice(&d[3 * v..]),
             ),
         };

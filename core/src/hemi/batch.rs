@@ -161,6 +161,29 @@ pub fn shade_vertex<const N: usize>(
     lighting: &ShRgb<N>,
     material: &Material<'_>,
 ) -> VertexShading {
+    // A far eye (beyond about 1e19) must not overflow the squared length into
+    // a zero direction.
+    let to_eye = unit_or_zero(material.eye - position);
+    shade_vertex_towards(
+        scene, position, normal, options, method, lighting, material, to_eye,
+    )
+}
+
+/// [`shade_vertex`] for a viewer in the unit direction `to_eye` from the vertex
+/// (orthographic or per-vertex views) instead of at `material.eye`, which is not
+/// read: the same steps, so the same bits when `to_eye` is the direction
+/// `shade_vertex` computes. A zero `to_eye` gets no glossy term.
+#[allow(clippy::too_many_arguments)]
+pub fn shade_vertex_towards<const N: usize>(
+    scene: &HemiScene<'_>,
+    position: Vec3,
+    normal: Vec3,
+    options: &BatchOptions<'_>,
+    method: TransferMethod<'_, N>,
+    lighting: &ShRgb<N>,
+    material: &Material<'_>,
+    to_eye: Vec3,
+) -> VertexShading {
     let mask = scene_mask(scene, position, normal, options);
     let frame = crate::Frame::from_normal(normal);
     // One SH rotation per vertex, applied to the one or two local vectors: cheaper
@@ -170,9 +193,6 @@ pub fn shade_vertex<const N: usize>(
     let diffuse = shade_diffuse(&transfer, lighting, material.albedo);
     let glossy = match material.lobe {
         Some(lobe) if material.specular != Vec3::ZERO => {
-            // A far eye (beyond about 1e19) must not overflow the squared
-            // length into a zero direction.
-            let to_eye = unit_or_zero(material.eye - position);
             let mirror = frame.to_local(mirror_direction(normal, to_eye));
             let g = glossy_transfer(method.table(), &mask, lobe, mirror);
             shade_glossy(&rotation.to_world(&g), lighting, material.specular)

@@ -14,6 +14,18 @@
 //! the surface's error (about a cube edge) stays about a third of the distance
 //! at every level, which is what bounds the error of the shading, and each
 //! level's band of radii covers about the same number of its triangles.
+//!
+//! What it trades: with the finest level's cubes of edge `c`, a receiver
+//! rasterizes the full mesh within `3c`, then about the same number of
+//! triangles per level, so its work no longer grows with the mesh's area;
+//! on scanned meshes of 15k–89k triangles about 300–650 rasterized triangles
+//! per receiver instead of 900–5,200 with one far mesh of the same first level
+//! (`antumbra bench hemi --mesh FILE`, far mesh table). The price is error:
+//! vertex clustering closes holes and drops parts thinner than a cube, and the
+//! coarse levels' cubes are large, so the irradiance error against traced rays
+//! grows with the first two or three levels (on those meshes from 0.3–1.2 %
+//! with one level to 0.9–1.9 % with three) and little after. Three levels
+//! hold most of the gain.
 
 use alloc::vec::Vec;
 

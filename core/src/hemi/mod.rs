@@ -111,7 +111,7 @@ mod tests;
 
 pub use batch::{
     BatchError, Material, TransferSpace, VertexShading, shade_batch, shade_batch_split,
-    shade_vertex, transfer_batch, vertex_normals, vertex_transfer,
+    shade_vertex, shade_vertex_towards, transfer_batch, vertex_normals, vertex_transfer,
 };
 pub use clusters::{Aabb, ClusteredMesh, TriangleClusters};
 pub use far_field::{FarField, FarLevels, MAX_FAR_LEVELS};
