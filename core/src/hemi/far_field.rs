@@ -23,7 +23,7 @@
 //! (`antumbra bench hemi --mesh FILE`, far mesh table). The price is error:
 //! vertex clustering closes holes and drops parts thinner than a cube, and the
 //! coarse levels' cubes are large, so the irradiance error against traced rays
-//! grows with the first two or three levels (on those meshes from 0.3–1.2 %
+//! grows with the first two or three levels (on those meshes from 0.2–1.2 %
 //! with one level to 0.9–1.9 % with three) and little after. Three levels
 //! hold most of the gain.
 
