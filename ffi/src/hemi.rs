@@ -547,6 +547,7 @@ fn rasterize_batch(
         quality: settings.quality,
         cull_backfaces: settings.cull_backfaces,
         normal_offset: settings.normal_offset,
+        parallel: settings.parallel,
     };
     let one = |k: usize| {
         let (position, normal) = receivers.get(k);

@@ -49,8 +49,8 @@ use antumbra_core::MeshView;
 use antumbra_core::hemi::{
     BatchOptions, ClusteredMesh, FarField, FarLevels, HemiScene, MAX_FAR_LEVELS, Material,
     PhongLobe, Quality, TransferLut, TransferMethod, TransferSpace, TransferTable,
-    TriangleClusters, VertexShading, shade_vertex, shade_vertex_towards, vertex_normals,
-    vertex_transfer,
+    TriangleClusters, VertexShading, VertexSurface, shade_batch_per_vertex, transfer_batch,
+    vertex_normals,
 };
 use antumbra_core::raycast::MAX_COORDINATE;
 use antumbra_core::sh::{Sh, ShRgb};
@@ -465,6 +465,7 @@ impl Config {
             quality,
             cull_backfaces: self.cull_backfaces,
             normal_offset: self.normal_offset,
+            parallel: self.parallel,
         }
     }
 }
@@ -1095,41 +1096,6 @@ fn build_far_field(
     Ok((Some(field), config))
 }
 
-/// Whether a normal carries a receiver (core's batch rule: zero normals, such as
-/// computed ones of unused vertices, give zero results).
-#[inline]
-fn usable(normal: Vec3) -> bool {
-    normal.is_finite() && normal != Vec3::ZERO
-}
-
-/// Vertices per rayon task (as core's batches): a receiver costs tens of
-/// microseconds.
-#[cfg(feature = "std")]
-const VERTEX_GRAIN: usize = 16;
-
-/// `f(v, chunk)` for every chunk of `width` elements of `out`.
-fn for_each_chunk<T: Send>(
-    out: &mut [T],
-    width: usize,
-    parallel: bool,
-    f: impl Fn(usize, &mut [T]) + Sync + Send,
-) {
-    #[cfg(feature = "std")]
-    if parallel && out.len() > width {
-        use rayon::prelude::*;
-        out.par_chunks_exact_mut(width)
-            .enumerate()
-            .with_min_len(VERTEX_GRAIN)
-            .for_each(|(v, chunk)| f(v, chunk));
-        return;
-    }
-    // `check_options` refuses `parallel` in the bare-metal build.
-    let _ = parallel;
-    for (v, chunk) in out.chunks_exact_mut(width).enumerate() {
-        f(v, chunk);
-    }
-}
-
 fn transfer_frame<const N: usize>(
     workspace: &mut Workspace,
     config: &Config,
@@ -1141,23 +1107,9 @@ fn transfer_frame<const N: usize>(
     let options = config.batch_options(quality);
     let (meshes, normals, _, _) = workspace.frame(input, config.near_radius);
     let scene = meshes.scene();
-    let positions = input.mesh;
-    for_each_chunk(out, N, config.parallel, |v, chunk| {
-        let n = normals[v];
-        if usable(n) {
-            let t = vertex_transfer(
-                &scene,
-                positions.position(v),
-                n,
-                &options,
-                method,
-                config.space,
-            );
-            chunk.copy_from_slice(&t.coeffs);
-        } else {
-            chunk.fill(0.0);
-        }
-    });
+    let out = bytemuck::cast_slice_mut::<f32, [f32; N]>(out);
+    transfer_batch(&scene, normals, &options, method, config.space, out)
+        .expect("the frame's normals and outputs are one per vertex and its radius was checked");
     Ok(())
 }
 
@@ -1194,37 +1146,23 @@ fn shade_frame<const N: usize>(
     } else {
         None
     };
-    let positions = input.mesh;
-    for_each_chunk(shading, 1, config.parallel, |v, out| {
-        let n = normals[v];
-        if !usable(n) {
-            out[0] = VertexShading::default();
-            return;
-        }
-        let p = positions.position(v);
-        let albedo = material
-            .vertex_albedo
-            .map_or(material.albedo, |a| Vec3::from_slice(&a[3 * v..]));
-        let surface = Material {
-            albedo,
+    let surface = |v: usize| VertexSurface {
+        material: Material {
+            albedo: material
+                .vertex_albedo
+                .map_or(material.albedo, |a| Vec3::from_slice(&a[3 * v..])),
             specular: material.specular,
             lobe,
             eye: material.eye,
-        };
-        out[0] = match material.view_directions {
-            None => shade_vertex(&scene, p, n, &options, method, &lighting, &surface),
-            Some(d) => shade_vertex_towards(
-                &scene,
-                p,
-                n,
-                &options,
-                method,
-                &lighting,
-                &surface,
-                Vec3::from_slice(&d[3 * v..]),
-            ),
-        };
-    });
+        },
+        to_eye: material
+            .view_directions
+            .map(|d| Vec3::from_slice(&d[3 * v..])),
+    };
+    shade_batch_per_vertex(
+        &scene, normals, &options, method, &lighting, surface, shading,
+    )
+    .expect("the frame's normals and outputs are one per vertex and its radius was checked");
     let count = shading.len();
     // SAFETY: checked aligned and sized by `check_outputs`, disjoint from every
     // input and the other outputs; valid for writes by the caller's contract.

@@ -224,6 +224,7 @@ impl<'a> Reference<'a> {
             },
             cull_backfaces: raster.cull_backfaces == 1,
             normal_offset: raster.normal_offset,
+            parallel: raster.parallel == 1,
         }
     }
 

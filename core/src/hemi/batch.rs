@@ -222,18 +222,20 @@ fn check(scene: &HemiScene<'_>, normals: &[Vec3], out_len: usize) -> Result<(), 
     Ok(())
 }
 
-/// `out[v] = f(v)` for every vertex, in parallel with the `parallel` feature.
+/// `out[v] = f(v)` for every vertex, over rayon's pool when `parallel` is set
+/// and the `parallel` feature is on.
 #[inline]
-fn for_each_vertex<T: Send>(out: &mut [T], f: impl Fn(usize) -> T + Sync) {
+fn for_each_vertex<T: Send>(out: &mut [T], parallel: bool, f: impl Fn(usize) -> T + Sync) {
     #[cfg(feature = "parallel")]
-    {
+    if parallel {
         use rayon::prelude::*;
         out.par_iter_mut()
             .enumerate()
             .with_min_len(VERTEX_GRAIN)
             .for_each(|(v, o)| *o = f(v));
+        return;
     }
-    #[cfg(not(feature = "parallel"))]
+    let _ = parallel;
     for (v, o) in out.iter_mut().enumerate() {
         *o = f(v);
     }
@@ -244,22 +246,24 @@ fn for_each_vertex<T: Send>(out: &mut [T], f: impl Fn(usize) -> T + Sync) {
 #[cfg(feature = "parallel")]
 const VERTEX_GRAIN: usize = 16;
 
-/// Checks the arguments, then `out[v] = receiver(position, normal)` for every
-/// vertex whose normal is usable and `T::default()` (zero, black) for the rest.
-fn for_each_receiver<T: Send + Default>(
+/// Checks the arguments, then `out[v] = receiver(v, position, normal)` for every
+/// vertex whose normal is usable and `zero` (a zero vector, black) for the rest.
+fn for_each_receiver<T: Send + Copy + Sync>(
     scene: &HemiScene<'_>,
     normals: &[Vec3],
+    options: &BatchOptions<'_>,
     out: &mut [T],
-    receiver: impl Fn(Vec3, Vec3) -> T + Sync,
+    zero: T,
+    receiver: impl Fn(usize, Vec3, Vec3) -> T + Sync,
 ) -> Result<(), BatchError> {
     check(scene, normals, out.len())?;
     let mesh = scene.mesh.mesh;
-    for_each_vertex(out, |v| {
+    for_each_vertex(out, options.parallel, |v| {
         let n = normals[v];
         if usable(n) {
-            receiver(mesh.position(v), n)
+            receiver(v, mesh.position(v), n)
         } else {
-            T::default()
+            zero
         }
     });
     Ok(())
@@ -267,22 +271,30 @@ fn for_each_receiver<T: Send + Default>(
 
 /// Transfer vectors of every vertex of `scene.mesh`, each vertex a receiver with
 /// its normal from `normals` (unit length; zero or non-finite normals give a zero
-/// vector). `out[v]` in the requested `space`.
+/// vector). `out[v]` in the requested `space`, as an [`Sh`] or as its bare
+/// `[f32; N]` coefficients (a flat buffer seen through
+/// `bytemuck::cast_slice_mut`).
 ///
 /// Errors (nothing written): `normals` or `out` not one per vertex, a negative or
 /// NaN `near_radius`. Allocation-free; safe to call from several threads; with
-/// the `parallel` feature, spread over rayon's pool with identical results.
-pub fn transfer_batch<const N: usize>(
+/// `options.parallel` (and the `parallel` feature), spread over rayon's pool
+/// with identical results.
+pub fn transfer_batch<const N: usize, T: From<Sh<N>> + Copy + Send + Sync>(
     scene: &HemiScene<'_>,
     normals: &[Vec3],
     options: &BatchOptions<'_>,
     method: TransferMethod<'_, N>,
     space: TransferSpace,
-    out: &mut [Sh<N>],
+    out: &mut [T],
 ) -> Result<(), BatchError> {
-    for_each_receiver(scene, normals, out, |p, n| {
-        vertex_transfer(scene, p, n, options, method, space)
-    })
+    for_each_receiver(
+        scene,
+        normals,
+        options,
+        out,
+        T::from(Sh::ZERO),
+        |_, p, n| T::from(vertex_transfer(scene, p, n, options, method, space)),
+    )
 }
 
 /// Outgoing radiance (diffuse + glossy, linear RGB) of every vertex of
@@ -299,7 +311,7 @@ pub fn shade_batch<const N: usize>(
     material: &Material<'_>,
     out: &mut [Vec3],
 ) -> Result<(), BatchError> {
-    for_each_receiver(scene, normals, out, |p, n| {
+    for_each_receiver(scene, normals, options, out, Vec3::ZERO, |_, p, n| {
         let s = shade_vertex(scene, p, n, options, method, lighting, material);
         s.diffuse + s.glossy
     })
@@ -315,7 +327,42 @@ pub fn shade_batch_split<const N: usize>(
     material: &Material<'_>,
     out: &mut [VertexShading],
 ) -> Result<(), BatchError> {
-    for_each_receiver(scene, normals, out, |p, n| {
+    let zero = VertexShading::default();
+    for_each_receiver(scene, normals, options, out, zero, |_, p, n| {
         shade_vertex(scene, p, n, options, method, lighting, material)
+    })
+}
+
+/// One vertex's surface and viewer for [`shade_batch_per_vertex`].
+#[derive(Clone, Copy, Debug)]
+pub struct VertexSurface<'a> {
+    /// The vertex's material (its `eye` is read only without `to_eye`).
+    pub material: Material<'a>,
+    /// The unit direction from the vertex towards the viewer
+    /// ([`shade_vertex_towards`]), or `None` for the direction to
+    /// `material.eye` ([`shade_vertex`]).
+    pub to_eye: Option<Vec3>,
+}
+
+/// [`shade_batch_split`] with a material and viewer per vertex, `surface(v)`
+/// (per-vertex albedo, orthographic or per-vertex views).
+///
+/// Errors, allocation and threading as [`transfer_batch`].
+pub fn shade_batch_per_vertex<'a, const N: usize>(
+    scene: &HemiScene<'_>,
+    normals: &[Vec3],
+    options: &BatchOptions<'_>,
+    method: TransferMethod<'_, N>,
+    lighting: &ShRgb<N>,
+    surface: impl Fn(usize) -> VertexSurface<'a> + Sync,
+    out: &mut [VertexShading],
+) -> Result<(), BatchError> {
+    let zero = VertexShading::default();
+    for_each_receiver(scene, normals, options, out, zero, |v, p, n| {
+        let VertexSurface { material, to_eye } = surface(v);
+        match to_eye {
+            None => shade_vertex(scene, p, n, options, method, lighting, &material),
+            Some(d) => shade_vertex_towards(scene, p, n, options, method, lighting, &material, d),
+        }
     })
 }

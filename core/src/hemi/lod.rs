@@ -163,15 +163,22 @@ pub struct BatchOptions<'a> {
     /// Center of projection `p + normal_offset * n` (see
     /// [`RasterOptions::normal_offset`](super::RasterOptions::normal_offset)).
     pub normal_offset: f32,
+    /// Spread the vertices of the batch functions ([`transfer_batch`](super::transfer_batch)
+    /// and the `shade_batch*` ones) over rayon's pool. Results are identical
+    /// either way. Only the `parallel` feature has a pool; without it the flag
+    /// is ignored.
+    pub parallel: bool,
 }
 
 impl Default for BatchOptions<'_> {
-    /// Exact quality, no culling, no offset.
+    /// Exact quality, no culling, no offset; on the pool when the `parallel`
+    /// feature is on.
     fn default() -> Self {
         BatchOptions {
             quality: Quality::Exact,
             cull_backfaces: false,
             normal_offset: 0.0,
+            parallel: cfg!(feature = "parallel"),
         }
     }
 }
@@ -861,9 +868,9 @@ fn take<M: ConeMask>(
 mod tests {
     use super::*;
     use crate::hemi::{
-        BatchError, Material, PhongLobe, TransferMethod, TransferSpace, VertexShading, shade_batch,
-        shade_batch_split, shade_diffuse, shade_vertex, transfer_batch, vertex_normals,
-        vertex_transfer,
+        BatchError, Material, PhongLobe, TransferMethod, TransferSpace, VertexShading,
+        VertexSurface, shade_batch, shade_batch_per_vertex, shade_batch_split, shade_diffuse,
+        shade_vertex, shade_vertex_towards, transfer_batch, vertex_normals, vertex_transfer,
     };
     use crate::hemi::{
         HalfSpaceTable, RasterOptions, TransferTable, rasterize_receiver, rasterize_triangles_into,
@@ -1095,6 +1102,7 @@ mod tests {
                         quality,
                         cull_backfaces,
                         normal_offset: 0.003,
+                        ..BatchOptions::default()
                     };
                     for radius in [f32::INFINITY, 0.5] {
                         let plain = HemiScene::with_far(
@@ -1228,6 +1236,50 @@ mod tests {
             &scene, &normals, &options, method, &light, &material, &mut split,
         )
         .unwrap();
+        // The other side of `parallel`, the bare-array output and per-vertex
+        // surfaces give the same bits.
+        let flipped = BatchOptions {
+            parallel: !options.parallel,
+            ..options
+        };
+        let mut arrays = vec![[f32::NAN; 9]; count];
+        transfer_batch(
+            &scene,
+            &normals,
+            &flipped,
+            method,
+            TransferSpace::World,
+            &mut arrays,
+        )
+        .unwrap();
+        assert!(arrays.iter().zip(&transfers).all(|(a, t)| *a == t.coeffs));
+        let mut per_vertex = vec![VertexShading::default(); count];
+        let surface = |v: usize| VertexSurface {
+            material,
+            to_eye: (v % 2 == 1).then(|| (material.eye - mesh.position(v)).normalize_or_zero()),
+        };
+        shade_batch_per_vertex(
+            &scene,
+            &normals,
+            &flipped,
+            method,
+            &light,
+            surface,
+            &mut per_vertex,
+        )
+        .unwrap();
+        for v in 0..count {
+            let (p, n) = (mesh.position(v), normals[v]);
+            if v != 3 && v % 2 == 1 {
+                let to_eye = (material.eye - p).normalize_or_zero();
+                let towards =
+                    shade_vertex_towards(&scene, p, n, &options, method, &light, &material, to_eye);
+                assert_eq!(per_vertex[v], towards);
+                assert_eq!(towards, split[v]);
+            } else {
+                assert_eq!(per_vertex[v], split[v]);
+            }
+        }
         for v in 0..count {
             let (p, n) = (mesh.position(v), normals[v]);
             if v == 3 {

@@ -110,8 +110,9 @@ mod triangle;
 mod tests;
 
 pub use batch::{
-    BatchError, Material, TransferSpace, VertexShading, shade_batch, shade_batch_split,
-    shade_vertex, shade_vertex_towards, transfer_batch, vertex_normals, vertex_transfer,
+    BatchError, Material, TransferSpace, VertexShading, VertexSurface, shade_batch,
+    shade_batch_per_vertex, shade_batch_split, shade_vertex, shade_vertex_towards, transfer_batch,
+    vertex_normals, vertex_transfer,
 };
 pub use clusters::{Aabb, ClusteredMesh, TriangleClusters};
 pub use far_field::{FarField, FarLevels, MAX_FAR_LEVELS};

@@ -175,6 +175,14 @@ pub struct Sh<const N: usize> {
     pub coeffs: [f32; N],
 }
 
+impl<const N: usize> From<Sh<N>> for [f32; N] {
+    /// The coefficients.
+    #[inline]
+    fn from(sh: Sh<N>) -> Self {
+        sh.coeffs
+    }
+}
+
 /// One band (a constant function).
 pub type Sh1 = Sh<1>;
 /// Two bands (lmax 1).
