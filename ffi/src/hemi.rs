@@ -19,8 +19,8 @@ use std::sync::{Mutex, OnceLock, PoisonError};
 
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
-    self, BatchOptions, HalfSpaceTable, HemiMask, HemiScene, Quality, RasterOptions,
-    TriangleClusters, VALID_CELL_COUNT, rasterize_receiver, scene_mask,
+    self, BatchOptions, ClusteredMesh, HalfSpaceTable, HemiMask, HemiScene, Quality,
+    TriangleClusters, VALID_CELL_COUNT, mask_batch,
 };
 use antumbra_core::raycast::MAX_COORDINATE;
 use glam::Vec3;
@@ -379,11 +379,6 @@ pub(crate) fn unsupported_parallel(argument: &str) -> Error {
     )
 }
 
-/// Receivers per rayon task: one receiver costs microseconds (every triangle is
-/// read and culled), so small tasks balance well and still amortise scheduling.
-#[cfg(feature = "std")]
-const PARALLEL_GRAIN: usize = 4;
-
 /// Hemisphere masks of a batch of receivers against every triangle of `mesh`.
 ///
 /// For receiver k at `receiver_positions[3k..3k+3]` with unit normal
@@ -536,38 +531,17 @@ fn rasterize_batch(
     let mut clusters = (cfg!(feature = "std")
         && worth_clustering(out.len(), mesh.triangle_count()))
     .then(|| TriangleClusters::new(mesh, TriangleClusters::DEFAULT_SIZE));
-    let scene = clusters.as_mut().map(|c| HemiScene::new(c.update(*mesh)));
-    let options = RasterOptions {
-        quality: settings.quality,
-        cull_backfaces: settings.cull_backfaces,
-        normal_offset: settings.normal_offset,
-        skip_triangles: &[],
-    };
-    let batch_options = BatchOptions {
+    let scene = HemiScene::new(match clusters.as_mut() {
+        Some(c) => c.update(*mesh),
+        None => ClusteredMesh::unclustered(*mesh),
+    });
+    let options = BatchOptions {
         quality: settings.quality,
         cull_backfaces: settings.cull_backfaces,
         normal_offset: settings.normal_offset,
         parallel: settings.parallel,
     };
-    let one = |k: usize| {
-        let (position, normal) = receivers.get(k);
-        antumbra_hemi_mask::from(match &scene {
-            Some(scene) => scene_mask(scene, position, normal, &batch_options),
-            None => rasterize_receiver(mesh, position, normal, &options),
-        })
-    };
-    #[cfg(feature = "std")]
-    if settings.parallel && out.len() > 1 {
-        use rayon::prelude::*;
-        out.par_iter_mut()
-            .enumerate()
-            .with_min_len(PARALLEL_GRAIN)
-            .for_each(|(k, mask)| *mask = one(k));
-        return;
-    }
-    for (k, mask) in out.iter_mut().enumerate() {
-        *mask = one(k);
-    }
+    mask_batch(&scene, |k| receivers.get(k), &options, out);
 }
 
 /// Receiver positions and normals, validated once.

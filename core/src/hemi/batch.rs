@@ -9,6 +9,7 @@ use core::fmt;
 use glam::Vec3;
 
 use super::lod::{BatchOptions, HemiScene, scene_mask};
+use super::mask::HemiMask;
 use super::shading::{PhongLobe, glossy_transfer, mirror_direction, shade_glossy};
 use super::transfer::{TransferMethod, TransferRotation, shade_diffuse};
 use crate::geom::{MeshView, unit_or_zero};
@@ -267,6 +268,24 @@ fn for_each_receiver<T: Send + Copy + Sync>(
         }
     });
     Ok(())
+}
+
+/// The masks of `out.len()` receivers against `scene`: receiver `k` at
+/// `receiver(k)`, a position and a unit normal (the vertex the near/far rule
+/// measures from, and the normal the center of projection is lifted along).
+/// `out[k]` is the mask or anything made from it. Allocation-free; with
+/// `options.parallel` (and the `parallel` feature), spread over rayon's pool
+/// with identical results.
+pub fn mask_batch<T: From<HemiMask> + Send>(
+    scene: &HemiScene<'_>,
+    receiver: impl Fn(usize) -> (Vec3, Vec3) + Sync,
+    options: &BatchOptions<'_>,
+    out: &mut [T],
+) {
+    for_each_vertex(out, options.parallel, |k| {
+        let (position, normal) = receiver(k);
+        T::from(scene_mask(scene, position, normal, options))
+    });
 }
 
 /// Transfer vectors of every vertex of `scene.mesh`, each vertex a receiver with

@@ -236,6 +236,11 @@ pub fn scene_mask_with_counts(
 ) -> (HemiMask, TriangleCounts) {
     let receiver = Receiver::new(position, normal, options.normal_offset);
     let cull = options.cull_backfaces;
+    if scene.far.is_none() && !scene.mesh.is_clustered() {
+        // One mesh without clusters: the plain rasterizer's batched loop (the
+        // same expressions, so the same bits and counts).
+        return rasterize_mesh_batched(&scene.mesh.mesh, &receiver, &[], cull, options.quality);
+    }
     // One loop per quality so the per-triangle work is monomorphic.
     match options.quality {
         Quality::Exact => scene_loop(scene, &receiver, position, cull, ExactCones),
@@ -869,8 +874,9 @@ mod tests {
     use super::*;
     use crate::hemi::{
         BatchError, Material, PhongLobe, TransferMethod, TransferSpace, VertexShading,
-        VertexSurface, shade_batch, shade_batch_per_vertex, shade_batch_split, shade_diffuse,
-        shade_vertex, shade_vertex_towards, transfer_batch, vertex_normals, vertex_transfer,
+        VertexSurface, mask_batch, shade_batch, shade_batch_per_vertex, shade_batch_split,
+        shade_diffuse, shade_vertex, shade_vertex_towards, transfer_batch, vertex_normals,
+        vertex_transfer,
     };
     use crate::hemi::{
         HalfSpaceTable, RasterOptions, TransferTable, rasterize_receiver, rasterize_triangles_into,
@@ -1189,6 +1195,34 @@ mod tests {
         }
         // Triangles of skipped clusters are not even read (measured: 36 %).
         assert!(seen * 2 < total, "{seen} of {total} triangles read");
+    }
+
+    #[test]
+    fn mask_batches_are_scene_masks_on_and_off_the_pool() {
+        let (positions, indices) = twisted_sphere(12, 18, 0.5);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let normals = normals_of(&mesh);
+        let mut clusters = TriangleClusters::new(&mesh, 16);
+        let clustered = clusters.update(mesh);
+        for scene in [
+            HemiScene::new(ClusteredMesh::unclustered(mesh)),
+            HemiScene::new(clustered),
+        ] {
+            for parallel in [false, true] {
+                let options = BatchOptions {
+                    normal_offset: 0.01,
+                    parallel,
+                    ..BatchOptions::default()
+                };
+                let receiver = |k: usize| (mesh.position(k), normals[k]);
+                let mut out = vec![HemiMask::VALID; mesh.vertex_count()];
+                mask_batch(&scene, receiver, &options, &mut out);
+                for (k, mask) in out.iter().enumerate() {
+                    let (p, n) = receiver(k);
+                    assert_eq!(*mask, scene_mask(&scene, p, n, &options), "receiver {k}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -110,7 +110,7 @@ mod triangle;
 mod tests;
 
 pub use batch::{
-    BatchError, Material, TransferSpace, VertexShading, VertexSurface, shade_batch,
+    BatchError, Material, TransferSpace, VertexShading, VertexSurface, mask_batch, shade_batch,
     shade_batch_per_vertex, shade_batch_split, shade_vertex, shade_vertex_towards, transfer_batch,
     vertex_normals, vertex_transfer,
 };
