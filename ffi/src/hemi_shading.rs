@@ -36,7 +36,6 @@
 //! whichever thread computed it.
 
 use alloc::boxed::Box;
-use alloc::vec::Vec;
 use core::any::Any;
 use core::ptr::NonNull;
 #[cfg(feature = "std")]
@@ -47,10 +46,9 @@ use std::sync::{Mutex, PoisonError};
 
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
-    BatchOptions, ClusteredMesh, FarField, FarLevels, HemiScene, MAX_FAR_LEVELS, Material,
-    PhongLobe, Quality, TransferLut, TransferMethod, TransferSpace, TransferTable,
-    TriangleClusters, VertexShading, VertexSurface, shade_batch_per_vertex, transfer_batch,
-    vertex_normals,
+    BatchOptions, FarFieldSetup, HemiShader, MAX_FAR_LEVELS, Material, PhongLobe, Quality,
+    ShaderError, ShaderFrame, ShaderSetup, TransferLut, TransferMethod, TransferSpace,
+    TransferTable, VertexSurface,
 };
 use antumbra_core::raycast::MAX_COORDINATE;
 use antumbra_core::sh::{Sh, ShRgb};
@@ -886,167 +884,89 @@ fn lighting_rgb<const N: usize>(l: &[f32]) -> ShRgb<N> {
 // The per-frame work
 // ---------------------------------------------------------------------------
 
-/// Memory reused from frame to frame.
+/// Memory reused from frame to frame: core's shader (clusters, far field,
+/// normals and shading buffers) and the glossy lobe of the last exponent used
+/// (4 KB; a shader allocates it at creation and rebuilds it in place when the
+/// exponent changes; one-shot calls build the one they need).
 struct Workspace {
-    normals: Vec<Vec3>,
-    /// One entry per vertex when shading, empty for transfer-only work.
-    shading: Vec<VertexShading>,
-    /// The glossy lobe of the last exponent used (4 KB): a shader allocates it at
-    /// creation and rebuilds it in place when the exponent changes; one-shot
-    /// calls build the one they need.
+    shader: HemiShader,
     lobe: Option<Box<PhongLobe>>,
-    clusters: Option<TriangleClusters>,
-    far_clusters: Option<TriangleClusters>,
-    /// The library's own far field (`far_triangles`, `far_levels`), posed from
-    /// each frame's mesh; it groups its own levels' clusters.
-    far_field: Option<FarField>,
-}
-
-fn reserve<T: Clone>(count: usize, value: T, what: &str) -> Result<Vec<T>, Error> {
-    let mut v = Vec::new();
-    v.try_reserve_exact(count).map_err(|e| {
-        Error::new(
-            ANTUMBRA_RESULT_OUT_OF_MEMORY,
-            message!(
-                "no memory for {what} of {count} vertices ({} bytes): {e}",
-                count.saturating_mul(core::mem::size_of::<T>())
-            ),
-        )
-    })?;
-    v.resize(count, value);
-    Ok(v)
 }
 
 impl Workspace {
-    fn new(vertex_count: usize, shading: bool, exponent: Option<f32>) -> Result<Self, Error> {
-        Ok(Workspace {
-            normals: reserve(vertex_count, Vec3::ZERO, "the normals")?,
-            shading: if shading {
-                reserve(vertex_count, VertexShading::default(), "the shading")?
-            } else {
-                Vec::new()
-            },
-            lobe: match exponent {
-                Some(s) => Some(fallible::boxed(
-                    PhongLobe::new(s).expect("a checked exponent"),
-                    "a Phong lobe",
-                )?),
-                None => None,
-            },
-            clusters: None,
-            far_clusters: None,
-            far_field: None,
-        })
+    /// Core's shader for `config` and this frame's meshes, after the checks
+    /// only the C API makes (a caller's far mesh together with `far_triangles`,
+    /// `far_triangles` in the bare-metal build).
+    fn new(
+        config: &Config,
+        input: &FrameInput<'_>,
+        clusters: bool,
+        shading: bool,
+        exponent: Option<f32>,
+    ) -> Result<Self, Error> {
+        let setup = ShaderSetup {
+            clusters,
+            far_field: far_field_setup(config, input)?,
+            near_radius: config.near_radius,
+            shading,
+        };
+        let shader = HemiShader::new(&input.mesh, input.far.as_ref(), &setup)
+            .map_err(|e| shader_error(config, input, e))?;
+        let lobe = match exponent {
+            Some(s) => Some(fallible::boxed(
+                PhongLobe::new(s).expect("a checked exponent"),
+                "a Phong lobe",
+            )?),
+            None => None,
+        };
+        Ok(Workspace { shader, lobe })
     }
 
-    /// For a one-shot call: groups the triangles of the mesh (and far mesh) into
-    /// clusters when the call has enough receivers to pay for it (the same results).
-    fn cluster_if_worth_it(&mut self, input: &FrameInput<'_>) {
-        // The bare-metal build never groups (grouping allocates; see hemi.rs).
-        if !cfg!(feature = "std")
-            || !worth_clustering(input.mesh.vertex_count(), input.mesh.triangle_count())
-        {
-            return;
-        }
-        self.clusters = Some(TriangleClusters::new(
-            &input.mesh,
-            TriangleClusters::DEFAULT_SIZE,
-        ));
-        self.far_clusters = input
-            .far
-            .map(|far| TriangleClusters::new(&far, TriangleClusters::DEFAULT_SIZE));
-    }
-
-    /// Fills `normals` from the caller's or computes them; returns the meshes of
-    /// this frame (with the cluster boxes updated and the library's far field
-    /// posed) and the normals.
+    /// This frame: everything posed from `input`'s meshes, the normals filled.
     fn frame<'a>(
         &'a mut self,
+        config: &Config,
         input: &FrameInput<'a>,
-        near_radius: f32,
-    ) -> (
-        FrameMeshes<'a>,
-        &'a [Vec3],
-        &'a mut [VertexShading],
-        &'a mut Option<Box<PhongLobe>>,
-    ) {
-        let Workspace {
-            normals,
-            shading,
-            lobe,
-            clusters,
-            far_clusters,
-            far_field,
-        } = self;
-        let levels = far_field.as_mut().map(|field| {
-            field
-                .pose(&input.mesh)
-                .expect("the frame's vertex count was checked against the shader's")
-        });
-        match input.normals {
-            Some(given) => {
-                for (v, n) in normals.iter_mut().enumerate() {
-                    *n = Vec3::from_slice(&given[3 * v..]);
-                }
-            }
-            None => {
-                vertex_normals(&input.mesh, normals)
-                    .expect("the workspace holds one normal per vertex");
-            }
-        }
-        let mesh = match clusters {
-            Some(c) => c.update(input.mesh),
-            None => ClusteredMesh::unclustered(input.mesh),
-        };
-        // A match, not `Option::map`: Rust 1.88, the declared minimum, does not
-        // accept the closure's borrow of `far_clusters`.
-        let far = match (input.far, far_clusters) {
-            (Some(far), Some(c)) => Some(c.update(far)),
-            (Some(far), None) => Some(ClusteredMesh::unclustered(far)),
-            (None, _) => None,
-        };
-        let meshes = FrameMeshes {
-            mesh,
-            far,
-            levels,
-            near_radius,
-        };
-        (meshes, normals, shading, lobe)
+    ) -> Result<(ShaderFrame<'a>, &'a mut Option<Box<PhongLobe>>), Error> {
+        let vertex_count = input.mesh.vertex_count();
+        let normals = input
+            .normals
+            .map(|n| bytemuck::cast_slice::<f32, [f32; 3]>(&n[..3 * vertex_count]));
+        let frame = self
+            .shader
+            .frame(input.mesh, normals, input.far)
+            .map_err(|e| shader_error(config, input, e))?;
+        Ok((frame, &mut self.lobe))
     }
 }
 
-/// One frame's occluders: the full mesh, and the caller's far mesh or the
-/// library's far levels.
-struct FrameMeshes<'a> {
-    mesh: ClusteredMesh<'a>,
-    far: Option<ClusteredMesh<'a>>,
-    levels: Option<FarLevels<'a>>,
-    near_radius: f32,
-}
-
-impl FrameMeshes<'_> {
-    fn scene(&self) -> HemiScene<'_> {
-        match &self.levels {
-            Some(levels) => levels.scene(self.mesh),
-            None => HemiScene {
-                mesh: self.mesh,
-                far: self.far,
-                near_radius: self.near_radius,
-                coarser: &[],
-            },
-        }
+/// The C message of a shader error (the arguments were checked before, so only
+/// the far field and memory are expected to fail here).
+fn shader_error(config: &Config, input: &FrameInput<'_>, e: ShaderError) -> Error {
+    match e {
+        ShaderError::FarField(e) => Error::invalid(message!(
+            "options->far_triangles is {}: {e}",
+            config.far_triangles
+        )),
+        ShaderError::OutOfMemory { what, bytes } => Error::new(
+            ANTUMBRA_RESULT_OUT_OF_MEMORY,
+            message!(
+                "no memory for {what} of {} vertices ({bytes} bytes)",
+                input.mesh.vertex_count()
+            ),
+        ),
+        e => Error::invalid(message!("{e}")),
     }
 }
 
-/// The library's far field of this frame's mesh when `config.far_triangles` asks
-/// for one (refused together with a caller's far mesh), and the options with the
-/// near radius it implies.
-fn build_far_field(
+/// The library's far field that `config.far_triangles` asks for, if any
+/// (refused together with a caller's far mesh, and in the bare-metal build).
+fn far_field_setup(
     config: &Config,
     input: &FrameInput<'_>,
-) -> Result<(Option<FarField>, Config), Error> {
+) -> Result<Option<FarFieldSetup>, Error> {
     if config.far_triangles == 0 {
-        return Ok((None, *config));
+        return Ok(None);
     }
     if input.far.is_some() {
         return Err(Error::invalid(message!(
@@ -1080,20 +1000,10 @@ fn build_far_field(
             ),
         ));
     }
-    let mut field =
-        FarField::new(&input.mesh, config.far_triangles, config.far_levels).map_err(|e| {
-            Error::invalid(message!(
-                "options->far_triangles is {}: {e}",
-                config.far_triangles
-            ))
-        })?;
-    let mut config = *config;
-    if config.near_radius.is_finite() {
-        field.set_near_radius(config.near_radius);
-    } else {
-        config.near_radius = field.near_radius(0);
-    }
-    Ok((Some(field), config))
+    Ok(Some(FarFieldSetup {
+        triangles: config.far_triangles,
+        levels: config.far_levels,
+    }))
 }
 
 fn transfer_frame<const N: usize>(
@@ -1105,11 +1015,11 @@ fn transfer_frame<const N: usize>(
 ) -> Result<(), Error> {
     let method = transfer_method::<N>(config.method)?;
     let options = config.batch_options(quality);
-    let (meshes, normals, _, _) = workspace.frame(input, config.near_radius);
-    let scene = meshes.scene();
+    let (frame, _) = workspace.frame(config, input)?;
     let out = bytemuck::cast_slice_mut::<f32, [f32; N]>(out);
-    transfer_batch(&scene, normals, &options, method, config.space, out)
-        .expect("the frame's normals and outputs are one per vertex and its radius was checked");
+    frame
+        .transfer(&options, method, config.space, out)
+        .expect("the output holds one vector per vertex");
     Ok(())
 }
 
@@ -1132,8 +1042,7 @@ fn shade_frame<const N: usize>(
     let method = transfer_method::<N>(config.method)?;
     let options = config.batch_options(quality);
     let lighting = lighting_rgb::<N>(lighting);
-    let (meshes, normals, shading, lobe) = workspace.frame(input, config.near_radius);
-    let scene = meshes.scene();
+    let (mut frame, lobe) = workspace.frame(config, input)?;
     let lobe: Option<&PhongLobe> = if material.glossy() {
         let exponent = material.exponent;
         let new_lobe = || PhongLobe::new(exponent).expect("the exponent was checked to be >= 0");
@@ -1159,10 +1068,9 @@ fn shade_frame<const N: usize>(
             .view_directions
             .map(|d| Vec3::from_slice(&d[3 * v..])),
     };
-    shade_batch_per_vertex(
-        &scene, normals, &options, method, &lighting, surface, shading,
-    )
-    .expect("the frame's normals and outputs are one per vertex and its radius was checked");
+    let shading = frame
+        .shade(&options, method, &lighting, surface)
+        .expect("a shader set up for shading holds one entry per vertex");
     let count = shading.len();
     // SAFETY: checked aligned and sized by `check_outputs`, disjoint from every
     // input and the other outputs; valid for writes by the caller's contract.
@@ -1322,21 +1230,11 @@ pub unsafe extern "C" fn antumbra_hemi_shader_create(
         let config = unsafe { read_shading_options(options) }?;
         // SAFETY: caller contract on the meshes.
         let input = unsafe { read_frame(mesh, core::ptr::null(), far_mesh) }?;
-        let (built, config) = build_far_field(&config, &input)?;
         // SAFETY: a user table is alive by the caller's contract.
         unsafe { config.quality() }?;
         with_coefficients!(config.bands, prepare_tables(&config))?;
-        let mut workspace =
-            Workspace::new(input.mesh.vertex_count(), true, Some(DEFAULT_EXPONENT))?;
-        workspace.clusters = Some(TriangleClusters::new(
-            &input.mesh,
-            TriangleClusters::DEFAULT_SIZE,
-        ));
-        workspace.far_clusters = input
-            .far
-            .map(|far| TriangleClusters::new(&far, TriangleClusters::DEFAULT_SIZE));
-        let builds_far = built.is_some();
-        workspace.far_field = built;
+        let workspace = Workspace::new(&config, &input, true, true, Some(DEFAULT_EXPONENT))?;
+        let builds_far = workspace.shader.far_field().is_some();
         let shader = Box::new(antumbra_hemi_shader {
             config,
             vertex_count: input.mesh.vertex_count(),
@@ -1481,18 +1379,10 @@ pub unsafe extern "C" fn antumbra_hemi_shader_regroup(
             // SAFETY: caller contract on the meshes.
             let input = unsafe { read_frame(mesh, core::ptr::null(), far_mesh) }?;
             shader.check_topology(&input)?;
-            if let Some(clusters) = workspace.clusters.as_mut() {
-                clusters.reorder(&input.mesh);
-            }
-            if let (Some(far), Some(clusters)) = (input.far, workspace.far_clusters.as_mut()) {
-                clusters.reorder(&far);
-            }
-            if let Some(field) = workspace.far_field.as_mut() {
-                field
-                    .regroup(&input.mesh)
-                    .expect("the vertex count was checked against the shader's");
-            }
-            Ok(())
+            workspace
+                .shader
+                .regroup(&input.mesh, input.far.as_ref())
+                .map_err(|e| shader_error(&shader.config, &input, e))
         },
     )
 }
@@ -1671,17 +1561,13 @@ unsafe fn transfer_call(
     }
     // SAFETY: a user table is alive by the caller's contract.
     let quality = unsafe { config.quality() }?;
-    let one_shot_config;
     let mut fresh;
-    let (workspace, config) = match workspace {
-        Some(workspace) => (workspace, config),
+    let workspace = match workspace {
+        Some(workspace) => workspace,
         None => {
-            let (built, with_far) = build_far_field(config, &input)?;
-            one_shot_config = with_far;
-            fresh = Workspace::new(input.mesh.vertex_count(), false, None)?;
-            fresh.far_field = built;
-            fresh.cluster_if_worth_it(&input);
-            (&mut fresh, &one_shot_config)
+            let clusters = worth_it(&input);
+            fresh = Workspace::new(config, &input, clusters, false, None)?;
+            &mut fresh
         }
     };
     // SAFETY: checked aligned and sized; disjoint from every input by the check
@@ -1724,21 +1610,14 @@ unsafe fn shade_call(
     }
     // SAFETY: a user table is alive by the caller's contract.
     let quality = unsafe { config.quality() }?;
-    let one_shot_config;
     let mut fresh;
-    let (workspace, config) = match workspace {
-        Some(workspace) => (workspace, config),
+    let workspace = match workspace {
+        Some(workspace) => workspace,
         None => {
-            let (built, with_far) = build_far_field(config, &input)?;
-            one_shot_config = with_far;
-            fresh = Workspace::new(
-                vertex_count,
-                true,
-                material.glossy().then_some(material.exponent),
-            )?;
-            fresh.far_field = built;
-            fresh.cluster_if_worth_it(&input);
-            (&mut fresh, &one_shot_config)
+            let exponent = material.glossy().then_some(material.exponent);
+            let clusters = worth_it(&input);
+            fresh = Workspace::new(config, &input, clusters, true, exponent)?;
+            &mut fresh
         }
     };
     with_coefficients!(
@@ -1747,6 +1626,14 @@ unsafe fn shade_call(
             workspace, config, quality, &input, lighting, &material, outputs
         )
     )
+}
+
+/// Whether a one-shot call groups the triangles of its meshes into clusters:
+/// when it has enough receivers to pay for it (the same results). The
+/// bare-metal build never groups (grouping allocates; see hemi.rs).
+fn worth_it(input: &FrameInput<'_>) -> bool {
+    cfg!(feature = "std")
+        && worth_clustering(input.mesh.vertex_count(), input.mesh.triangle_count())
 }
 
 /// Runs a one-shot call: validates the options and poisons a caller-owned table

@@ -101,6 +101,7 @@ mod far_mesh;
 mod half_space;
 mod lod;
 mod mask;
+mod shader;
 mod shading;
 mod table;
 mod transfer;
@@ -123,6 +124,7 @@ pub use mask::{
     GRID, HemiMask, VALID_CELL_COUNT, cell_coordinate, cell_direction, cell_directions,
     is_valid_cell,
 };
+pub use shader::{FarFieldSetup, HemiShader, ShaderError, ShaderFrame, ShaderSetup};
 pub use shading::{LOBE_CUTOFF, PhongLobe, glossy_transfer, mirror_direction, shade_glossy};
 pub use table::HalfSpaceTable;
 pub use transfer::{
