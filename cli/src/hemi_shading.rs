@@ -125,6 +125,11 @@ impl Shader {
         &self.lobe
     }
 
+    /// The transfer table (per-cell SH integrals).
+    pub fn table(&self) -> &TransferTable<COEFFICIENTS> {
+        &self.table
+    }
+
     /// Exact masks, or the half-space table ([`half_space_table`]).
     pub fn quality(&self, table: bool) -> Quality<'static> {
         if table {

@@ -522,10 +522,15 @@ fn bench_hemi_reports_ratios_against_the_bvh() {
         "near radius",
         "1 thread",
         "far mesh speed-up",
+        "far levels speed-up",
     ] {
         assert!(text.contains(needle), "{needle} missing:\n{text}");
     }
-    for row in ["full mesh ", "full near + far mesh "] {
+    for row in [
+        "full mesh ",
+        "full near + far mesh ",
+        "full near + 3 far levels ",
+    ] {
         let line = text
             .lines()
             .find(|line| line.starts_with(row))

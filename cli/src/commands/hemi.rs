@@ -14,15 +14,15 @@
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
-use antumbra_core::Frame;
 use antumbra_core::hemi::{
-    BatchOptions, FarField, FarMesh, HemiMask, HemiScene, Material, Quality, RasterOptions,
-    Receiver, TransferMethod, TransferRotation, TransferSpace, TransferTable, TriangleClusters,
-    VertexShading, cell_direction, cell_directions, rasterize_receiver_with_counts,
-    scene_mask_with_counts, vertex_transfer,
+    BatchOptions, FarField, FarFieldSetup, FarMesh, HemiMask, HemiScene, HemiShader, Material,
+    Quality, RasterOptions, Receiver, ShaderSetup, TransferMethod, TransferRotation, TransferSpace,
+    TransferTable, TriangleClusters, VertexShading, VertexSurface, cell_direction, cell_directions,
+    rasterize_receiver_with_counts, scene_mask_with_counts, vertex_transfer,
 };
 use antumbra_core::raycast::BvhScene;
 use antumbra_core::sh::Sh;
+use antumbra_core::{Frame, MeshView};
 use antumbra_core::{Ray, RayCaster};
 use antumbra_tests::oracle::{OracleOptions, try_cast};
 use glam::Vec3;
@@ -479,6 +479,9 @@ fn far_mesh_table(
     Ok(())
 }
 
+/// Far levels of the frames-per-second table's third row.
+const FRAME_FAR_LEVELS: usize = 3;
+
 /// Twist angles the benchmark's frames cycle through, in degrees.
 const FRAME_TWIST_DEGREES: [f32; 4] = [0.0, 40.0, 80.0, 120.0];
 
@@ -571,6 +574,59 @@ fn frame_rates(mesh: TriangleMesh, quality_arg: QualityArg, min_time: Duration) 
         }
         rates.push(row);
     }
+    // The library's own far field in levels, through core's shader: posed from
+    // the full mesh every frame, its first level about the far mesh's size.
+    let setup = ShaderSetup {
+        far_field: Some(FarFieldSetup {
+            triangles: lod.far.triangle_count(),
+            levels: FRAME_FAR_LEVELS,
+        }),
+        near_radius: lod.near_radius,
+        shading: true,
+        ..ShaderSetup::default()
+    };
+    let mut levels = HemiShader::new(&lod.full.view(), None, &setup)
+        .map_err(|e| Error::msg(format!("cannot make the far levels: {e}")))?;
+    let mut positions = lod.full.positions().to_vec();
+    let options = BatchOptions {
+        quality,
+        normal_offset: lod.normal_offset,
+        ..BatchOptions::default()
+    };
+    let method = TransferMethod::Cells(shader.table());
+    let mut row = Vec::new();
+    for pool in [Some(&one), None] {
+        let mut frame = |k: usize| -> Result<Duration> {
+            let angle = FRAME_TWIST_DEGREES[k % FRAME_TWIST_DEGREES.len()].to_radians();
+            let mut run = || -> Result<Duration> {
+                let started = Instant::now();
+                for (p, &rest) in positions.iter_mut().zip(lod.full.positions()) {
+                    *p = twist.apply(Vec3::from(rest), angle).to_array();
+                }
+                let view = MeshView::new(&positions, lod.full.indices())
+                    .map_err(|e| Error::msg(e.to_string()))?;
+                let mut frame = levels
+                    .frame(view, None, None)
+                    .map_err(|e| Error::msg(e.to_string()))?;
+                let surface = |_| VertexSurface {
+                    material,
+                    to_eye: None,
+                };
+                black_box(
+                    frame
+                        .shade(&options, method, &lighting, surface)
+                        .map_err(|e| Error::msg(e.to_string()))?,
+                );
+                Ok(started.elapsed())
+            };
+            match pool {
+                Some(pool) => pool.install(run),
+                None => run(),
+            }
+        };
+        row.push(time_frames(min_time, &mut frame)?);
+    }
+    rates.push(row);
     let cell = |d: Duration| {
         let fps = 1.0 / d.as_secs_f64().max(1e-9);
         // Three significant digits, also for the large meshes' fractions of a frame.
@@ -579,21 +635,30 @@ fn frame_rates(mesh: TriangleMesh, quality_arg: QualityArg, min_time: Duration) 
     };
     println!();
     println!(
-        "{:<24} {:>24} {:>24}",
+        "{:<26} {:>24} {:>24}",
         "occluders",
         "1 thread",
         format!("{threads} threads")
     );
-    for (name, row) in ["full mesh", "full near + far mesh"].iter().zip(&rates) {
-        println!("{name:<24} {:>24} {:>24}", cell(row[0]), cell(row[1]));
+    let names = [
+        "full mesh".to_string(),
+        "full near + far mesh".to_string(),
+        format!(
+            "full near + {} far levels",
+            levels.far_field().map_or(0, |f| f.level_count())
+        ),
+    ];
+    for (name, row) in names.iter().zip(&rates) {
+        println!("{name:<26} {:>24} {:>24}", cell(row[0]), cell(row[1]));
     }
-    let speed_up = |k: usize| rates[0][k].as_secs_f64() / rates[1][k].as_secs_f64();
-    println!(
-        "{:<24} {:>24} {:>24}",
-        "far mesh speed-up",
-        format!("{:.2}x", speed_up(0)),
-        format!("{:.2}x", speed_up(1))
-    );
+    let speed_up = |r: usize, k: usize| rates[0][k].as_secs_f64() / rates[r][k].as_secs_f64();
+    for (r, name) in [(1, "far mesh speed-up"), (2, "far levels speed-up")] {
+        println!(
+            "{name:<26} {:>24} {:>24}",
+            format!("{:.2}x", speed_up(r, 0)),
+            format!("{:.2}x", speed_up(r, 1))
+        );
+    }
     println!(
         "all-core scaling on {threads} threads: full mesh {:.2}x, with the far mesh {:.2}x",
         rates[0][0].as_secs_f64() / rates[0][1].as_secs_f64(),
