@@ -24,7 +24,7 @@ use antumbra_core::raycast::BvhScene;
 use antumbra_core::sh::Sh;
 use antumbra_core::{Frame, MeshView};
 use antumbra_core::{Ray, RayCaster};
-use antumbra_tests::oracle::{OracleOptions, try_cast};
+use antumbra_tests::oracle::{OracleOptions, try_cast, try_frame};
 use glam::Vec3;
 
 use super::format_duration;
@@ -347,7 +347,7 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
         min_time,
     )?;
     println!();
-    frame_rates(mesh, args.quality, min_time)
+    frame_rates(mesh, args.quality, min_time, embree_micros)
 }
 
 /// Far mesh sizes (triangles) the far-mesh table tries, those below half the
@@ -506,7 +506,12 @@ fn time_frames(
 
 /// The frames-per-second table of `bench hemi`: every vertex shaded per frame,
 /// with and without the far mesh, on one thread and on rayon's default pool.
-fn frame_rates(mesh: TriangleMesh, quality_arg: QualityArg, min_time: Duration) -> Result<()> {
+fn frame_rates(
+    mesh: TriangleMesh,
+    quality_arg: QualityArg,
+    min_time: Duration,
+    embree_micros: Option<f64>,
+) -> Result<()> {
     let triangles = mesh.triangle_count();
     let diagonal = mesh.bounds().diagonal();
     let twist = Twist::of_bounds(&mesh.bounds());
@@ -658,6 +663,33 @@ fn frame_rates(mesh: TriangleMesh, quality_arg: QualityArg, min_time: Duration) 
             format!("{:.2}x", speed_up(r, 0)),
             format!("{:.2}x", speed_up(r, 1))
         );
+    }
+    // Embree's deforming frame on one core: a new scene of the posed mesh,
+    // then the 812 cell rays of every vertex at the per-receiver cost measured
+    // above.
+    if let Some(micros) = embree_micros {
+        let center = lod.full.bounds().center();
+        let build = try_frame(
+            lod.full.positions(),
+            lod.full.indices(),
+            &[center],
+            &[center + Vec3::X],
+            3,
+        )
+        .map_err(|e| Error::msg(format!("{e}\n(use --no-embree to skip this figure)")))?
+        .build_seconds;
+        let embree = build + micros * 1e-6 * lod.full.vertex_count() as f64;
+        print!(
+            "Embree's frame on 1 thread: {} (scene build {}, 812 rays per vertex); ",
+            format_duration(Duration::from_secs_f64(embree)),
+            format_duration(Duration::from_secs_f64(build))
+        );
+        let ratios: Vec<String> = names
+            .iter()
+            .zip(&rates)
+            .map(|(name, row)| format!("{name} {:.2}x", embree / row[0].as_secs_f64()))
+            .collect();
+        println!("Embree's frame / ours: {}", ratios.join(", "));
     }
     println!(
         "all-core scaling on {threads} threads: full mesh {:.2}x, with the far mesh {:.2}x",
