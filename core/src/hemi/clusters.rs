@@ -1,8 +1,9 @@
 //! Triangle clusters of a deforming mesh: the triangles grouped once by the
 //! Morton order of their centroids, each cluster split into chunks with their
 //! own vertex lists, and the boxes recomputed every frame
-//! ([`TriangleClusters::update`]). A receiver skips whole clusters below its
-//! horizon; the batch loop that reads them is in the `lod` module.
+//! ([`TriangleClusters::update`]) with a hierarchy of boxes above them. A
+//! receiver skips whole nodes below its horizon or behind the cells it has
+//! already covered; the traversal that reads them is in the `lod` module.
 
 use alloc::vec::Vec;
 
@@ -68,12 +69,13 @@ pub struct TriangleClusters {
     pub(super) size: usize,
     /// Triangle indices in cluster order.
     pub(super) order: Vec<u32>,
-    /// One box per cluster of `size` consecutive entries of `order`.
-    pub(super) bounds: Vec<Aabb>,
-    /// One box per [`GROUP`] consecutive clusters (neighbours in the Morton
-    /// order), the union of theirs: a receiver skips a whole group with one
-    /// test, exactly when it would skip each of its clusters.
-    pub(super) group_bounds: Vec<Aabb>,
+    /// The hierarchy's boxes, finest first: `nodes[0]` has one box per
+    /// cluster of `size` consecutive entries of `order`, and each level above
+    /// one box per [`GROUP`] consecutive boxes of the level below (neighbours
+    /// in the Morton order), their union, up to a top level of at most
+    /// [`GROUP`] boxes. A receiver skips a node with one test exactly when it
+    /// would skip each box below it.
+    pub(super) nodes: Vec<Vec<Aabb>>,
     /// Each cluster's triangles in chunks of at most [`CHUNK`], each with its
     /// own list of distinct vertices, so a receiver moves every vertex of a
     /// chunk into its frame once instead of once per corner: cluster `c`'s
@@ -96,7 +98,7 @@ pub(super) const CHUNK: usize = 32;
 /// The most distinct vertices a chunk can have.
 pub(super) const CHUNK_VERTICES: usize = 3 * CHUNK;
 
-/// Clusters per group of [`TriangleClusters::group_bounds`].
+/// Children per node of [`TriangleClusters::nodes`] above the clusters.
 pub(super) const GROUP: usize = 16;
 
 // The projection writes four vertices at a time.
@@ -123,8 +125,7 @@ impl TriangleClusters {
         let mut clusters = TriangleClusters {
             size: triangles_per_cluster.max(1),
             order: Vec::new(),
-            bounds: Vec::new(),
-            group_bounds: Vec::new(),
+            nodes: Vec::new(),
             chunks: Vec::new(),
             cluster_chunks: Vec::new(),
             chunk_vertices: Vec::new(),
@@ -161,11 +162,15 @@ impl TriangleClusters {
         keyed.sort_unstable();
         self.order.clear();
         self.order.extend(keyed.iter().map(|&(_, t)| t));
-        self.bounds.clear();
-        self.bounds.resize(count.div_ceil(self.size), Aabb::EMPTY);
-        self.group_bounds.clear();
-        self.group_bounds
-            .resize(self.bounds.len().div_ceil(GROUP), Aabb::EMPTY);
+        self.nodes.clear();
+        let mut boxes = count.div_ceil(self.size);
+        loop {
+            self.nodes.push(alloc::vec![Aabb::EMPTY; boxes]);
+            if boxes <= GROUP {
+                break;
+            }
+            boxes = boxes.div_ceil(GROUP);
+        }
         self.compute_bounds(mesh);
         self.build_chunks(mesh);
     }
@@ -238,11 +243,14 @@ impl TriangleClusters {
     /// Number of clusters.
     #[inline]
     pub fn cluster_count(&self) -> usize {
-        self.bounds.len()
+        self.nodes.first().map_or(0, Vec::len)
     }
 
     fn compute_bounds(&mut self, mesh: &MeshView<'_>) {
-        for (bounds, triangles) in self.bounds.iter_mut().zip(self.order.chunks(self.size)) {
+        let Some((clusters, upper)) = self.nodes.split_first_mut() else {
+            return;
+        };
+        for (bounds, triangles) in clusters.iter_mut().zip(self.order.chunks(self.size)) {
             let mut b = Aabb::EMPTY;
             for &t in triangles {
                 let [p, q, r] = mesh.triangle(t as usize);
@@ -252,13 +260,18 @@ impl TriangleClusters {
             }
             *bounds = b;
         }
-        for (group, clusters) in self.group_bounds.iter_mut().zip(self.bounds.chunks(GROUP)) {
-            let mut b = Aabb::EMPTY;
-            for cluster in clusters {
-                b.grow(cluster.min);
-                b.grow(cluster.max);
+        // Refit bottom-up: each level from the one below.
+        let mut below: &[Aabb] = clusters;
+        for level in upper {
+            for (node, children) in level.iter_mut().zip(below.chunks(GROUP)) {
+                let mut b = Aabb::EMPTY;
+                for child in children {
+                    b.grow(child.min);
+                    b.grow(child.max);
+                }
+                *node = b;
             }
-            *group = b;
+            below = level;
         }
     }
 }

@@ -37,12 +37,18 @@
 //! cluster's bounding box is recomputed every frame ([`TriangleClusters::update`]),
 //! and a whole cluster is skipped when its box is at or below the receiver's
 //! tangent plane through the center of projection, or entirely inside (far mesh) or
-//! outside (full mesh) the near radius; groups of 16 neighbouring clusters are
-//! tested first on the union of their boxes, which fails every test any of its
-//! clusters would. Inside a box of cells that the mask already covers, a
-//! cone's exact rasterization adds nothing and is skipped. The results are
+//! outside (full mesh) the near radius. The boxes form a hierarchy (each node
+//! the union of 16 neighbours in the Morton order below it, refitted with the
+//! clusters), traversed per receiver depth first, each node's children
+//! nearest first (after Laine and Karras 2010, method 2): a node failing a test
+//! fails it for every box below, and a node whose reachable cells
+//! ([`BoxCells`]: a rectangle of the grid and a ring of elevations) are all
+//! set already, or hold no cell center, is skipped whole, since the mask, an
+//! OR, would not change. Inside a box of cells that the mask already covers, a
+//! cone's exact rasterization adds nothing and is skipped. The masks are
 //! identical to the
-//! unclustered loop, bit for bit: the box tests evaluate the same `f32` expressions
+//! unclustered loop's, bit for bit (the counts of `rasterized` triangles drop by
+//! those of the skipped nodes): the box tests evaluate the same `f32` expressions
 //! as the per-triangle tests on the box corner that maximises them, and `f32`
 //! subtraction, multiplication by a fixed factor and addition are monotone, so a
 //! box that fails a test proves every corner in it fails the same test in the same
@@ -87,6 +93,7 @@
 
 use glam::{Vec3, Vec4};
 
+use super::box_cells::BoxCells;
 use super::clusters::{Aabb, CHUNK, CHUNK_VERTICES, Chunk, ClusteredMesh, GROUP, TriangleClusters};
 use super::mask::HemiMask;
 use super::table::HalfSpaceTable;
@@ -234,6 +241,20 @@ pub fn scene_mask_with_counts(
     normal: Vec3,
     options: &BatchOptions<'_>,
 ) -> (HemiMask, TriangleCounts) {
+    traverse(scene, position, normal, options, true)
+}
+
+/// [`scene_mask_with_counts`], with the skipping of boxes whose cells are all
+/// covered as a switch (`skip_hidden`), so tests can compare the counts of
+/// everything else with the unclustered loop's.
+#[inline(always)]
+fn traverse(
+    scene: &HemiScene<'_>,
+    position: Vec3,
+    normal: Vec3,
+    options: &BatchOptions<'_>,
+    skip_hidden: bool,
+) -> (HemiMask, TriangleCounts) {
     let receiver = Receiver::new(position, normal, options.normal_offset);
     let cull = options.cull_backfaces;
     if scene.far.is_none() && !scene.mesh.is_clustered() {
@@ -243,8 +264,11 @@ pub fn scene_mask_with_counts(
     }
     // One loop per quality so the per-triangle work is monomorphic.
     match options.quality {
-        Quality::Exact => scene_loop(scene, &receiver, position, cull, ExactCones),
-        Quality::Table(table) => scene_loop(scene, &receiver, position, cull, TableCones(table)),
+        Quality::Exact => scene_loop(scene, &receiver, position, cull, skip_hidden, ExactCones),
+        Quality::Table(table) => {
+            let cones = TableCones(table);
+            scene_loop(scene, &receiver, position, cull, skip_hidden, cones)
+        }
     }
 }
 
@@ -331,6 +355,8 @@ struct Pass<M> {
     /// ([`Select::Near`] and [`Select::Band`]).
     outer_r2: f32,
     cull: bool,
+    /// Skip boxes whose reachable cells are all set ([`BoxCells`]).
+    skip_hidden: bool,
     cone_mask: M,
 }
 
@@ -372,6 +398,7 @@ fn scene_loop(
     receiver: &Receiver,
     position: Vec3,
     cull: bool,
+    skip_hidden: bool,
     cone_mask: impl ConeMask,
 ) -> (HemiMask, TriangleCounts) {
     // One scale for every mesh (see Receiver::scaled_frame).
@@ -389,6 +416,7 @@ fn scene_loop(
         inner_r2: inner * inner,
         outer_r2: outer * outer,
         cull,
+        skip_hidden,
         cone_mask,
     };
     let mut projected = Projected::EMPTY;
@@ -437,23 +465,127 @@ fn mesh_loop<M: ConeMask>(
     };
     // The scaled normal: the same expression as the triangles' horizon test.
     let (n, o) = (acc.frame.normal, acc.receiver.origin);
-    // Groups first: a group's box holds its clusters' boxes, so each test it
-    // fails, every cluster in it fails too (the tests are monotone in the box).
-    for (g, group) in clusters.group_bounds.iter().enumerate() {
-        let Some(group_select) = narrow(group, n, o, pass, select) else {
+    // Depth first through the hierarchy, the children of a node nearest
+    // first, so near occluders fill the mask before the boxes behind them
+    // are tested against it. A node's box holds its children's, so each test
+    // it fails, every box below it fails too (the tests are monotone in the
+    // box).
+    let mut stack = [Visit {
+        level: 0,
+        index: 0,
+        select,
+    }; STACK];
+    let mut len = 0;
+    let top = clusters.nodes.len() - 1;
+    let roots = 0..clusters.nodes[top].len();
+    let near = Near { n, o, pass };
+    near.push_nearest_first(
+        &clusters.nodes[top],
+        top,
+        roots,
+        select,
+        &mut stack,
+        &mut len,
+    );
+    while len > 0 {
+        len -= 1;
+        let Visit {
+            level,
+            index,
+            select,
+        } = stack[len];
+        let (level, index) = (level as usize, index as usize);
+        // Tested here rather than when pushed: the mask has grown since.
+        if pass.skip_hidden
+            && !BoxCells::of(&clusters.nodes[level][index], &acc.frame, o).can_add_to(&acc.mask)
+        {
             continue;
-        };
-        let first = g * GROUP;
-        let last = (first + GROUP).min(clusters.bounds.len());
-        for c in first..last {
-            let Some(here) = narrow(&clusters.bounds[c], n, o, pass, group_select) else {
+        }
+        if level == 0 {
+            let chunks = clusters.cluster_chunks[index] as usize
+                ..clusters.cluster_chunks[index + 1] as usize;
+            for chunk in &clusters.chunks[chunks] {
+                chunk_loop(view, clusters, chunk, acc, pass, select, projected);
+            }
+        } else {
+            let below = &clusters.nodes[level - 1];
+            let children = index * GROUP..((index + 1) * GROUP).min(below.len());
+            near.push_nearest_first(below, level - 1, children, select, &mut stack, &mut len);
+        }
+    }
+}
+
+/// A node of [`TriangleClusters::nodes`] still to visit, with the rule its
+/// triangles still need.
+#[derive(Clone, Copy)]
+struct Visit {
+    level: u32,
+    index: u32,
+    select: Select,
+}
+
+/// Visits on the stack at most: each level of the hierarchy holds at most
+/// [`GROUP`] of them (the children of the node last opened there), and nine
+/// levels of sixteen hold more than `u32::MAX` clusters.
+const STACK: usize = 9 * GROUP;
+
+/// What decides whether a receiver takes a node and in which order.
+struct Near<'p, M> {
+    /// Scaled normal of the horizon test.
+    n: Vec3,
+    /// Center of projection.
+    o: Vec3,
+    pass: &'p Pass<M>,
+}
+
+impl<M: ConeMask> Near<'_, M> {
+    /// Pushes the nodes `children` of level `level` (boxes `boxes`) that
+    /// `select` may take, the farthest from the center of projection first,
+    /// so the nearest is visited next.
+    #[inline(always)]
+    fn push_nearest_first(
+        &self,
+        boxes: &[Aabb],
+        level: usize,
+        children: core::ops::Range<usize>,
+        select: Select,
+        stack: &mut [Visit; STACK],
+        len: &mut usize,
+    ) {
+        let mut sorted = [(
+            0f32,
+            Visit {
+                level: level as u32,
+                index: 0,
+                select,
+            },
+        ); GROUP];
+        let mut count = 0;
+        for c in children {
+            let bounds = &boxes[c];
+            let Some(here) = narrow(bounds, self.n, self.o, self.pass, select) else {
                 continue;
             };
-            let chunks =
-                clusters.cluster_chunks[c] as usize..clusters.cluster_chunks[c + 1] as usize;
-            for chunk in &clusters.chunks[chunks] {
-                chunk_loop(view, clusters, chunk, acc, pass, here, projected);
+            let key = (self.o.clamp(bounds.min, bounds.max) - self.o).length_squared();
+            // Insertion into the descending order: at most 16 entries.
+            let mut k = count;
+            while k > 0 && sorted[k - 1].0 < key {
+                sorted[k] = sorted[k - 1];
+                k -= 1;
             }
+            sorted[k] = (
+                key,
+                Visit {
+                    level: level as u32,
+                    index: c as u32,
+                    select: here,
+                },
+            );
+            count += 1;
+        }
+        for &(_, visit) in &sorted[..count] {
+            stack[*len] = visit;
+            *len += 1;
         }
     }
 }
@@ -625,6 +757,7 @@ fn batched_loop(
         inner_r2: f32::INFINITY,
         outer_r2: f32::INFINITY,
         cull,
+        skip_hidden: false,
         cone_mask,
     };
     let o = receiver.origin;
@@ -1058,8 +1191,9 @@ mod tests {
                 for v in (0..mesh.vertex_count()).step_by(5) {
                     let (p, n) = (mesh.position(v), normals[v]);
                     let (a, counts) = scene_mask_with_counts(&plain, p, n, &options);
-                    let (b, fast_counts) = scene_mask_with_counts(&clustered, p, n, &options);
+                    let (b, _) = scene_mask_with_counts(&clustered, p, n, &options);
                     assert_eq!(a, b, "twist {twist} radii {radii:?} vertex {v}");
+                    let (_, fast_counts) = traverse(&clustered, p, n, &options, false);
                     assert_eq!(counts.rasterized, fast_counts.rasterized);
                     // The rule, spelled out: level k's triangles with every
                     // corner beyond its radius and one within the next's.
@@ -1125,10 +1259,15 @@ mod tests {
                         for v in (0..mesh.vertex_count()).step_by(5) {
                             let (p, n) = (mesh.position(v), normals[v]);
                             let (a, ca) = scene_mask_with_counts(&plain, p, n, &options);
-                            let (b, cb) = scene_mask_with_counts(&fast, p, n, &options);
+                            let (b, hidden) = scene_mask_with_counts(&fast, p, n, &options);
                             assert_eq!(a, b, "size {size} vertex {v} radius {radius}");
-                            // Skipped clusters are not counted; what is read
-                            // is counted alike.
+                            // Boxes of covered cells skip triangles that
+                            // would have been rasterized, and only those.
+                            assert!(hidden.rasterized <= ca.rasterized);
+                            // Without that skip: skipped clusters are not
+                            // counted; what is read is counted alike.
+                            let (c, cb) = traverse(&fast, p, n, &options, false);
+                            assert_eq!(a, c, "size {size} vertex {v} radius {radius}");
                             assert_eq!(ca.rasterized, cb.rasterized, "size {size} vertex {v}");
                             assert_eq!(ca.degenerate, cb.degenerate, "size {size} vertex {v}");
                             assert_eq!(ca.back_facing, cb.back_facing, "size {size} vertex {v}");

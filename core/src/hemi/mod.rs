@@ -95,6 +95,7 @@
 //! corners as given (unscaled).
 
 mod batch;
+mod box_cells;
 mod clusters;
 mod far_field;
 mod far_mesh;

@@ -1,0 +1,303 @@
+//! The cells a box of occluders can reach: the occlusion test of the
+//! per-receiver traversal (after Laine and Karras 2010, method 2). Every cell
+//! that a triangle inside an axis-aligned box sets has its center direction
+//! pointing into the box, so a box whose reachable cells are all set already
+//! (or that holds no cell center at all) can be skipped whole: the mask, an
+//! OR over triangles, is the same with or without its triangles.
+//!
+//! The cells are a rectangle of the grid, bounded from the disk coordinates
+//! `u = x / |q|`, `v = y / |q|` of the box's points `q` in the receiver's
+//! frame: with `x` in `[x0, x1]` and `|q|` in `[d_near, d_far]`, `u` is at
+//! most `x1 / d_near` (`x1 / d_far` when `x1 < 0`) and at least `x0 / d_near`
+//! (`x0 / d_far` when `x0 > 0`). The frame's corners come from the same `f32`
+//! expressions the rasterizers use, evaluated at the box corner that
+//! maximises (or minimises) each: those are monotone in every coordinate, so
+//! they bound every vertex's local coordinates as the rasterizers compute
+//! them. The rest is widened by a margin far above `f32` rounding and far
+//! below a cell (a cell is `1/16` of the disk's radius wide).
+
+use glam::Vec3;
+
+use super::clusters::Aabb;
+use super::mask::{CELL_COORD, HemiMask};
+use crate::geom::Frame;
+
+/// Widening of the box's local coordinates, relative to their largest
+/// magnitude (`f32` rounding of the corners' transforms is below `1e-6`).
+const LOCAL_SLACK: f32 = 1e-5;
+
+/// Widening of the disk-coordinate bounds, in cells.
+const CELL_SLACK: f32 = 0.01;
+
+/// Widening of the bounds of the elevation `z / |q|` and of the squared disk
+/// radius `1 - (z / |q|)²`.
+const RING_SLACK: f32 = 1e-3;
+
+/// What a box of occluders can still add to a receiver's mask.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum BoxCells {
+    /// The box is close to the center of projection: any cell.
+    Any,
+    /// No cell center points into the box.
+    None,
+    /// Every cell whose center points into the box is in the inclusive
+    /// rectangle `(i0, i1, j0, j1)` of the grid and has its squared disk
+    /// radius `u² + v²` in `[ring.0, ring.1]`: the elevation of the box's
+    /// points bounds how far from the disk's center they project.
+    Cells {
+        rect: (usize, usize, usize, usize),
+        ring: (f32, f32),
+    },
+}
+
+impl BoxCells {
+    /// The cells the points of `bounds` can be seen in from `origin`, with
+    /// `frame` the (scaled) frame the rasterizers move `q - origin` into.
+    #[inline(always)]
+    pub(crate) fn of(bounds: &Aabb, frame: &Frame, origin: Vec3) -> BoxCells {
+        let (lo, hi) = (bounds.min - origin, bounds.max - origin);
+        // The same expression as Frame::to_local, at the corners bounding it.
+        let range = |axis: Vec3| {
+            let up = axis.cmpge(Vec3::ZERO);
+            (
+                axis.dot(Vec3::select(up, lo, hi)),
+                axis.dot(Vec3::select(up, hi, lo)),
+            )
+        };
+        let (x0, x1) = range(frame.tangent);
+        let (y0, y1) = range(frame.bitangent);
+        let (z0, z1) = range(frame.normal);
+        let largest = x0.abs().max(x1.abs()).max(y0.abs()).max(y1.abs());
+        let slack = LOCAL_SLACK * largest.max(z0.abs()).max(z1.abs());
+        let (x0, x1, y0, y1, z0, z1) = (
+            x0 - slack,
+            x1 + slack,
+            y0 - slack,
+            y1 + slack,
+            z0 - slack,
+            z1 + slack,
+        );
+        let nearest = Vec3::new(0f32.clamp(x0, x1), 0f32.clamp(y0, y1), 0f32.clamp(z0, z1));
+        let farthest = Vec3::new(
+            x0.abs().max(x1.abs()),
+            y0.abs().max(y1.abs()),
+            z0.abs().max(z1.abs()),
+        );
+        let (near_sq, far_sq) = (nearest.length_squared(), farthest.length_squared());
+        // Not `>` for NaN too: a box this close sees every direction.
+        let close = near_sq.partial_cmp(&(1e-6 * far_sq)) != Some(core::cmp::Ordering::Greater);
+        if close || !far_sq.is_finite() {
+            return BoxCells::Any;
+        }
+        let (near, far) = (near_sq.sqrt(), far_sq.sqrt());
+        let upper = |h: f32| if h >= 0.0 { h / near } else { h / far };
+        let lower = |l: f32| if l <= 0.0 { l / near } else { l / far };
+        // Cell k's center is at (2k - 31) / 32, so centers in [a, b] are
+        // k in [16 a + 15.5, 16 b + 15.5].
+        let cells = |l: f32, h: f32| {
+            let first = (lower(l) * 16.0 + 15.5 - CELL_SLACK).ceil().max(0.0);
+            let last = (upper(h) * 16.0 + 15.5 + CELL_SLACK).floor().min(31.0);
+            (first, last)
+        };
+        let (i0, i1) = cells(x0, x1);
+        let (j0, j1) = cells(y0, y1);
+        // A cell center (u, v, w) has u² + v² = 1 - w², and its elevation w
+        // is the box point's z / |q|.
+        let (w0, w1) = (
+            (lower(z0) - RING_SLACK).clamp(0.0, 1.0),
+            (upper(z1) + RING_SLACK).clamp(0.0, 1.0),
+        );
+        let ring = (1.0 - w1 * w1 - RING_SLACK, 1.0 - w0 * w0 + RING_SLACK);
+        let no_ring = ring.1.partial_cmp(&ring.0).is_none_or(|o| o.is_lt());
+        if i0 > i1 || j0 > j1 || no_ring {
+            return BoxCells::None;
+        }
+        BoxCells::Cells {
+            rect: (i0 as usize, i1 as usize, j0 as usize, j1 as usize),
+            ring,
+        }
+    }
+
+    /// Whether cell `(i, j)` may be set by a triangle in the box (one cell
+    /// at a time: the definition [`BoxCells::can_add_to`] is tested against).
+    #[cfg(test)]
+    fn reaches(self, i: usize, j: usize) -> bool {
+        match self {
+            BoxCells::Any => true,
+            BoxCells::None => false,
+            BoxCells::Cells {
+                rect: (i0, i1, j0, j1),
+                ring: (r0, r1),
+            } => {
+                let (u, v) = (super::cell_coordinate(i), super::cell_coordinate(j));
+                let r2 = u * u + v * v;
+                (i0..=i1).contains(&i) && (j0..=j1).contains(&j) && r0 <= r2 && r2 <= r1
+            }
+        }
+    }
+
+    /// Whether triangles in the box can still set a cell of `mask`: a valid
+    /// cell it reaches is clear.
+    #[inline(always)]
+    pub(crate) fn can_add_to(self, mask: &HemiMask) -> bool {
+        let BoxCells::Cells {
+            rect: (i0, i1, j0, j1),
+            ring: (r0, r1),
+        } = self
+        else {
+            return self == BoxCells::Any;
+        };
+        let columns = |first: f32, last: f32| {
+            // Columns first..=last of 0..=31 (none when first > last).
+            let (first, last) = (first.max(0.0), last.min(31.0));
+            if first > last {
+                0
+            } else {
+                ((2u64 << last as u32) - (1u64 << first as u32)) as u32
+            }
+        };
+        let rect = columns(i0 as f32, i1 as f32);
+        for (j, &v) in CELL_COORD.iter().enumerate().take(j1 + 1).skip(j0) {
+            let open = rect & HemiMask::VALID.rows[j] & !mask.rows[j];
+            if open == 0 {
+                continue;
+            }
+            // Row j's centers with u² in [r0 - v², r1 - v²]: |u| at most
+            // `outer`, and not below `inner`. Rounding only widens the band
+            // (CELL_SLACK).
+            let outer_sq = r1 - v * v;
+            if outer_sq.is_nan() || outer_sq < 0.0 {
+                continue;
+            }
+            let outer = outer_sq.sqrt() * 16.0;
+            let mut band = columns(
+                (15.5 - outer - CELL_SLACK).ceil(),
+                (15.5 + outer + CELL_SLACK).floor(),
+            );
+            let inner_sq = r0 - v * v;
+            if inner_sq > 0.0 {
+                // Centers with |u| < inner, strictly: not reached.
+                let inner = inner_sq.sqrt() * 16.0;
+                band &= !columns(
+                    (15.5 - inner + CELL_SLACK).ceil(),
+                    (15.5 + inner - CELL_SLACK).floor(),
+                );
+            }
+            if open & band != 0 {
+                return true;
+            }
+        }
+        false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hemi::{Receiver, TriangleCone};
+    use alloc::vec::Vec;
+
+    /// A small deterministic generator (xorshift), in `[0, 1)`.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> f32 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
+    /// The slow twin: every cell an exact cone of a triangle inside the box
+    /// sets lies in the box's rectangle (and none when the box reaches none).
+    #[test]
+    fn triangles_inside_a_box_set_only_its_cells() {
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+        let (mut rects, mut nones) = (0, 0);
+        for case in 0..3000 {
+            let normal = Vec3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5)
+                .try_normalize()
+                .unwrap_or(Vec3::Z);
+            let position = Vec3::new(rng.next(), rng.next(), rng.next()) * 2.0 - 1.0;
+            let receiver = Receiver::new(position, normal, 0.0);
+            // Boxes of every size, some grazing the horizon, some touching
+            // the receiver.
+            let size = 10f32.powf(-3.0 + 3.5 * rng.next());
+            let min = Vec3::new(rng.next(), rng.next(), rng.next()) * 3.0 - 1.5;
+            let bounds = Aabb {
+                min,
+                max: min + Vec3::new(rng.next(), rng.next(), rng.next()) * size,
+            };
+            let frame = receiver.scaled_frame([(bounds.min, bounds.max)]);
+            let cells = BoxCells::of(&bounds, &frame, receiver.origin);
+            match cells {
+                BoxCells::Cells { .. } => rects += 1,
+                BoxCells::None => nones += 1,
+                BoxCells::Any => {}
+            }
+            // Triangles with corners inside the box, on its faces and at its
+            // corners, so the rectangle's edges are reached.
+            let mut inside = HemiMask::EMPTY;
+            for _ in 0..12 {
+                let mut corner = || {
+                    let mut t = Vec3::new(rng.next(), rng.next(), rng.next());
+                    if rng.next() < 0.5 {
+                        t = t.round();
+                    }
+                    frame.to_local(bounds.min + (bounds.max - bounds.min) * t - receiver.origin)
+                };
+                let (a, b, c) = (corner(), corner(), corner());
+                let _ = TriangleCone::or_exact_into(a, b, c, false, &mut inside);
+            }
+            match cells {
+                BoxCells::Any => {}
+                BoxCells::None => assert_eq!(inside, HemiMask::EMPTY, "case {case}"),
+                BoxCells::Cells { .. } => {
+                    for (i, j, _) in crate::hemi::cell_directions() {
+                        if inside.get(i, j) {
+                            assert!(
+                                cells.reaches(i, j),
+                                "case {case}: cell ({i}, {j}) outside {cells:?}",
+                            );
+                        }
+                    }
+                }
+            }
+            // The row test against the cell-by-cell definition: true
+            // whenever a reached cell is clear (masks with every reached
+            // cell but one set, and random ones).
+            let reached: Vec<_> = crate::hemi::cell_directions()
+                .filter(|&(i, j, _)| cells.reaches(i, j))
+                .collect();
+            let all = reached.iter().fold(HemiMask::EMPTY, |mut m, &(i, j, _)| {
+                m.set(i, j, true);
+                m
+            });
+            // A full mask takes nothing more.
+            let full = HemiMask::VALID;
+            assert_eq!(
+                cells.can_add_to(&full),
+                cells == BoxCells::Any,
+                "case {case}"
+            );
+            for (k, &(i, j, _)) in reached.iter().enumerate().step_by(7) {
+                let mut one_open = all;
+                one_open.set(i, j, false);
+                assert!(cells.can_add_to(&one_open), "case {case} cell {k}");
+            }
+            let mut random = HemiMask::EMPTY;
+            for (i, j, _) in crate::hemi::cell_directions() {
+                random.set(i, j, rng.next() < 0.9);
+            }
+            let open = reached.iter().any(|&(i, j, _)| !random.get(i, j));
+            assert!(!open || cells.can_add_to(&random), "case {case}");
+        }
+        // The test means something only if many boxes get a rectangle and
+        // some none.
+        assert!(
+            rects > 1000 && nones > 50,
+            "{rects} rectangles, {nones} none"
+        );
+    }
+}
