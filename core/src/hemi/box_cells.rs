@@ -89,14 +89,14 @@ impl BoxCells {
         if close || !far_sq.is_finite() {
             return BoxCells::Any;
         }
-        let (near, far) = (near_sq.sqrt(), far_sq.sqrt());
+        let (near, far) = (libm::sqrtf(near_sq), libm::sqrtf(far_sq));
         let upper = |h: f32| if h >= 0.0 { h / near } else { h / far };
         let lower = |l: f32| if l <= 0.0 { l / near } else { l / far };
         // Cell k's center is at (2k - 31) / 32, so centers in [a, b] are
         // k in [16 a + 15.5, 16 b + 15.5].
         let cells = |l: f32, h: f32| {
-            let first = (lower(l) * 16.0 + 15.5 - CELL_SLACK).ceil().max(0.0);
-            let last = (upper(h) * 16.0 + 15.5 + CELL_SLACK).floor().min(31.0);
+            let first = libm::ceilf(lower(l) * 16.0 + 15.5 - CELL_SLACK).max(0.0);
+            let last = libm::floorf(upper(h) * 16.0 + 15.5 + CELL_SLACK).min(31.0);
             (first, last)
         };
         let (i0, i1) = cells(x0, x1);
@@ -169,18 +169,18 @@ impl BoxCells {
             if outer_sq.is_nan() || outer_sq < 0.0 {
                 continue;
             }
-            let outer = outer_sq.sqrt() * 16.0;
+            let outer = libm::sqrtf(outer_sq) * 16.0;
             let mut band = columns(
-                (15.5 - outer - CELL_SLACK).ceil(),
-                (15.5 + outer + CELL_SLACK).floor(),
+                libm::ceilf(15.5 - outer - CELL_SLACK),
+                libm::floorf(15.5 + outer + CELL_SLACK),
             );
             let inner_sq = r0 - v * v;
             if inner_sq > 0.0 {
                 // Centers with |u| < inner, strictly: not reached.
-                let inner = inner_sq.sqrt() * 16.0;
+                let inner = libm::sqrtf(inner_sq) * 16.0;
                 band &= !columns(
-                    (15.5 - inner + CELL_SLACK).ceil(),
-                    (15.5 + inner - CELL_SLACK).floor(),
+                    libm::ceilf(15.5 - inner + CELL_SLACK),
+                    libm::floorf(15.5 + inner - CELL_SLACK),
                 );
             }
             if open & band != 0 {
