@@ -43,7 +43,8 @@
 //! nearest first (after Laine and Karras 2010, method 2): a node failing a test
 //! fails it for every box below, and a node whose reachable cells
 //! ([`BoxCells`]: a rectangle of the grid and a ring of elevations) are all
-//! set already, or hold no cell center, is skipped whole, since the mask, an
+//! set already, or hold no cell center, is skipped whole (exact quality: a
+//! table mask may set cells just outside its cone), since the mask, an
 //! OR, would not change. Inside a box of cells that the mask already covers, a
 //! cone's exact rasterization adds nothing and is skipped. The masks are
 //! identical to the
@@ -241,7 +242,10 @@ pub fn scene_mask_with_counts(
     normal: Vec3,
     options: &BatchOptions<'_>,
 ) -> (HemiMask, TriangleCounts) {
-    traverse(scene, position, normal, options, true)
+    // A table mask may set cells a little outside the exact cone, which the
+    // box test does not bound: exact quality only.
+    let skip_hidden = matches!(options.quality, Quality::Exact);
+    traverse(scene, position, normal, options, skip_hidden)
 }
 
 /// [`scene_mask_with_counts`], with the skipping of boxes whose cells are all
