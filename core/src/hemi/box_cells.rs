@@ -119,8 +119,9 @@ impl BoxCells {
     }
 
     /// Whether cell `(i, j)` may be set by a triangle in the box (one cell
-    /// at a time: the definition [`BoxCells::can_add_to`] is tested against).
-    #[cfg(test)]
+    /// at a time: the definition [`BoxCells::can_add_to`] and
+    /// [`BoxCells::open_cells`] are tested against).
+    #[inline(always)]
     fn reaches(self, i: usize, j: usize) -> bool {
         match self {
             BoxCells::Any => true,
@@ -129,11 +130,47 @@ impl BoxCells {
                 rect: (i0, i1, j0, j1),
                 ring: (r0, r1),
             } => {
-                let (u, v) = (super::cell_coordinate(i), super::cell_coordinate(j));
+                let (u, v) = (CELL_COORD[i], CELL_COORD[j]);
                 let r2 = u * u + v * v;
                 (i0..=i1).contains(&i) && (j0..=j1).contains(&j) && r0 <= r2 && r2 <= r1
             }
         }
+    }
+
+    /// The cells triangles in the box can still set in `mask` (reached,
+    /// valid and clear), when there are at most `N`; `None` when there are
+    /// more, or the box is close enough to reach any cell. Few cells are
+    /// cheaper to test one by one against the box's triangles than the
+    /// triangles are to rasterize.
+    #[inline(always)]
+    pub(crate) fn open_cells<const N: usize>(self, mask: &HemiMask) -> Option<OpenCells<N>> {
+        let mut open = OpenCells {
+            cells: [(0, 0); N],
+            len: 0,
+        };
+        let BoxCells::Cells {
+            rect: (i0, i1, j0, j1),
+            ..
+        } = self
+        else {
+            return (self == BoxCells::None).then_some(open);
+        };
+        let rect = HemiMask::columns(i0, i1);
+        for j in j0..=j1 {
+            let mut row = rect & HemiMask::VALID.rows[j] & !mask.rows[j];
+            while row != 0 {
+                let i = row.trailing_zeros() as usize;
+                row &= row - 1;
+                if self.reaches(i, j) {
+                    if open.len == N {
+                        return None;
+                    }
+                    open.cells[open.len] = (i as u8, j as u8);
+                    open.len += 1;
+                }
+            }
+        }
+        Some(open)
     }
 
     /// Whether triangles in the box can still set a cell of `mask`: a valid
@@ -153,7 +190,7 @@ impl BoxCells {
             if first > last {
                 0
             } else {
-                ((2u64 << last as u32) - (1u64 << first as u32)) as u32
+                HemiMask::columns(first as usize, last as usize)
             }
         };
         let rect = columns(i0 as f32, i1 as f32);
@@ -191,6 +228,21 @@ impl BoxCells {
     }
 }
 
+/// At most `N` cells of the grid, as (column, row).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct OpenCells<const N: usize> {
+    cells: [(u8, u8); N],
+    len: usize,
+}
+
+impl<const N: usize> OpenCells<N> {
+    /// The cells, in row order and left to right within a row.
+    #[inline(always)]
+    pub(crate) fn as_slice(&self) -> &[(u8, u8)] {
+        &self.cells[..self.len]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -214,7 +266,7 @@ mod tests {
     #[test]
     fn triangles_inside_a_box_set_only_its_cells() {
         let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
-        let (mut rects, mut nones) = (0, 0);
+        let (mut rects, mut nones, mut listed_some) = (0, 0, 0);
         for case in 0..3000 {
             let normal = Vec3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5)
                 .try_normalize()
@@ -292,12 +344,26 @@ mod tests {
             }
             let open = reached.iter().any(|&(i, j, _)| !random.get(i, j));
             assert!(!open || cells.can_add_to(&random), "case {case}");
+            // The open cells listed: the reached ones still clear, in row
+            // order, when there are at most N of them.
+            let clear: Vec<(u8, u8)> = reached
+                .iter()
+                .filter(|&&(i, j, _)| !random.get(i, j))
+                .map(|&(i, j, _)| (i as u8, j as u8))
+                .collect();
+            let listed = cells.open_cells::<8>(&random);
+            match (cells, listed) {
+                (BoxCells::Any, listed) => assert!(listed.is_none(), "case {case}"),
+                (_, Some(listed)) => assert_eq!(listed.as_slice(), &clear[..], "case {case}"),
+                (_, None) => assert!(clear.len() > 8, "case {case}"),
+            }
+            listed_some += usize::from(listed.is_some_and(|l| !l.as_slice().is_empty()));
         }
         // The test means something only if many boxes get a rectangle and
         // some none.
         assert!(
-            rects > 1000 && nones > 50,
-            "{rects} rectangles, {nones} none"
+            rects > 1000 && nones > 50 && listed_some > 100,
+            "{rects} rectangles, {nones} none, {listed_some} short lists"
         );
     }
 }

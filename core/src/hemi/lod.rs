@@ -96,9 +96,9 @@ use glam::{Vec3, Vec4};
 
 use super::box_cells::BoxCells;
 use super::clusters::{Aabb, CHUNK, CHUNK_VERTICES, Chunk, ClusteredMesh, GROUP, TriangleClusters};
-use super::mask::HemiMask;
+use super::mask::{CELL_COORD, CELL_Z, HemiMask};
 use super::table::HalfSpaceTable;
-use super::triangle::classify_four;
+use super::triangle::{ConesFour, classify_four};
 use super::{Accumulator, Culled, Quality, Receiver, TriangleCone, TriangleCounts, table_raster};
 use crate::geom::MeshView;
 
@@ -242,15 +242,13 @@ pub fn scene_mask_with_counts(
     normal: Vec3,
     options: &BatchOptions<'_>,
 ) -> (HemiMask, TriangleCounts) {
-    // A table mask may set cells a little outside the exact cone, which the
-    // box test does not bound: exact quality only.
-    let skip_hidden = matches!(options.quality, Quality::Exact);
-    traverse(scene, position, normal, options, skip_hidden)
+    traverse(scene, position, normal, options, true)
 }
 
 /// [`scene_mask_with_counts`], with the skipping of boxes whose cells are all
-/// covered as a switch (`skip_hidden`), so tests can compare the counts of
-/// everything else with the unclustered loop's.
+/// covered (exact quality only, see [`ConeMask::EXACT`]) as a switch
+/// (`skip_hidden`), so tests can compare the counts of everything else with
+/// the unclustered loop's.
 #[inline(always)]
 fn traverse(
     scene: &HemiScene<'_>,
@@ -279,6 +277,13 @@ fn traverse(
 /// How a pass turns a triangle's local corners into mask cells: one
 /// implementation per quality, so the loops are monomorphic.
 trait ConeMask: Copy {
+    /// Whether the masks are the exact cones': each cell is set exactly when
+    /// its center passes the three edge planes. Only then does a triangle
+    /// inside a box set only cells the box reaches ([`BoxCells`]; a table
+    /// mask may set cells a little outside its cone), and only then may a
+    /// few cells be tested one by one instead of rasterizing the triangles.
+    const EXACT: bool;
+
     /// Bit `k` set when the cone of triangle `k` (lanes of the local corners'
     /// x, y and z; not culled) gets its exact mask in this quality, so
     /// [`classify_four`]'s proven box applies.
@@ -300,6 +305,8 @@ trait ConeMask: Copy {
 struct ExactCones;
 
 impl ConeMask for ExactCones {
+    const EXACT: bool = true;
+
     #[inline(always)]
     fn exact_lanes(self, _corners: [[Vec4; 3]; 3]) -> u32 {
         0b1111
@@ -323,6 +330,8 @@ impl ConeMask for ExactCones {
 struct TableCones<'t>(&'t HalfSpaceTable);
 
 impl ConeMask for TableCones<'_> {
+    const EXACT: bool = false;
+
     /// Cones whose three edges the table's rule makes exact get the exact
     /// mask ([`TriangleCone::mask_table`]).
     #[inline(always)]
@@ -359,7 +368,9 @@ struct Pass<M> {
     /// ([`Select::Near`] and [`Select::Band`]).
     outer_r2: f32,
     cull: bool,
-    /// Skip boxes whose reachable cells are all set ([`BoxCells`]).
+    /// Skip boxes whose reachable cells are all set ([`BoxCells`]), and test
+    /// the triangles of clusters that reach at most [`FEW_CELLS`] open cells
+    /// on those cells alone. Exact quality only.
     skip_hidden: bool,
     cone_mask: M,
 }
@@ -397,13 +408,13 @@ impl Projected {
 }
 
 #[inline(always)]
-fn scene_loop(
+fn scene_loop<M: ConeMask>(
     scene: &HemiScene<'_>,
     receiver: &Receiver,
     position: Vec3,
     cull: bool,
     skip_hidden: bool,
-    cone_mask: impl ConeMask,
+    cone_mask: M,
 ) -> (HemiMask, TriangleCounts) {
     // One scale for every mesh (see Receiver::scaled_frame).
     let levels = match scene.far {
@@ -420,7 +431,7 @@ fn scene_loop(
         inner_r2: inner * inner,
         outer_r2: outer * outer,
         cull,
-        skip_hidden,
+        skip_hidden: skip_hidden && M::EXACT,
         cone_mask,
     };
     let mut projected = Projected::EMPTY;
@@ -500,24 +511,38 @@ fn mesh_loop<M: ConeMask>(
         } = stack[len];
         let (level, index) = (level as usize, index as usize);
         // Tested here rather than when pushed: the mask has grown since.
-        if pass.skip_hidden
-            && !BoxCells::of(&clusters.nodes[level][index], &acc.frame, o).can_add_to(&acc.mask)
-        {
-            continue;
-        }
+        let reach = pass
+            .skip_hidden
+            .then(|| BoxCells::of(&clusters.nodes[level][index], &acc.frame, o));
         if level == 0 {
+            // A cluster reaching a few open cells: its triangles tested on
+            // those cells alone (none: skipped).
+            let open = reach.and_then(|reach| reach.open_cells::<FEW_CELLS>(&acc.mask));
+            let cells = open.as_ref().map(|open| open.as_slice());
+            if cells.is_some_and(|cells| cells.is_empty()) {
+                continue;
+            }
             let chunks = clusters.cluster_chunks[index] as usize
                 ..clusters.cluster_chunks[index + 1] as usize;
             for chunk in &clusters.chunks[chunks] {
-                chunk_loop(view, clusters, chunk, acc, pass, select, projected);
+                chunk_loop(view, clusters, chunk, acc, pass, select, projected, cells);
             }
         } else {
+            if reach.is_some_and(|reach| !reach.can_add_to(&acc.mask)) {
+                continue;
+            }
             let below = &clusters.nodes[level - 1];
             let children = index * GROUP..((index + 1) * GROUP).min(below.len());
             near.push_nearest_first(below, level - 1, children, select, &mut stack, &mut len);
         }
     }
 }
+
+/// The most open cells a cluster may reach for its triangles to be tested on
+/// them one by one ([`BoxCells::open_cells`]) rather than rasterized: the
+/// three plane tests of four triangles on one cell cost about a tenth of
+/// classifying them.
+const FEW_CELLS: usize = 32;
 
 /// A node of [`TriangleClusters::nodes`] still to visit, with the rule its
 /// triangles still need.
@@ -643,6 +668,11 @@ fn narrow<M: ConeMask>(
 /// The triangles above the horizon are first classified four at a time
 /// ([`ConeMask::classify_four`]): most of a dense mesh's are culled or
 /// provably cover no cell center, and only the rest take the one-triangle path.
+///
+/// With `cells`, the only cells the triangles can still set (exact quality),
+/// each triangle's three edge planes are instead tested on those cells alone
+/// ([`test_cells`]).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn chunk_loop<M: ConeMask>(
     view: &MeshView<'_>,
@@ -652,6 +682,7 @@ fn chunk_loop<M: ConeMask>(
     pass: &Pass<M>,
     select: Select,
     projected: &mut Projected,
+    cells: Option<&[(u8, u8)]>,
 ) {
     let vertices = &clusters.chunk_vertices[chunk.vertices.0 as usize..chunk.vertices.1 as usize];
     let all_in_range = project_chunk(view, vertices, acc, pass, select, projected);
@@ -698,20 +729,98 @@ fn chunk_loop<M: ConeMask>(
     }
     acc.counts.skipped += skipped;
     acc.counts.below_horizon += below;
-    classify_batch(
-        batched,
-        |t| {
-            let [a, b, c] = batch[t];
-            let local = &projected.local;
-            [
-                local[usize::from(a)],
-                local[usize::from(b)],
-                local[usize::from(c)],
-            ]
-        },
-        acc,
-        pass,
-    );
+    let corners = |t: usize| {
+        let [a, b, c] = batch[t];
+        let local = &projected.local;
+        [
+            local[usize::from(a)],
+            local[usize::from(b)],
+            local[usize::from(c)],
+        ]
+    };
+    match cells {
+        Some(cells) => test_cells(batched, corners, cells, acc, pass),
+        None => classify_batch(batched, corners, acc, pass),
+    }
+}
+
+/// Four triangles' local corners, `(x, y, z, 0)` each, as lanes: x, y and z
+/// of each corner, the layout of [`classify_four`] and [`ConesFour`]. A
+/// short group (`len < 4`) repeats its first triangle in the missing lanes.
+#[inline(always)]
+fn gather_four(
+    corners: &impl Fn(usize) -> [Vec4; 3],
+    start: usize,
+    len: usize,
+) -> ([[Vec4; 3]; 4], [[Vec4; 3]; 3]) {
+    // Written out: `array::map` is not reliably inlined here.
+    let four = [
+        corners(start),
+        corners(start + 1.min(len - 1)),
+        corners(start + 2.min(len - 1)),
+        corners(start + 3.min(len - 1)),
+    ];
+    let gather = |corner: usize| {
+        let m = glam::Mat4::from_cols(
+            four[0][corner],
+            four[1][corner],
+            four[2][corner],
+            four[3][corner],
+        )
+        .transpose();
+        [m.x_axis, m.y_axis, m.z_axis]
+    };
+    (four, [gather(0), gather(1), gather(2)])
+}
+
+/// [`classify_batch`] for triangles that can only set `cells` (exact quality;
+/// [`BoxCells::open_cells`]): the three edge planes of four triangles at a
+/// time ([`ConesFour`]) tested on each of those cells still clear. The same
+/// predicate as the exact mask on the same `f32` values, so the same bits;
+/// the same culling and counts.
+#[inline(always)]
+fn test_cells<M: ConeMask>(
+    count: usize,
+    corners: impl Fn(usize) -> [Vec4; 3],
+    cells: &[(u8, u8)],
+    acc: &mut Accumulator<'_>,
+    pass: &Pass<M>,
+) {
+    let mut start = 0;
+    while start < count {
+        let len = (count - start).min(4);
+        let (four, lanes) = gather_four(&corners, start, len);
+        start += len;
+        let cones = ConesFour::new(lanes, pass.cull);
+        let used = (1u32 << len) - 1;
+        acc.counts.degenerate += (cones.degenerate & used).count_ones();
+        acc.counts.back_facing += (cones.back_facing & used).count_ones();
+        let live = used & !(cones.degenerate | cones.back_facing);
+        acc.counts.rasterized += live.count_ones();
+        let tested = live & cones.scale_free;
+        if tested != 0 {
+            for &(i, j) in cells {
+                let (i, j) = (usize::from(i), usize::from(j));
+                if acc.mask.rows[j] >> i & 1 == 1 {
+                    continue;
+                }
+                let (u, v) = (Vec4::splat(CELL_COORD[i]), Vec4::splat(CELL_COORD[j]));
+                let z = Vec4::splat(CELL_Z[j][i]);
+                if cones.inside(u, v, z) & tested != 0 {
+                    acc.mask.rows[j] |= 1 << i;
+                }
+            }
+        }
+        // Normals of extreme scale: the one-triangle path (counted above).
+        let mut rest = live & !cones.scale_free;
+        while rest != 0 {
+            let k = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let [a, b, c] = four[k];
+            let (a, b, c) = (a.truncate(), b.truncate(), c.truncate());
+            let _ = pass.cone_mask.or_into(a, b, c, pass.cull, &mut acc.mask);
+        }
+    }
 }
 
 /// [`rasterize_receiver_with_counts`](super::rasterize_receiver_with_counts):
@@ -816,27 +925,9 @@ fn classify_batch<M: ConeMask>(
     let mut start = 0;
     while start < count {
         let len = (count - start).min(4);
-        // A short last group repeats its first triangle in the missing lanes,
-        // whose verdicts are then ignored.
-        // Written out: `array::map` is not reliably inlined here.
-        let four = [
-            corners(start),
-            corners(start + 1.min(len - 1)),
-            corners(start + 2.min(len - 1)),
-            corners(start + 3.min(len - 1)),
-        ];
+        // A short last group's missing lanes: verdicts ignored.
+        let (four, lanes) = gather_four(&corners, start, len);
         start += len;
-        let gather = |corner: usize| {
-            let m = glam::Mat4::from_cols(
-                four[0][corner],
-                four[1][corner],
-                four[2][corner],
-                four[3][corner],
-            )
-            .transpose();
-            [m.x_axis, m.y_axis, m.z_axis]
-        };
-        let lanes = [gather(0), gather(1), gather(2)];
         let verdicts = classify_four(lanes, pass.cull);
         let used = (1u32 << len) - 1;
         acc.counts.degenerate += (verdicts.degenerate & used).count_ones();
@@ -863,7 +954,7 @@ fn classify_batch<M: ConeMask>(
             // converts to 0): clamped only to stay in the grid.
             let (i0, i1) = ((first_i[k] as usize).min(31), (last_i[k] as usize).min(31));
             let (j0, j1) = ((first_j[k] as usize).min(31), (last_j[k] as usize).min(31));
-            let columns = ((2u64 << i1).wrapping_sub(1u64 << i0)) as u32 & on;
+            let columns = HemiMask::columns(i0, i1) & on;
             acc.mask.rows[j0] |= (row0 << i0) & columns & HemiMask::VALID.rows[j0];
             // One-row boxes OR their first row again (no change).
             let row1 = if j1 > j0 { row1 } else { row0 };
@@ -1280,6 +1371,84 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The per-cell path's slow twin: the triangles' edge planes tested on
+    /// every valid cell set the bits [`classify_batch`] rasterizes, with the
+    /// same counts, for triangles of every kind (small, tiny, seen edge-on,
+    /// wide, of extreme scale, degenerate, back-facing).
+    #[test]
+    fn cell_tests_set_the_rasterized_bits() {
+        use rand::{Rng, SeedableRng, rngs::SmallRng};
+        let mut rng = SmallRng::seed_from_u64(0x5eed_ce11);
+        let receiver = Receiver::new(Vec3::ZERO, Vec3::Z, 0.0);
+        let every_cell: Vec<(u8, u8)> = crate::hemi::cell_directions()
+            .map(|(i, j, _)| (i as u8, j as u8))
+            .collect();
+        let mut differing_lanes = 0;
+        for case in 0..400 {
+            let scale = 10f32.powi(rng.random_range(-8..=8));
+            let count = rng.random_range(1..=CHUNK);
+            // Above the horizon and in range, as the loops batch them.
+            let batchable = |t: &[Vec4; 3]| {
+                t.iter().any(|p| p.z > 0.0)
+                    && t.iter()
+                        .all(|p| (1e-18..=1e18).contains(&((p.x * p.x + p.y * p.y) + p.z * p.z)))
+            };
+            let triangles: Vec<[Vec4; 3]> = core::iter::repeat_with(|| {
+                let centre = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(0.05..1.0),
+                );
+                let size = 10f32.powf(rng.random_range(-6.0..0.3));
+                let corner = |rng: &mut SmallRng| {
+                    centre
+                        + Vec3::new(
+                            rng.random_range(-1.0..1.0),
+                            rng.random_range(-1.0..1.0),
+                            rng.random_range(-1.0..1.0),
+                        ) * size
+                };
+                let (a, b) = (corner(&mut rng), corner(&mut rng));
+                let c = match rng.random_range(0..6) {
+                    // Edge-on: the third corner nearly in the plane of
+                    // the first two and the center of projection.
+                    0 => a * rng.random_range(0.5..2.0) + b * rng.random_range(-0.5..0.5),
+                    // Degenerate: a repeated corner.
+                    1 if rng.random_bool(0.2) => a,
+                    _ => corner(&mut rng),
+                };
+                [a, b, c].map(|p| (p * scale).extend(0.0))
+            })
+            .filter(batchable)
+            .take(count)
+            .collect();
+            for cull in [false, true] {
+                let pass = Pass {
+                    position: Vec3::ZERO,
+                    inner_r2: f32::INFINITY,
+                    outer_r2: f32::INFINITY,
+                    cull,
+                    skip_hidden: true,
+                    cone_mask: ExactCones,
+                };
+                let accumulator = || Accumulator {
+                    receiver: &receiver,
+                    frame: receiver.scaled_frame([]),
+                    mask: HemiMask::EMPTY,
+                    counts: TriangleCounts::default(),
+                };
+                let (mut rasterized, mut tested) = (accumulator(), accumulator());
+                classify_batch(count, |t| triangles[t], &mut rasterized, &pass);
+                test_cells(count, |t| triangles[t], &every_cell, &mut tested, &pass);
+                assert_eq!(rasterized.mask, tested.mask, "case {case} cull {cull}");
+                assert_eq!(rasterized.counts, tested.counts, "case {case} cull {cull}");
+                differing_lanes += usize::from(tested.mask != HemiMask::EMPTY);
+            }
+        }
+        // The test means something only if many batches set cells.
+        assert!(differing_lanes > 200, "{differing_lanes} batches set cells");
     }
 
     #[test]

@@ -54,11 +54,18 @@ impl HemiMask {
     /// Every valid cell occluded: the cells whose centers satisfy `u² + v² < 1`.
     pub const VALID: HemiMask = HemiMask { rows: valid_rows() };
 
+    /// The row bits of columns `first..=last` (`first <= last < 32`; other
+    /// arguments give some bits, without overflow).
+    #[inline(always)]
+    pub(crate) fn columns(first: usize, last: usize) -> u32 {
+        ((2u64 << (last & 31)).wrapping_sub(1u64 << (first & 31))) as u32
+    }
+
     /// Whether every valid cell of the inclusive box `(i0, i1, j0, j1)` (inside
     /// the grid) is set: a cone whose cells lie in the box then adds nothing.
     #[inline]
     pub(crate) fn box_is_full(&self, (i0, i1, j0, j1): (usize, usize, usize, usize)) -> bool {
-        let columns = ((2u64 << i1) - (1u64 << i0)) as u32;
+        let columns = HemiMask::columns(i0, i1);
         (j0..=j1).all(|j| {
             let wanted = columns & HemiMask::VALID.rows[j];
             self.rows[j] & wanted == wanted

@@ -201,7 +201,7 @@ impl TriangleCone {
             PlaneRow::new(normalize_exponent(normals[2])),
         ];
         if i1 < i0 + 4 && j1 <= j0 + 1 {
-            let columns = ((2u64 << i1) - (1u64 << i0)) as u32;
+            let columns = HemiMask::columns(i0, i1);
             let bits =
                 |j: usize| planes[0].bits(i0, j) & planes[1].bits(i0, j) & planes[2].bits(i0, j);
             // Row j1 is j0 again for one-row boxes: ORing it twice changes nothing.
@@ -762,6 +762,103 @@ pub(crate) struct FourVerdicts {
     pub(crate) window: [[u32; 2]; 4],
 }
 
+/// Four triangles' cones as [`RawCone::new`] culls them and orients their
+/// edge planes: the part of [`classify_four`] that the per-cell path of the
+/// traversal ([`ConesFour::inside`]) shares with it.
+#[derive(Clone, Copy)]
+pub(crate) struct ConesFour {
+    /// `det(a, b, c)` per lane.
+    det: Vec4,
+    /// Lanes [`RawCone::new`] culls as [`Culled::Degenerate`].
+    pub(crate) degenerate: u32,
+    /// Lanes not degenerate and culled as [`Culled::BackFacing`].
+    pub(crate) back_facing: u32,
+    /// The inward edge normals `a×b`, `b×c`, `c×a` (negated where the
+    /// determinant is negative, which is exact), x, y and z lanes.
+    normals: [[Vec4; 3]; 3],
+    /// Lanes whose normals need no power-of-two scaling: every component is
+    /// zero or within `2^±60` in size. Then every product with a cell
+    /// coordinate (at least 1/32 in size) and its scaled twin are in the
+    /// normal range, so each product, and each sum of them (an exact
+    /// cancellation included), is [`TriangleCone`]'s scaled one times the
+    /// same power of two, and has the same sign: the predicate on these
+    /// normals is the exact mask's, bit for bit.
+    pub(crate) scale_free: u32,
+}
+
+impl ConesFour {
+    /// The cones of the triangles with local corners `corners` (lanes as in
+    /// [`classify_four`]), each lane the scalar code's expressions in the
+    /// same order.
+    #[inline(always)]
+    pub(crate) fn new(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> ConesFour {
+        let [[ax, ay, az], [bx, by, bz], [cx, cy, cz]] = corners;
+        // cross(p, q), lane by lane.
+        let cross = |px: Vec4, py: Vec4, pz: Vec4, qx: Vec4, qy: Vec4, qz: Vec4| {
+            (py * qz - qy * pz, pz * qx - qz * px, px * qy - qx * py)
+        };
+        let (abx, aby, abz) = cross(ax, ay, az, bx, by, bz);
+        let (bcx, bcy, bcz) = cross(bx, by, bz, cx, cy, cz);
+        let (cax, cay, caz) = cross(cx, cy, cz, ax, ay, az);
+        let det = abx * cx + aby * cy + abz * cz;
+        let finite = Vec4::is_finite_mask;
+        let all_finite = finite(det)
+            & finite(abx + bcx + cax)
+            & finite(aby + bcy + cay)
+            & finite(abz + bcz + caz);
+        let zero = Vec4::ZERO;
+        let is_zero = |x: Vec4, y: Vec4, z: Vec4| x.cmpeq(zero) & y.cmpeq(zero) & z.cmpeq(zero);
+        let degenerate = !all_finite
+            | det.cmpeq(zero)
+            | is_zero(abx, aby, abz)
+            | is_zero(bcx, bcy, bcz)
+            | is_zero(cax, cay, caz);
+        let degenerate = degenerate.bitmask();
+        let back_facing = if cull_backfaces {
+            det.cmpgt(zero).bitmask() & !degenerate
+        } else {
+            0
+        };
+        let flip = det.cmplt(zero);
+        let orient = |v: Vec4| Vec4::select(flip, -v, v);
+        let normals = [
+            [orient(abx), orient(aby), orient(abz)],
+            [orient(bcx), orient(bcy), orient(bcz)],
+            [orient(cax), orient(cay), orient(caz)],
+        ];
+        let unscaled_ok = |v: Vec4| {
+            let a = v.abs();
+            a.cmpeq(zero)
+                | (a.cmpge(Vec4::splat(SCALE_FREE_MIN)) & a.cmple(Vec4::splat(SCALE_FREE_MAX)))
+        };
+        let mut scale_free = glam::BVec4A::splat(true);
+        for m in &normals {
+            for &c in m {
+                scale_free &= unscaled_ok(c);
+            }
+        }
+        ConesFour {
+            det,
+            degenerate,
+            back_facing,
+            normals,
+            scale_free: scale_free.bitmask(),
+        }
+    }
+
+    /// Lanes whose three planes hold the cell center `(u, v, z)` (splatted
+    /// [`CELL_COORD`] and [`CELL_Z`] values): for `scale_free` lanes, whether
+    /// the exact mask sets the cell ([`inside`]'s expression).
+    #[inline(always)]
+    pub(crate) fn inside(&self, u: Vec4, v: Vec4, z: Vec4) -> u32 {
+        let mut inside = glam::BVec4A::splat(true);
+        for [mx, my, mz] in self.normals {
+            inside &= ((mx * u + my * v) + mz * z).cmpge(Vec4::ZERO);
+        }
+        inside.bitmask()
+    }
+}
+
 /// [`RawCone::new`]'s culling (after the horizon test) and
 /// [`proven_box`]'s box for four triangles at once, lane `k`
 /// evaluating the same `f32` expressions in the same order as the scalar code
@@ -774,30 +871,9 @@ pub(crate) struct FourVerdicts {
 #[inline(always)]
 pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> FourVerdicts {
     let [[ax, ay, az], [bx, by, bz], [cx, cy, cz]] = corners;
-    // cross(p, q), lane by lane.
-    let cross = |px: Vec4, py: Vec4, pz: Vec4, qx: Vec4, qy: Vec4, qz: Vec4| {
-        (py * qz - qy * pz, pz * qx - qz * px, px * qy - qx * py)
-    };
-    let (abx, aby, abz) = cross(ax, ay, az, bx, by, bz);
-    let (bcx, bcy, bcz) = cross(bx, by, bz, cx, cy, cz);
-    let (cax, cay, caz) = cross(cx, cy, cz, ax, ay, az);
-    let det = abx * cx + aby * cy + abz * cz;
-    let finite = Vec4::is_finite_mask;
-    let all_finite =
-        finite(det) & finite(abx + bcx + cax) & finite(aby + bcy + cay) & finite(abz + bcz + caz);
+    let cones = ConesFour::new(corners, cull_backfaces);
+    let (det, degenerate, back_facing) = (cones.det, cones.degenerate, cones.back_facing);
     let zero = Vec4::ZERO;
-    let is_zero = |x: Vec4, y: Vec4, z: Vec4| x.cmpeq(zero) & y.cmpeq(zero) & z.cmpeq(zero);
-    let degenerate = !all_finite
-        | det.cmpeq(zero)
-        | is_zero(abx, aby, abz)
-        | is_zero(bcx, bcy, bcz)
-        | is_zero(cax, cay, caz);
-    let degenerate = degenerate.bitmask();
-    let back_facing = if cull_backfaces {
-        det.cmpgt(zero).bitmask() & !degenerate
-    } else {
-        0
-    };
     // proven_box and box_of_corners, lane by lane.
     // The corners' unit directions and inverse lengths, as proven_box
     // computes them: |p|² = (x² + y²) + z², a correctly rounded square root
@@ -831,34 +907,9 @@ pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> Fo
     let boxed = (tau_ok & cos_ok & n_ok).bitmask() & !degenerate & !back_facing;
     let empty = boxed & no_cell.bitmask();
     // Small boxes: the three predicates on a window of 4 x 2 cells, all four
-    // lanes at once. The inward normals are the crosses, negated where the
-    // determinant is negative (exact). TriangleCone's normals are also
-    // scaled by a power of two, which changes no predicate when every
-    // component is zero or within 2^±60: then every product with a cell
-    // coordinate (at least 1/32 in size) and its scaled twin are in the
-    // normal range, so each product, and each sum of them (an exact
-    // cancellation included), is the scaled one's times the same power of
-    // two, and has the same sign.
-    let flip = det.cmplt(zero);
-    let orient = |v: Vec4| Vec4::select(flip, -v, v);
-    let normals = [
-        [orient(abx), orient(aby), orient(abz)],
-        [orient(bcx), orient(bcy), orient(bcz)],
-        [orient(cax), orient(cay), orient(caz)],
-    ];
-    let unscaled_ok = |v: Vec4| {
-        let a = v.abs();
-        a.cmpeq(zero)
-            | (a.cmpge(Vec4::splat(SCALE_FREE_MIN)) & a.cmple(Vec4::splat(SCALE_FREE_MAX)))
-    };
-    let mut scale_free = glam::BVec4A::splat(true);
-    for m in &normals {
-        for &c in m {
-            scale_free &= unscaled_ok(c);
-        }
-    }
+    // lanes at once, on the normals of ConesFour (scale-free lanes only).
     let narrow = (last_u - first_u).cmple(Vec4::splat(3.0)) & (last_v - first_v).cmple(Vec4::ONE);
-    let small = (narrow & scale_free).bitmask() & boxed & !empty;
+    let small = narrow.bitmask() & cones.scale_free & boxed & !empty;
     let mut window = [[0u32; 2]; 4];
     if small != 0 {
         // Cell centers as CELL_COORD and CELL_Z give them, bit for bit:
@@ -872,11 +923,7 @@ pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> Fo
             for di in 0..4 {
                 let u = coordinate(first_u + Vec4::splat(di as f32));
                 let z = ((one - u * u) - v * v).sqrt();
-                let mut inside = glam::BVec4A::splat(true);
-                for [mx, my, mz] in normals {
-                    inside &= ((mx * u + my * v) + mz * z).cmpge(zero);
-                }
-                bits |= inside.bitmask() << (16 * dj + 4 * di);
+                bits |= cones.inside(u, v, z) << (16 * dj + 4 * di);
             }
         }
         // Transpose each 4 x 4 block of bits (delta swaps) to bit
@@ -1574,7 +1621,7 @@ mod proven_box_tests {
                 if v.small >> k & 1 == 1 {
                     // The window's bits, masked to the box, are the same.
                     let (i0, i1, j0, j1) = cells;
-                    let columns = ((2u64 << i1) - (1u64 << i0)) as u32;
+                    let columns = HemiMask::columns(i0, i1);
                     let mut window = HemiMask::EMPTY;
                     for (dj, &bits) in v.window[k].iter().enumerate() {
                         let j = j0 + dj;
