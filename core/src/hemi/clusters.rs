@@ -42,16 +42,31 @@ impl Aabb {
         n.dot(q - o) <= 0.0
     }
 
+    /// The smallest box holding both.
+    #[inline]
+    pub(super) fn union(&self, other: &Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
+    }
+
+    /// The squared distance from `p` to the nearest point of the box: the
+    /// nearest bound of [`Aabb::distance_range_sq`].
+    #[inline(always)]
+    pub(super) fn distance_sq(&self, p: Vec3) -> f32 {
+        (p.clamp(self.min, self.max) - p).length_squared()
+    }
+
     /// The squared distances from `p` to the nearest and farthest point of the
     /// box, each as a lower or upper bound of `(c - p).length_squared()` in `f32`
     /// for every point `c` of the box.
     #[inline(always)]
     pub(super) fn distance_range_sq(&self, p: Vec3) -> (f32, f32) {
-        let near = p.clamp(self.min, self.max);
         let lo = self.min - p;
         let hi = self.max - p;
         let far = lo.abs().max(hi.abs());
-        ((near - p).length_squared(), far.length_squared())
+        (self.distance_sq(p), far.length_squared())
     }
 }
 

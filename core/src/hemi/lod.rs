@@ -94,7 +94,7 @@
 
 use glam::{Vec3, Vec4};
 
-use super::box_cells::BoxCells;
+use super::box_cells::{BoxCells, ray_pad};
 use super::clusters::{Aabb, CHUNK, CHUNK_VERTICES, Chunk, ClusteredMesh, GROUP, TriangleClusters};
 use super::mask::{CELL_COORD, CELL_Z, HemiMask};
 use super::table::HalfSpaceTable;
@@ -492,6 +492,13 @@ fn mesh_loop<M: ConeMask>(
     }; STACK];
     let mut len = 0;
     let top = clusters.nodes.len() - 1;
+    let pad = match clusters.nodes[top].split_first() {
+        Some((first, rest)) => {
+            let root = rest.iter().fold(*first, |all, b| all.union(b));
+            ray_pad(&root, o)
+        }
+        None => 0.0,
+    };
     let roots = 0..clusters.nodes[top].len();
     let near = Near { n, o, pass };
     near.push_nearest_first(
@@ -511,26 +518,32 @@ fn mesh_loop<M: ConeMask>(
         } = stack[len];
         let (level, index) = (level as usize, index as usize);
         // Tested here rather than when pushed: the mask has grown since.
-        let reach = pass
-            .skip_hidden
-            .then(|| BoxCells::of(&clusters.nodes[level][index], &acc.frame, o));
-        if level == 0 {
-            // A cluster reaching a few open cells: its triangles tested on
-            // those cells alone (none: skipped).
-            let open = reach.and_then(|reach| reach.open_cells::<FEW_CELLS>(&acc.mask));
-            let cells = open.as_ref().map(|open| open.as_slice());
-            if cells.is_some_and(|cells| cells.is_empty()) {
+        let bounds = &clusters.nodes[level][index];
+        let mut open = None;
+        if pass.skip_hidden {
+            let reach = BoxCells::of(bounds, &acc.frame, o);
+            if !reach.can_add_to(&acc.mask) {
                 continue;
             }
+            // A few open cells in reach: those whose rays meet the box.
+            if let Some(mut cells) = reach.open_cells::<FEW_CELLS>(&acc.mask) {
+                cells.retain_hits(bounds, &acc.frame, o, pad);
+                if cells.as_slice().is_empty() {
+                    continue;
+                }
+                open = Some(cells);
+            }
+        }
+        if level == 0 {
+            // A cluster reaching a few open cells: its triangles tested on
+            // those cells alone.
+            let cells = open.as_ref().map(|open| open.as_slice());
             let chunks = clusters.cluster_chunks[index] as usize
                 ..clusters.cluster_chunks[index + 1] as usize;
             for chunk in &clusters.chunks[chunks] {
                 chunk_loop(view, clusters, chunk, acc, pass, select, projected, cells);
             }
         } else {
-            if reach.is_some_and(|reach| !reach.can_add_to(&acc.mask)) {
-                continue;
-            }
             let below = &clusters.nodes[level - 1];
             let children = index * GROUP..((index + 1) * GROUP).min(below.len());
             near.push_nearest_first(below, level - 1, children, select, &mut stack, &mut len);
@@ -595,7 +608,7 @@ impl<M: ConeMask> Near<'_, M> {
             let Some(here) = narrow(bounds, self.n, self.o, self.pass, select) else {
                 continue;
             };
-            let key = (self.o.clamp(bounds.min, bounds.max) - self.o).length_squared();
+            let key = bounds.distance_sq(self.o);
             // Insertion into the descending order: at most 16 entries.
             let mut k = count;
             while k > 0 && sorted[k - 1].0 < key {
