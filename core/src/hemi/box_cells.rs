@@ -121,7 +121,7 @@ impl BoxCells {
     /// Whether cell `(i, j)` may be set by a triangle in the box (one cell
     /// at a time: the definition [`BoxCells::can_add_to`] and
     /// [`BoxCells::open_cells`] are tested against).
-    #[inline(always)]
+    #[cfg(test)]
     fn reaches(self, i: usize, j: usize) -> bool {
         match self {
             BoxCells::Any => true,
@@ -137,11 +137,12 @@ impl BoxCells {
         }
     }
 
-    /// The cells triangles in the box can still set in `mask` (reached,
-    /// valid and clear), when there are at most `N`; `None` when there are
-    /// more, or the box is close enough to reach any cell. Few cells are
-    /// cheaper to test one by one against the box's triangles than the
-    /// triangles are to rasterize.
+    /// The cells triangles in the box can still set in `mask`, when there
+    /// are at most `N` (reached as [`BoxCells::can_add_to`] bounds them, so
+    /// a few more than [`BoxCells::reaches`] may be listed, valid and clear);
+    /// `None` when there are more, or the box is close enough to reach any
+    /// cell. Few cells are cheaper to test one by one against the box's
+    /// triangles than the triangles are to rasterize.
     #[inline(always)]
     pub(crate) fn open_cells<const N: usize>(self, mask: &HemiMask) -> Option<OpenCells<N>> {
         let mut open = OpenCells {
@@ -150,81 +151,103 @@ impl BoxCells {
         };
         let BoxCells::Cells {
             rect: (i0, i1, j0, j1),
-            ..
+            ring,
         } = self
         else {
             return (self == BoxCells::None).then_some(open);
         };
         let rect = HemiMask::columns(i0, i1);
-        for j in j0..=j1 {
-            let mut row = rect & HemiMask::VALID.rows[j] & !mask.rows[j];
+        let mut rows = [0u32; 32];
+        let mut count = 0;
+        for (j, row) in rows.iter_mut().enumerate().take(j1 + 1).skip(j0) {
+            let clear = rect & HemiMask::VALID.rows[j] & !mask.rows[j];
+            if clear == 0 {
+                continue;
+            }
+            *row = clear & ring_band(j, ring);
+            count += row.count_ones() as usize;
+            if count > N {
+                return None;
+            }
+        }
+        for (j, &row) in rows.iter().enumerate().take(j1 + 1).skip(j0) {
+            let mut row = row;
             while row != 0 {
                 let i = row.trailing_zeros() as usize;
                 row &= row - 1;
-                if self.reaches(i, j) {
-                    if open.len == N {
-                        return None;
-                    }
-                    open.cells[open.len] = (i as u8, j as u8);
-                    open.len += 1;
-                }
+                open.cells[open.len] = (i as u8, j as u8);
+                open.len += 1;
             }
         }
         Some(open)
     }
 
     /// Whether triangles in the box can still set a cell of `mask`: a valid
-    /// cell it reaches is clear.
-    #[inline(always)]
-    pub(crate) fn can_add_to(self, mask: &HemiMask) -> bool {
+    /// cell it reaches is clear (the row-wise bound [`BoxCells::open_cells`]
+    /// lists, tested against [`BoxCells::reaches`]).
+    #[cfg(test)]
+    fn can_add_to(self, mask: &HemiMask) -> bool {
         let BoxCells::Cells {
             rect: (i0, i1, j0, j1),
-            ring: (r0, r1),
+            ring,
         } = self
         else {
             return self == BoxCells::Any;
         };
-        let columns = |first: f32, last: f32| {
-            // Columns first..=last of 0..=31 (none when first > last).
-            let (first, last) = (first.max(0.0), last.min(31.0));
-            if first > last {
-                0
-            } else {
-                HemiMask::columns(first as usize, last as usize)
-            }
-        };
-        let rect = columns(i0 as f32, i1 as f32);
-        for (j, &v) in CELL_COORD.iter().enumerate().take(j1 + 1).skip(j0) {
+        let rect = HemiMask::columns(i0, i1);
+        (j0..=j1).any(|j| {
             let open = rect & HemiMask::VALID.rows[j] & !mask.rows[j];
-            if open == 0 {
-                continue;
-            }
-            // Row j's centers with u² in [r0 - v², r1 - v²]: |u| at most
-            // `outer`, and not below `inner`. Rounding only widens the band
-            // (CELL_SLACK).
-            let outer_sq = r1 - v * v;
-            if outer_sq.is_nan() || outer_sq < 0.0 {
-                continue;
-            }
-            let outer = libm::sqrtf(outer_sq) * 16.0;
-            let mut band = columns(
-                libm::ceilf(15.5 - outer - CELL_SLACK),
-                libm::floorf(15.5 + outer + CELL_SLACK),
-            );
-            let inner_sq = r0 - v * v;
-            if inner_sq > 0.0 {
-                // Centers with |u| < inner, strictly: not reached.
-                let inner = libm::sqrtf(inner_sq) * 16.0;
-                band &= !columns(
-                    libm::ceilf(15.5 - inner + CELL_SLACK),
-                    libm::floorf(15.5 + inner - CELL_SLACK),
-                );
-            }
-            if open & band != 0 {
-                return true;
-            }
-        }
-        false
+            open != 0 && open & ring_band(j, ring) != 0
+        })
+    }
+}
+
+/// Row `j`'s columns whose centers have their squared disk radius `u² + v²`
+/// in `ring` (and a few more: rounding only widens the band, by
+/// [`CELL_SLACK`]).
+#[inline(always)]
+fn ring_band(j: usize, (r0, r1): (f32, f32)) -> u32 {
+    let v = CELL_COORD[j];
+    // Row j's centers with u² in [r0 - v², r1 - v²]: |u| at most `outer`,
+    // and not below `inner`.
+    let outer_sq = r1 - v * v;
+    if outer_sq.is_nan() || outer_sq < 0.0 {
+        return 0;
+    }
+    let outer = libm::sqrtf(outer_sq) * 16.0;
+    let mut band = columns_within(15.5 - outer - CELL_SLACK, 15.5 + outer + CELL_SLACK);
+    let inner_sq = r0 - v * v;
+    if inner_sq > 0.0 {
+        // Centers with |u| < inner, strictly: not reached.
+        let inner = libm::sqrtf(inner_sq) * 16.0;
+        band &= !columns_within(15.5 - inner + CELL_SLACK, 15.5 + inner - CELL_SLACK);
+    }
+    band
+}
+
+/// The columns `k` of `0..=31` with `lo <= k <= hi` (a NaN bound bounds
+/// nothing), without calls for the floor and ceiling: truncation is exact on
+/// the clamped range.
+#[inline(always)]
+fn columns_within(lo: f32, hi: f32) -> u32 {
+    let lo = if lo.is_nan() {
+        -1.0
+    } else {
+        lo.clamp(-1.0, 32.0)
+    };
+    let hi = if hi.is_nan() {
+        32.0
+    } else {
+        hi.clamp(-1.0, 32.0)
+    };
+    // ceil(lo) and floor(hi) from truncation toward zero.
+    let (t_lo, t_hi) = (lo as i32, hi as i32);
+    let first = (t_lo + i32::from((t_lo as f32) < lo)).max(0);
+    let last = (t_hi - i32::from((t_hi as f32) > hi)).min(31);
+    if first > last {
+        0
+    } else {
+        HemiMask::columns(first as usize, last as usize)
     }
 }
 
@@ -241,41 +264,131 @@ impl<const N: usize> OpenCells<N> {
     pub(crate) fn as_slice(&self) -> &[(u8, u8)] {
         &self.cells[..self.len]
     }
+}
 
-    /// Keeps the cells whose center ray from `origin` meets `bounds` widened
-    /// by `pad` on every side ([`ray_pad`]): a triangle inside the box sets
-    /// only cells whose center direction points into it (within the
-    /// predicate's rounding, far below the pad), and the rectangle of
-    /// [`BoxCells::of`] holds about seven times the cells whose rays meet a
-    /// small box. `frame` is the (scaled) frame the rasterizers use.
-    #[inline(always)]
-    pub(crate) fn retain_hits(&mut self, bounds: &Aabb, frame: &Frame, origin: Vec3, pad: f32) {
-        let (lo, hi) = (bounds.min - pad - origin, bounds.max + pad - origin);
-        let mut kept = 0;
-        for k in 0..self.len {
-            let (i, j) = self.cells[k];
-            let (i, j) = (usize::from(i), usize::from(j));
-            // The center direction in world axes (the frame's scale does not
-            // move where a ray meets the box).
-            let d = frame.tangent * CELL_COORD[i]
-                + frame.bitangent * CELL_COORD[j]
-                + frame.normal * CELL_Z[j][i];
-            // The slabs' parameter intervals. An axis with a zero component
-            // and the origin on a face divides 0 by 0: NaN, which min and max
-            // ignore, so that axis constrains nothing (conservative).
-            let (t0, t1) = (lo / d, hi / d);
-            let near = t0.min(t1).max_element();
-            let far = t0.max(t1).min_element();
-            // Not `near > far` or `far < 0` (NaN included): kept.
-            let missed = near > far || far < 0.0;
-            self.cells[kept] = self.cells[k];
-            kept += usize::from(!missed);
+/// A cell with the inverse of its center direction in world axes, for the
+/// slab test of [`RayCells::meeting`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RayCell {
+    /// Column.
+    pub(crate) i: u8,
+    /// Row.
+    pub(crate) j: u8,
+    /// `1 / d` per axis for the center direction `d` in world axes (`±inf`
+    /// for a zero component).
+    inverse: Vec3,
+}
+
+impl RayCell {
+    /// Cell `(i, j)` without its ray, for tests of what uses only the cell.
+    #[cfg(test)]
+    pub(crate) fn at(i: u8, j: u8) -> RayCell {
+        RayCell {
+            i,
+            j,
+            inverse: Vec3::ZERO,
         }
-        self.len = kept;
     }
 }
 
-/// The widening of boxes for [`OpenCells::retain_hits`] in a receiver's pass
+/// At most `N` cells whose center rays a box met: the open cells of a node,
+/// which its children test again (a child's box is inside its parent's, so
+/// the rays meeting it are among its parent's).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RayCells<const N: usize> {
+    cells: [RayCell; N],
+    len: usize,
+}
+
+impl<const N: usize> RayCells<N> {
+    /// No cell.
+    pub(crate) const EMPTY: RayCells<N> = RayCells {
+        cells: [RayCell {
+            i: 0,
+            j: 0,
+            inverse: Vec3::ZERO,
+        }; N],
+        len: 0,
+    };
+
+    /// Makes this list the cells of `open` with their rays from the center of projection,
+    /// `frame` the (scaled) frame the rasterizers use: the center direction
+    /// in world axes is `frame`'s axes weighted by the cell's `(u, v, z)`
+    /// (the frame's scale does not move where a ray meets a box).
+    #[inline(always)]
+    pub(crate) fn set_from(&mut self, open: &OpenCells<N>, frame: &Frame) {
+        for (ray, &(i, j)) in self.cells.iter_mut().zip(open.as_slice()) {
+            let (iu, ju) = (usize::from(i), usize::from(j));
+            let d = frame.tangent * CELL_COORD[iu]
+                + frame.bitangent * CELL_COORD[ju]
+                + frame.normal * CELL_Z[ju][iu];
+            *ray = RayCell {
+                i,
+                j,
+                inverse: d.recip(),
+            };
+        }
+        self.len = open.len;
+    }
+
+    /// Writes into `out` the cells still clear in `mask` whose center rays
+    /// from `origin` meet `bounds` widened by `pad` on every side
+    /// ([`ray_pad`]); returns how many. A triangle inside the box sets only
+    /// cells whose center direction points into it (within the predicate's
+    /// rounding, far below the pad); the rectangle of [`BoxCells::of`] holds
+    /// about seven times the cells whose rays meet a small box.
+    #[inline(always)]
+    pub(crate) fn meet_into(
+        &self,
+        bounds: &Aabb,
+        origin: Vec3,
+        pad: f32,
+        mask: &HemiMask,
+        out: &mut Self,
+    ) -> usize {
+        let (lo, hi) = (bounds.min - pad - origin, bounds.max + pad - origin);
+        let mut kept = 0;
+        for ray in self.as_slice() {
+            // The slabs' parameter intervals. An axis with a zero direction
+            // component and the origin on a face multiplies 0 by infinity:
+            // NaN, which min and max ignore, so that axis constrains nothing
+            // (conservative).
+            let (t0, t1) = (lo * ray.inverse, hi * ray.inverse);
+            let near = t0.min(t1).max_element();
+            let far = t0.max(t1).min_element();
+            // Not `near > far` or `far < 0` (NaN included): met.
+            let met = !(near > far || far < 0.0);
+            let clear = mask.rows[usize::from(ray.j)] >> ray.i & 1 == 0;
+            out.cells[kept] = *ray;
+            kept += usize::from(met & clear);
+        }
+        out.len = kept;
+        kept
+    }
+
+    /// [`RayCells::meet_into`] a new list.
+    #[cfg(test)]
+    fn meeting(&self, bounds: &Aabb, origin: Vec3, pad: f32, mask: &HemiMask) -> Self {
+        let mut out = Self::EMPTY;
+        self.meet_into(bounds, origin, pad, mask, &mut out);
+        out
+    }
+
+    /// Makes this list a copy of `other` (only its cells are copied).
+    #[inline(always)]
+    pub(crate) fn copy_from(&mut self, other: &Self) {
+        self.cells[..other.len].copy_from_slice(other.as_slice());
+        self.len = other.len;
+    }
+
+    /// The cells, in the order given.
+    #[inline(always)]
+    pub(crate) fn as_slice(&self) -> &[RayCell] {
+        &self.cells[..self.len]
+    }
+}
+
+/// The widening of boxes for [`RayCells::meeting`] in a receiver's pass
 /// over a mesh with bounds `root`: [`RAY_SLACK`] times the mesh's diagonal
 /// plus the origin's distance to its center, so every box of the mesh (and
 /// all its children) gets the same pad, at least the slack times its
@@ -362,19 +475,14 @@ mod tests {
                 every.cells[every.len] = (i as u8, j as u8);
                 every.len += 1;
             }
-            every.retain_hits(
-                &bounds,
-                &frame,
-                receiver.origin,
-                ray_pad(&bounds, receiver.origin),
-            );
-            let hit = every
-                .as_slice()
-                .iter()
-                .fold(HemiMask::EMPTY, |mut m, &(i, j)| {
-                    m.set(usize::from(i), usize::from(j), true);
-                    m
-                });
+            let pad = ray_pad(&bounds, receiver.origin);
+            let mut rays = RayCells::EMPTY;
+            rays.set_from(&every, &frame);
+            let every = rays.meeting(&bounds, receiver.origin, pad, &HemiMask::EMPTY);
+            let hit = every.as_slice().iter().fold(HemiMask::EMPTY, |mut m, ray| {
+                m.set(usize::from(ray.i), usize::from(ray.j), true);
+                m
+            });
             assert_eq!(inside & hit, inside, "case {case}: set cells missed");
             missed_some += usize::from(inside != HemiMask::EMPTY && every.len < 400);
             match cells {
@@ -417,6 +525,16 @@ mod tests {
             for (i, j, _) in crate::hemi::cell_directions() {
                 random.set(i, j, rng.next() < 0.9);
             }
+            // The cells met again, against a mask: those still clear.
+            let again = every.meeting(&bounds, receiver.origin, pad, &random);
+            let clear_met: Vec<(u8, u8)> = every
+                .as_slice()
+                .iter()
+                .filter(|ray| !random.get(usize::from(ray.i), usize::from(ray.j)))
+                .map(|ray| (ray.i, ray.j))
+                .collect();
+            let again: Vec<(u8, u8)> = again.as_slice().iter().map(|r| (r.i, r.j)).collect();
+            assert_eq!(again, clear_met, "case {case}");
             let open = reached.iter().any(|&(i, j, _)| !random.get(i, j));
             assert!(!open || cells.can_add_to(&random), "case {case}");
             // The open cells listed: the reached ones still clear, in row
@@ -429,8 +547,26 @@ mod tests {
             let listed = cells.open_cells::<8>(&random);
             match (cells, listed) {
                 (BoxCells::Any, listed) => assert!(listed.is_none(), "case {case}"),
-                (_, Some(listed)) => assert_eq!(listed.as_slice(), &clear[..], "case {case}"),
-                (_, None) => assert!(clear.len() > 8, "case {case}"),
+                (_, Some(listed)) => {
+                    // Every clear reached cell, and only valid clear cells of
+                    // the rectangle (its band's slack may add a few).
+                    let listed = listed.as_slice();
+                    assert!(clear.iter().all(|c| listed.contains(c)), "case {case}");
+                    let BoxCells::Cells { rect, .. } = cells else {
+                        assert!(listed.is_empty(), "case {case}");
+                        continue;
+                    };
+                    for &(i, j) in listed {
+                        let (i, j) = (usize::from(i), usize::from(j));
+                        assert!(
+                            HemiMask::VALID.get(i, j) && !random.get(i, j),
+                            "case {case}"
+                        );
+                        assert!((rect.0..=rect.1).contains(&i), "case {case}");
+                        assert!((rect.2..=rect.3).contains(&j), "case {case}");
+                    }
+                }
+                (_, None) => assert!(cells.can_add_to(&random), "case {case}"),
             }
             listed_some += usize::from(listed.is_some_and(|l| !l.as_slice().is_empty()));
         }

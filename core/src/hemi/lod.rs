@@ -94,7 +94,7 @@
 
 use glam::{Vec3, Vec4};
 
-use super::box_cells::{BoxCells, ray_pad};
+use super::box_cells::{BoxCells, RayCell, RayCells, ray_pad};
 use super::clusters::{Aabb, CHUNK, CHUNK_VERTICES, Chunk, ClusteredMesh, GROUP, TriangleClusters};
 use super::mask::{CELL_COORD, CELL_Z, HemiMask};
 use super::table::HalfSpaceTable;
@@ -489,7 +489,14 @@ fn mesh_loop<M: ConeMask>(
         level: 0,
         index: 0,
         select,
+        inherits: false,
     }; STACK];
+    // Per level, the cells whose rays met the parent of the nodes of that
+    // level on the stack (depth first, those nodes share one parent): a
+    // child's rays are among them.
+    let mut inherited = [RayCells::<LISTED>::EMPTY; MAX_LEVELS];
+    // The node's own rays, and the cells of a node listed afresh.
+    let (mut rays, mut listing) = (RayCells::<LISTED>::EMPTY, RayCells::<LISTED>::EMPTY);
     let mut len = 0;
     let top = clusters.nodes.len() - 1;
     let pad = match clusters.nodes[top].split_first() {
@@ -499,63 +506,88 @@ fn mesh_loop<M: ConeMask>(
         }
         None => 0.0,
     };
-    let roots = 0..clusters.nodes[top].len();
     let near = Near { n, o, pass };
-    near.push_nearest_first(
-        &clusters.nodes[top],
-        top,
-        roots,
+    let roots = Push {
+        boxes: &clusters.nodes[top],
+        level: top,
+        children: 0..clusters.nodes[top].len(),
         select,
-        &mut stack,
-        &mut len,
-    );
+        inherits: false,
+    };
+    near.push_nearest_first(roots, &mut stack, &mut len);
     while len > 0 {
         len -= 1;
         let Visit {
             level,
             index,
             select,
+            inherits,
         } = stack[len];
         let (level, index) = (level as usize, index as usize);
         // Tested here rather than when pushed: the mask has grown since.
         let bounds = &clusters.nodes[level][index];
-        let mut open = None;
+        let mut listed = false;
         if pass.skip_hidden {
-            let reach = BoxCells::of(bounds, &acc.frame, o);
-            if !reach.can_add_to(&acc.mask) {
-                continue;
-            }
-            // A few open cells in reach: those whose rays meet the box.
-            if let Some(mut cells) = reach.open_cells::<FEW_CELLS>(&acc.mask) {
-                cells.retain_hits(bounds, &acc.frame, o, pad);
-                if cells.as_slice().is_empty() {
-                    continue;
-                }
-                open = Some(cells);
+            let met = if inherits {
+                // The parent's rays that meet this box, still clear.
+                Some(inherited[level].meet_into(bounds, o, pad, &acc.mask, &mut rays))
+            } else {
+                // A few open cells in reach: those whose rays meet the box.
+                // Many: every triangle is looked at.
+                let reach = BoxCells::of(bounds, &acc.frame, o);
+                reach.open_cells::<LISTED>(&acc.mask).map(|cells| {
+                    listing.set_from(&cells, &acc.frame);
+                    listing.meet_into(bounds, o, pad, &HemiMask::EMPTY, &mut rays)
+                })
+            };
+            match met {
+                Some(0) => continue,
+                Some(_) => listed = true,
+                None => {}
             }
         }
         if level == 0 {
-            // A cluster reaching a few open cells: its triangles tested on
-            // those cells alone.
-            let cells = open.as_ref().map(|open| open.as_slice());
+            // A cluster whose rays are few: its triangles tested on those
+            // cells alone.
+            let cells = listed
+                .then(|| rays.as_slice())
+                .filter(|cells| cells.len() <= CELL_PATH);
             let chunks = clusters.cluster_chunks[index] as usize
                 ..clusters.cluster_chunks[index + 1] as usize;
             for chunk in &clusters.chunks[chunks] {
                 chunk_loop(view, clusters, chunk, acc, pass, select, projected, cells);
             }
         } else {
+            if listed {
+                inherited[level - 1].copy_from(&rays);
+            }
             let below = &clusters.nodes[level - 1];
-            let children = index * GROUP..((index + 1) * GROUP).min(below.len());
-            near.push_nearest_first(below, level - 1, children, select, &mut stack, &mut len);
+            let children = Push {
+                boxes: below,
+                level: level - 1,
+                children: index * GROUP..((index + 1) * GROUP).min(below.len()),
+                select,
+                inherits: listed,
+            };
+            near.push_nearest_first(children, &mut stack, &mut len);
         }
     }
 }
 
-/// The most open cells a cluster may reach for its triangles to be tested on
-/// them one by one ([`BoxCells::open_cells`]) rather than rasterized: the
-/// three plane tests of four triangles on one cell cost about a tenth of
-/// classifying them.
-const FEW_CELLS: usize = 32;
+/// The most open cells a node may reach for them to be listed and tested
+/// ray by ray against its box ([`BoxCells::open_cells`], [`RayCells`]) and
+/// then its children's.
+const LISTED: usize = 64;
+
+/// The most cells whose rays meet a cluster for its triangles to be tested on
+/// them one by one ([`test_cells`]) rather than rasterized: the three plane
+/// tests of four triangles on one cell cost about a tenth of classifying
+/// them.
+const CELL_PATH: usize = 32;
+
+/// Levels of the hierarchy at most: nine levels of sixteen hold more than
+/// `u32::MAX` clusters.
+const MAX_LEVELS: usize = 9;
 
 /// A node of [`TriangleClusters::nodes`] still to visit, with the rule its
 /// triangles still need.
@@ -564,12 +596,24 @@ struct Visit {
     level: u32,
     index: u32,
     select: Select,
+    /// Whether the parent's rays (the level's entry of the inherited lists)
+    /// hold every cell the node can still set.
+    inherits: bool,
 }
 
 /// Visits on the stack at most: each level of the hierarchy holds at most
-/// [`GROUP`] of them (the children of the node last opened there), and nine
-/// levels of sixteen hold more than `u32::MAX` clusters.
-const STACK: usize = 9 * GROUP;
+/// [`GROUP`] of them (the children of the node last opened there).
+const STACK: usize = MAX_LEVELS * GROUP;
+
+/// Sibling nodes to push: `children` of level `level` (boxes `boxes`), under
+/// the rule `select`, and whether they inherit their parent's rays.
+struct Push<'b> {
+    boxes: &'b [Aabb],
+    level: usize,
+    children: core::ops::Range<usize>,
+    select: Select,
+    inherits: bool,
+}
 
 /// What decides whether a receiver takes a node and in which order.
 struct Near<'p, M> {
@@ -581,25 +625,24 @@ struct Near<'p, M> {
 }
 
 impl<M: ConeMask> Near<'_, M> {
-    /// Pushes the nodes `children` of level `level` (boxes `boxes`) that
-    /// `select` may take, the farthest from the center of projection first,
-    /// so the nearest is visited next.
+    /// Pushes the nodes of `push` that its rule may take, the farthest from
+    /// the center of projection first, so the nearest is visited next.
     #[inline(always)]
-    fn push_nearest_first(
-        &self,
-        boxes: &[Aabb],
-        level: usize,
-        children: core::ops::Range<usize>,
-        select: Select,
-        stack: &mut [Visit; STACK],
-        len: &mut usize,
-    ) {
+    fn push_nearest_first(&self, push: Push<'_>, stack: &mut [Visit; STACK], len: &mut usize) {
+        let Push {
+            boxes,
+            level,
+            children,
+            select,
+            inherits,
+        } = push;
         let mut sorted = [(
             0f32,
             Visit {
                 level: level as u32,
                 index: 0,
                 select,
+                inherits,
             },
         ); GROUP];
         let mut count = 0;
@@ -621,6 +664,7 @@ impl<M: ConeMask> Near<'_, M> {
                     level: level as u32,
                     index: c as u32,
                     select: here,
+                    inherits,
                 },
             );
             count += 1;
@@ -695,7 +739,7 @@ fn chunk_loop<M: ConeMask>(
     pass: &Pass<M>,
     select: Select,
     projected: &mut Projected,
-    cells: Option<&[(u8, u8)]>,
+    cells: Option<&[RayCell]>,
 ) {
     let vertices = &clusters.chunk_vertices[chunk.vertices.0 as usize..chunk.vertices.1 as usize];
     let all_in_range = project_chunk(view, vertices, acc, pass, select, projected);
@@ -795,7 +839,7 @@ fn gather_four(
 fn test_cells<M: ConeMask>(
     count: usize,
     corners: impl Fn(usize) -> [Vec4; 3],
-    cells: &[(u8, u8)],
+    cells: &[RayCell],
     acc: &mut Accumulator<'_>,
     pass: &Pass<M>,
 ) {
@@ -812,8 +856,8 @@ fn test_cells<M: ConeMask>(
         acc.counts.rasterized += live.count_ones();
         let tested = live & cones.scale_free;
         if tested != 0 {
-            for &(i, j) in cells {
-                let (i, j) = (usize::from(i), usize::from(j));
+            for cell in cells {
+                let (i, j) = (usize::from(cell.i), usize::from(cell.j));
                 if acc.mask.rows[j] >> i & 1 == 1 {
                     continue;
                 }
@@ -1395,8 +1439,8 @@ mod tests {
         use rand::{Rng, SeedableRng, rngs::SmallRng};
         let mut rng = SmallRng::seed_from_u64(0x5eed_ce11);
         let receiver = Receiver::new(Vec3::ZERO, Vec3::Z, 0.0);
-        let every_cell: Vec<(u8, u8)> = crate::hemi::cell_directions()
-            .map(|(i, j, _)| (i as u8, j as u8))
+        let every_cell: Vec<RayCell> = crate::hemi::cell_directions()
+            .map(|(i, j, _)| RayCell::at(i as u8, j as u8))
             .collect();
         let mut differing_lanes = 0;
         for case in 0..400 {
