@@ -28,8 +28,8 @@
 //! `HalfSpaceTable::DEFAULT_RESOLUTION`'s docs.
 
 use antumbra_core::hemi::{
-    HalfSpaceTable, HemiMask, Quality, RasterOptions, Receiver, VALID_CELL_COUNT, cell_directions,
-    rasterize_receiver,
+    BatchOptions, HalfSpaceTable, HemiMask, HemiScene, Quality, RasterOptions, Receiver,
+    TriangleClusters, VALID_CELL_COUNT, cell_directions, rasterize_receiver, scene_mask,
 };
 use antumbra_core::{MeshView, Ray};
 use antumbra_tests::data::{Mesh, load_obj};
@@ -211,6 +211,29 @@ fn compare(name: &str, mesh: &Mesh) {
         }
         results.push((quality_name.clone(), agreement));
     }
+    // The per-receiver traversal of the cluster hierarchy (what the batch
+    // calls and the shader run) sets the plain loop's bits, so Embree's.
+    let mut clusters = TriangleClusters::new(&view, TriangleClusters::DEFAULT_SIZE);
+    let scene = HemiScene::new(clusters.update(view));
+    let options = BatchOptions {
+        normal_offset: offset,
+        ..BatchOptions::default()
+    };
+    let exact_options = RasterOptions {
+        normal_offset: offset,
+        ..RasterOptions::default()
+    };
+    for &(p, n) in &receivers {
+        assert_eq!(
+            scene_mask(&scene, p, n, &options),
+            rasterize_receiver(&view, p, n, &exact_options),
+            "{name}: the traversal's mask at receiver {p} differs from the plain loop's"
+        );
+    }
+    println!(
+        "{name}: hemi traversal: the plain loop's exact masks at all {} receivers",
+        receivers.len()
+    );
     let (_, exact) = &results[0];
     let (_, table) = &results[1];
     assert!(
