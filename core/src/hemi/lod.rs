@@ -45,8 +45,17 @@
 //! ([`BoxCells`]: a rectangle of the grid and a ring of elevations) are all
 //! set already, or hold no cell center, is skipped whole (exact quality: a
 //! table mask may set cells just outside its cone), since the mask, an
-//! OR, would not change. Inside a box of cells that the mask already covers, a
-//! cone's exact rasterization adds nothing and is skipped. The masks are
+//! OR, would not change. A node whose rectangle and ring hold at most
+//! [`LISTED`] clear cells lists them and keeps those whose center rays meet
+//! its box ([`RayCells`]; the rectangle of a small far box holds about seven
+//! times the cells its rays meet); its children then test only those rays, as
+//! a ray tracer's traversal would, instead of bounding their own rectangles.
+//! A cluster met by at most [`CELL_PATH`] rays tests the three edge planes of
+//! its triangles on those cells alone ([`test_cells`]): the cells no triangle
+//! of the box can set are exactly those left out, and the test is the exact
+//! mask's predicate on the same `f32` values, so the bits are the same. Inside
+//! a box of cells that the mask already covers, a cone's exact rasterization
+//! adds nothing and is skipped. The masks are
 //! identical to the
 //! unclustered loop's, bit for bit (the counts of `rasterized` triangles drop by
 //! those of the skipped nodes): the box tests evaluate the same `f32` expressions
@@ -71,15 +80,15 @@
 //! counts equal the unclustered loop's (tests below, and `classify_four`'s
 //! against `TriangleCone::new` and the per-cell predicate).
 //!
-//! Cost per receiver: moving the vertices of the clusters not below the horizon
-//! into the frame, culling their triangles, classifying those above the horizon
-//! (about 125 vector operations per triangle: crosses, culling, three square
-//! roots and a division, the proven box, the 4 × 2 windows; the largest part),
-//! and the rest one at a time (larger boxes, ORing the windows in, wide cones).
-//! Most cones above the horizon set no cell, and many have no cell center in
-//! their proven box. On a large mesh a receiver still sees a large share of the
-//! triangles above its horizon, which is what the far mesh is for. Figures:
-//! `antumbra bench hemi`.
+//! Cost per receiver: the walk over the node boxes (about a third), moving the
+//! vertices of the clusters opened into the frame, and per triangle either the
+//! plane tests on a cluster's few cells (most clusters of a large mesh: about
+//! 30 vector operations per four triangles plus 12 per cell) or, for the near
+//! clusters that many open cells meet, the classification (about 125 vector
+//! operations per triangle: crosses, culling, three square roots and a
+//! division, the proven box, the 4 × 2 windows) and the rest one at a time
+//! (larger boxes, ORing the windows in, wide cones). Figures: `antumbra bench
+//! hemi`.
 //!
 //! The far mesh (the bunny by vertex clustering on a 12³ grid, 902 triangles;
 //! near radius a tenth of the diagonal) changes the bunny's transfer vectors by
