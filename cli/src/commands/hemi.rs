@@ -233,6 +233,7 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
             normal_offset: offset,
             ..BatchOptions::default()
         };
+        let (mut rasterized, mut nodes) = (0u64, 0u64);
         for &(p, n) in &chosen {
             // Same masks as the unclustered rasterizer (the clusters only skip).
             let plain = RasterOptions {
@@ -241,9 +242,12 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
                 ..RasterOptions::default()
             };
             let expected = rasterize_receiver_with_counts(&view, p, n, &plain).0;
-            if scene_mask_with_counts(&scene, p, n, &options).0 != expected {
+            let (mask, counts) = scene_mask_with_counts(&scene, p, n, &options);
+            if mask != expected {
                 return Err(Error::msg("clustered and plain masks differ"));
             }
+            rasterized += u64::from(counts.rasterized);
+            nodes += u64::from(counts.nodes);
         }
         let elapsed = time_per_call(min_time, || {
             for &(p, n) in &chosen {
@@ -252,9 +256,12 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
         });
         let micros = elapsed.as_secs_f64() * 1e6 / count;
         println!(
-            "rasterizer {:<5}  {micros:>9.2} µs per receiver  with {}-triangle clusters",
+            "rasterizer {:<5}  {micros:>9.2} µs per receiver  with {}-triangle clusters \
+             ({:.0} triangles and {:.0} hierarchy nodes tested per receiver)",
             quality_name(arg),
-            TriangleClusters::DEFAULT_SIZE
+            TriangleClusters::DEFAULT_SIZE,
+            rasterized as f64 / count,
+            nodes as f64 / count,
         );
         per_receiver.push((
             if matches!(arg, QualityArg::Exact) {
@@ -413,19 +420,27 @@ fn far_mesh_table(
          error of the luminance against those rays"
     );
     println!(
-        "{:>14} {:>22} {:>16} {:>14} {:>12} {:>12}",
-        "far triangles", "near radius", "µs per vertex", "rays / this", "error", "rasterized"
+        "{:>14} {:>22} {:>16} {:>14} {:>12} {:>12} {:>8}",
+        "far triangles",
+        "near radius",
+        "µs per vertex",
+        "rays / this",
+        "error",
+        "rasterized",
+        "nodes"
     );
     let full = full_clusters.update(view);
     let row = |scene: &HemiScene<'_>, far_name: &str, radius_name: &str| {
         let transfer =
             |p: Vec3, n: Vec3| vertex_transfer(scene, p, n, &options, method, TransferSpace::World);
         let mut error = 0.0f64;
-        let mut rasterized = 0u64;
+        let (mut rasterized, mut nodes) = (0u64, 0u64);
         for (&(p, n), &want) in chosen.iter().zip(&reference) {
             let got = luminance(&transfer(p, n));
             error += (got - want) * (got - want);
-            rasterized += u64::from(scene_mask_with_counts(scene, p, n, &options).1.rasterized);
+            let counts = scene_mask_with_counts(scene, p, n, &options).1;
+            rasterized += u64::from(counts.rasterized);
+            nodes += u64::from(counts.nodes);
         }
         let elapsed = time_per_call(min_time, || {
             for &(p, n) in chosen {
@@ -434,10 +449,11 @@ fn far_mesh_table(
         });
         let micros = elapsed.as_secs_f64() * 1e6 / count;
         println!(
-            "{far_name:>14} {radius_name:>22} {micros:>16.2} {:>13.2}x {:>11.3}% {:>12.0}",
+            "{far_name:>14} {radius_name:>22} {micros:>16.2} {:>13.2}x {:>11.3}% {:>12.0} {:>8.0}",
             reference_micros / micros,
             100.0 * (error / reference_power.max(f64::MIN_POSITIVE)).sqrt(),
             rasterized as f64 / count,
+            nodes as f64 / count,
         );
     };
     row(&HemiScene::new(full), "none", "(full mesh)");
@@ -464,10 +480,17 @@ fn far_mesh_table(
                 &format!("{radius:.4} (diag/{:.0})", 1.0 / fraction),
             );
         }
+        let mut previous = 0;
         for levels in FAR_TABLE_LEVELS {
             let mut field = FarField::new(&view, target, levels)
                 .map_err(|e| Error::msg(format!("cannot simplify {}: {e}", mesh.name())))?;
             let built = field.level_count();
+            // A small mesh runs out of coarser levels: no second row of the
+            // same field.
+            if built == previous {
+                continue;
+            }
+            previous = built;
             let posed = field.pose(&view).map_err(|e| Error::msg(e.to_string()))?;
             row(
                 &posed.scene(full),

@@ -535,6 +535,7 @@ fn mesh_loop<M: ConeMask>(
         let (level, index) = (level as usize, index as usize);
         // Tested here rather than when pushed: the mask has grown since.
         let bounds = &clusters.nodes[level][index];
+        acc.counts.nodes += 1;
         let mut listed = false;
         if pass.skip_hidden {
             let met = if inherits {

@@ -275,6 +275,10 @@ pub struct TriangleCounts {
     pub back_facing: u32,
     /// Left out through [`RasterOptions::skip_triangles`].
     pub skipped: u32,
+    /// Nodes of the cluster hierarchy whose boxes were tested against the
+    /// mask ([`scene_mask_with_counts`] on clustered meshes; 0 otherwise): the
+    /// traversal's work besides the triangles.
+    pub nodes: u32,
 }
 
 impl TriangleCounts {
