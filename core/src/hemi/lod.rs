@@ -444,13 +444,28 @@ fn scene_loop<M: ConeMask>(
         cone_mask,
     };
     let mut projected = Projected::EMPTY;
+    let mut walk = Walk::EMPTY;
     let Some(far) = &scene.far else {
         let all = pass(f32::INFINITY, f32::INFINITY);
-        mesh_loop(&scene.mesh, &mut acc, &all, Select::All, &mut projected);
+        mesh_loop(
+            &scene.mesh,
+            &mut acc,
+            &all,
+            Select::All,
+            &mut projected,
+            &mut walk,
+        );
         return (acc.mask, acc.counts);
     };
     let near = pass(0.0, scene.near_radius);
-    mesh_loop(&scene.mesh, &mut acc, &near, Select::Near, &mut projected);
+    mesh_loop(
+        &scene.mesh,
+        &mut acc,
+        &near,
+        Select::Near,
+        &mut projected,
+        &mut walk,
+    );
     // Each far level between its own radius and the next one's.
     let radii = core::iter::once(scene.near_radius).chain(levels.iter().map(|l| l.near_radius));
     let meshes = core::iter::once(far).chain(levels.iter().map(|l| &l.mesh));
@@ -459,11 +474,18 @@ fn scene_loop<M: ConeMask>(
         match outer.next() {
             Some(outer) => {
                 let band = pass(inner, outer);
-                mesh_loop(mesh, &mut acc, &band, Select::Band, &mut projected);
+                mesh_loop(
+                    mesh,
+                    &mut acc,
+                    &band,
+                    Select::Band,
+                    &mut projected,
+                    &mut walk,
+                );
             }
             None => {
                 let far = pass(inner, f32::INFINITY);
-                mesh_loop(mesh, &mut acc, &far, Select::Far, &mut projected);
+                mesh_loop(mesh, &mut acc, &far, Select::Far, &mut projected, &mut walk);
             }
         }
     }
@@ -479,6 +501,7 @@ fn mesh_loop<M: ConeMask>(
     pass: &Pass<M>,
     select: Select,
     projected: &mut Projected,
+    walk: &mut Walk,
 ) {
     let view = &mesh.mesh;
     let Some(clusters) = mesh.clusters else {
@@ -494,18 +517,12 @@ fn mesh_loop<M: ConeMask>(
     // are tested against it. A node's box holds its children's, so each test
     // it fails, every box below it fails too (the tests are monotone in the
     // box).
-    let mut stack = [Visit {
-        level: 0,
-        index: 0,
-        select,
-        inherits: false,
-    }; STACK];
-    // Per level, the cells whose rays met the parent of the nodes of that
-    // level on the stack (depth first, those nodes share one parent): a
-    // child's rays are among them.
-    let mut inherited = [RayCells::<LISTED>::EMPTY; MAX_LEVELS];
-    // The node's own rays, and the cells of a node listed afresh.
-    let (mut rays, mut listing) = (RayCells::<LISTED>::EMPTY, RayCells::<LISTED>::EMPTY);
+    let Walk {
+        stack,
+        inherited,
+        rays,
+        listing,
+    } = walk;
     let mut len = 0;
     let top = clusters.nodes.len() - 1;
     let pad = match clusters.nodes[top].split_first() {
@@ -523,7 +540,7 @@ fn mesh_loop<M: ConeMask>(
         select,
         inherits: false,
     };
-    near.push_nearest_first(roots, &mut stack, &mut len);
+    near.push_nearest_first(roots, stack, &mut len);
     while len > 0 {
         len -= 1;
         let Visit {
@@ -540,14 +557,14 @@ fn mesh_loop<M: ConeMask>(
         if pass.skip_hidden {
             let met = if inherits {
                 // The parent's rays that meet this box, still clear.
-                Some(inherited[level].meet_into(bounds, o, pad, &acc.mask, &mut rays))
+                Some(inherited[level].meet_into(bounds, o, pad, &acc.mask, rays))
             } else {
                 // A few open cells in reach: those whose rays meet the box.
                 // Many: every triangle is looked at.
                 let reach = BoxCells::of(bounds, &acc.frame, o);
                 reach.open_cells::<LISTED>(&acc.mask).map(|cells| {
                     listing.set_from(&cells, &acc.frame);
-                    listing.meet_into(bounds, o, pad, &HemiMask::EMPTY, &mut rays)
+                    listing.meet_into(bounds, o, pad, &HemiMask::EMPTY, rays)
                 })
             };
             match met {
@@ -569,7 +586,7 @@ fn mesh_loop<M: ConeMask>(
             }
         } else {
             if listed {
-                inherited[level - 1].copy_from(&rays);
+                inherited[level - 1].copy_from(rays);
             }
             let below = &clusters.nodes[level - 1];
             let children = Push {
@@ -579,7 +596,7 @@ fn mesh_loop<M: ConeMask>(
                 select,
                 inherits: listed,
             };
-            near.push_nearest_first(children, &mut stack, &mut len);
+            near.push_nearest_first(children, stack, &mut len);
         }
     }
 }
@@ -598,6 +615,36 @@ const CELL_PATH: usize = 32;
 /// Levels of the hierarchy at most: nine levels of sixteen hold more than
 /// `u32::MAX` clusters.
 const MAX_LEVELS: usize = 9;
+
+/// What a receiver's walk over a hierarchy keeps on the stack, made once per
+/// receiver and reused for each of its meshes: every entry is written before
+/// it is read.
+struct Walk {
+    /// Nodes still to visit.
+    stack: [Visit; STACK],
+    /// Per level, the cells whose rays met the parent of the nodes of that
+    /// level on the stack (depth first, those nodes share one parent): a
+    /// child's rays are among them.
+    inherited: [RayCells<LISTED>; MAX_LEVELS],
+    /// The rays meeting the node visited.
+    rays: RayCells<LISTED>,
+    /// The cells of a node listed afresh.
+    listing: RayCells<LISTED>,
+}
+
+impl Walk {
+    const EMPTY: Walk = Walk {
+        stack: [Visit {
+            level: 0,
+            index: 0,
+            select: Select::All,
+            inherits: false,
+        }; STACK],
+        inherited: [RayCells::EMPTY; MAX_LEVELS],
+        rays: RayCells::EMPTY,
+        listing: RayCells::EMPTY,
+    };
+}
 
 /// A node of [`TriangleClusters::nodes`] still to visit, with the rule its
 /// triangles still need.
