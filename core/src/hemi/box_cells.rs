@@ -157,21 +157,15 @@ impl BoxCells {
             return (self == BoxCells::None).then_some(open);
         };
         let rect = HemiMask::columns(i0, i1);
-        let mut rows = [0u32; 32];
-        let mut count = 0;
-        for (j, row) in rows.iter_mut().enumerate().take(j1 + 1).skip(j0) {
+        for j in j0..=j1 {
             let clear = rect & HemiMask::VALID.rows[j] & !mask.rows[j];
             if clear == 0 {
                 continue;
             }
-            *row = clear & ring_band(j, ring);
-            count += row.count_ones() as usize;
-            if count > N {
+            let mut row = clear & ring_band(j, ring);
+            if open.len + row.count_ones() as usize > N {
                 return None;
             }
-        }
-        for (j, &row) in rows.iter().enumerate().take(j1 + 1).skip(j0) {
-            let mut row = row;
             while row != 0 {
                 let i = row.trailing_zeros() as usize;
                 row &= row - 1;
@@ -319,9 +313,7 @@ impl<const N: usize> RayCells<N> {
     pub(crate) fn set_from(&mut self, open: &OpenCells<N>, frame: &Frame) {
         for (ray, &(i, j)) in self.cells.iter_mut().zip(open.as_slice()) {
             let (iu, ju) = (usize::from(i), usize::from(j));
-            let d = frame.tangent * CELL_COORD[iu]
-                + frame.bitangent * CELL_COORD[ju]
-                + frame.normal * CELL_Z[ju][iu];
+            let d = frame.to_world(Vec3::new(CELL_COORD[iu], CELL_COORD[ju], CELL_Z[ju][iu]));
             *ray = RayCell {
                 i,
                 j,

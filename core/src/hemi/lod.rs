@@ -910,8 +910,8 @@ fn test_cells<M: ConeMask>(
         acc.counts.degenerate += (cones.degenerate & used).count_ones();
         acc.counts.back_facing += (cones.back_facing & used).count_ones();
         let live = used & !(cones.degenerate | cones.back_facing);
-        acc.counts.rasterized += live.count_ones();
         let tested = live & cones.scale_free;
+        acc.counts.rasterized += tested.count_ones();
         if tested != 0 {
             for cell in cells {
                 let (i, j) = (usize::from(cell.i), usize::from(cell.j));
@@ -925,14 +925,33 @@ fn test_cells<M: ConeMask>(
                 }
             }
         }
-        // Normals of extreme scale: the one-triangle path (counted above).
-        let mut rest = live & !cones.scale_free;
-        while rest != 0 {
-            let k = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
-            let [a, b, c] = four[k];
-            let (a, b, c) = (a.truncate(), b.truncate(), c.truncate());
-            let _ = pass.cone_mask.or_into(a, b, c, pass.cull, &mut acc.mask);
+        // Normals of extreme scale: the one-triangle path.
+        one_by_one(live & !cones.scale_free, &four, acc, pass);
+    }
+}
+
+/// The triangles of `four` in the lanes `lanes` through the one-triangle
+/// path ([`ConeMask::or_into`]), with their counts.
+#[inline(always)]
+fn one_by_one<M: ConeMask>(
+    mut lanes: u32,
+    four: &[[Vec4; 3]; 4],
+    acc: &mut Accumulator<'_>,
+    pass: &Pass<M>,
+) {
+    while lanes != 0 {
+        let k = lanes.trailing_zeros() as usize;
+        lanes &= lanes - 1;
+        let [a, b, c] = four[k];
+        match (pass.cone_mask).or_into(
+            a.truncate(),
+            b.truncate(),
+            c.truncate(),
+            pass.cull,
+            &mut acc.mask,
+        ) {
+            Ok(()) => acc.counts.rasterized += 1,
+            Err(culled) => acc.counts.count(culled),
         }
     }
 }
@@ -1093,16 +1112,7 @@ fn classify_batch<M: ConeMask>(
             }
         }
         // The rest (wide or tiny cones, table planes): the one-triangle path.
-        let mut rest = used & !settled & !exact;
-        while rest != 0 {
-            let k = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
-            let [a, b, c] = local(k);
-            match pass.cone_mask.or_into(a, b, c, pass.cull, &mut acc.mask) {
-                Ok(()) => acc.counts.rasterized += 1,
-                Err(culled) => acc.counts.count(culled),
-            }
-        }
+        one_by_one(used & !settled & !exact, &four, acc, pass);
     }
 }
 
