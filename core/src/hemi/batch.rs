@@ -385,3 +385,266 @@ pub fn shade_batch_per_vertex<'a, const N: usize>(
         }
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::test_meshes::{bumpy_sphere, normals_of};
+    use super::*;
+    use crate::hemi::*;
+    use crate::sh::{Sh, ShRgb};
+    use alloc::vec;
+
+    #[test]
+    fn mask_batches_are_scene_masks_on_and_off_the_pool() {
+        let (positions, indices) = bumpy_sphere(12, 18, 0.25, 0.5);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let normals = normals_of(&mesh);
+        let mut clusters = TriangleClusters::new(&mesh, 16);
+        let clustered = clusters.update(mesh);
+        for scene in [
+            HemiScene::new(ClusteredMesh::unclustered(mesh)),
+            HemiScene::new(clustered),
+        ] {
+            for parallel in [false, true] {
+                let options = BatchOptions {
+                    normal_offset: 0.01,
+                    parallel,
+                    ..BatchOptions::default()
+                };
+                let receiver = |k: usize| (mesh.position(k), normals[k]);
+                let mut out = vec![HemiMask::VALID; mesh.vertex_count()];
+                mask_batch(&scene, receiver, &options, &mut out);
+                for (k, mask) in out.iter().enumerate() {
+                    let (p, n) = receiver(k);
+                    assert_eq!(*mask, scene_mask(&scene, p, n, &options), "receiver {k}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn batches_match_single_vertices_and_check_their_arguments() {
+        let (positions, indices) = bumpy_sphere(10, 16, 0.25, 0.3);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let mut normals = normals_of(&mesh);
+        normals[3] = Vec3::ZERO;
+        let table = TransferTable::<9>::new();
+        let method = TransferMethod::Cells(&table);
+        let scene = HemiScene::new(ClusteredMesh::unclustered(mesh));
+        let options = BatchOptions {
+            normal_offset: 0.01,
+            ..BatchOptions::default()
+        };
+        let count = mesh.vertex_count();
+        let mut transfers = vec![Sh::<9>::ZERO; count];
+        transfer_batch(
+            &scene,
+            &normals,
+            &options,
+            method,
+            TransferSpace::World,
+            &mut transfers,
+        )
+        .unwrap();
+        let mut light = ShRgb::<9>::ZERO;
+        light.r[0] = 1.0;
+        light.g[2] = 0.5;
+        light.b[3] = -0.2;
+        let lobe = PhongLobe::new(10.0).unwrap();
+        let material = Material {
+            albedo: Vec3::new(0.8, 0.6, 0.4),
+            specular: Vec3::splat(0.2),
+            lobe: Some(&lobe),
+            eye: Vec3::new(0.0, -5.0, 2.0),
+        };
+        let mut rgb = vec![Vec3::ZERO; count];
+        let mut split = vec![VertexShading::default(); count];
+        shade_batch(
+            &scene, &normals, &options, method, &light, &material, &mut rgb,
+        )
+        .unwrap();
+        shade_batch_split(
+            &scene, &normals, &options, method, &light, &material, &mut split,
+        )
+        .unwrap();
+        // The other side of `parallel`, the bare-array output and per-vertex
+        // surfaces give the same bits.
+        let flipped = BatchOptions {
+            parallel: !options.parallel,
+            ..options
+        };
+        let mut arrays = vec![[f32::NAN; 9]; count];
+        transfer_batch(
+            &scene,
+            &normals,
+            &flipped,
+            method,
+            TransferSpace::World,
+            &mut arrays,
+        )
+        .unwrap();
+        assert!(arrays.iter().zip(&transfers).all(|(a, t)| *a == t.coeffs));
+        let mut per_vertex = vec![VertexShading::default(); count];
+        let surface = |v: usize| VertexSurface {
+            material,
+            to_eye: (v % 2 == 1).then(|| (material.eye - mesh.position(v)).normalize_or_zero()),
+        };
+        shade_batch_per_vertex(
+            &scene,
+            &normals,
+            &flipped,
+            method,
+            &light,
+            surface,
+            &mut per_vertex,
+        )
+        .unwrap();
+        for v in 0..count {
+            let (p, n) = (mesh.position(v), normals[v]);
+            if v != 3 && v % 2 == 1 {
+                let to_eye = (material.eye - p).normalize_or_zero();
+                let towards =
+                    shade_vertex_towards(&scene, p, n, &options, method, &light, &material, to_eye);
+                assert_eq!(per_vertex[v], towards);
+                assert_eq!(towards, split[v]);
+            } else {
+                assert_eq!(per_vertex[v], split[v]);
+            }
+        }
+        for v in 0..count {
+            let (p, n) = (mesh.position(v), normals[v]);
+            if v == 3 {
+                assert_eq!(transfers[v], Sh::ZERO);
+                assert_eq!(rgb[v], Vec3::ZERO);
+                continue;
+            }
+            assert_eq!(
+                transfers[v],
+                vertex_transfer(&scene, p, n, &options, method, TransferSpace::World)
+            );
+            let s = shade_vertex(&scene, p, n, &options, method, &light, &material);
+            assert_eq!(split[v], s);
+            assert_eq!(rgb[v], s.diffuse + s.glossy);
+            let expected = shade_diffuse(&transfers[v], &light, material.albedo);
+            assert!((s.diffuse - expected).abs().max_element() < 1e-6);
+        }
+        assert!(split.iter().any(|s| s.glossy != Vec3::ZERO));
+        // Argument checks; nothing written on error.
+        let before = transfers.clone();
+        assert_eq!(
+            transfer_batch(
+                &scene,
+                &normals[1..],
+                &options,
+                method,
+                TransferSpace::Local,
+                &mut transfers
+            ),
+            Err(BatchError::NormalCount {
+                expected: count,
+                got: count - 1
+            })
+        );
+        assert_eq!(
+            transfer_batch(
+                &scene,
+                &normals,
+                &options,
+                method,
+                TransferSpace::Local,
+                &mut transfers[1..]
+            ),
+            Err(BatchError::OutputLength {
+                expected: count,
+                got: count - 1
+            })
+        );
+        let far_scene = HemiScene::with_far(scene.mesh, scene.mesh, f32::NAN);
+        assert_eq!(
+            transfer_batch(
+                &far_scene,
+                &normals,
+                &options,
+                method,
+                TransferSpace::Local,
+                &mut transfers
+            ),
+            Err(BatchError::NearRadius)
+        );
+        assert_eq!(transfers, before);
+        let mut short = vec![Vec3::ZERO; count - 1];
+        assert!(vertex_normals(&mesh, &mut short).is_err());
+    }
+
+    #[test]
+    fn vertex_normals_of_a_sphere_point_outwards() {
+        let (positions, indices) = bumpy_sphere(12, 16, 0.25, 0.0);
+        // The bumps tilt them, but they point outwards.
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let normals = normals_of(&mesh);
+        for (v, n) in normals.iter().enumerate() {
+            let p = mesh.position(v);
+            assert!((n.length() - 1.0).abs() < 1e-5);
+            assert!(n.dot(p.normalize()) > 0.0, "vertex {v}");
+        }
+    }
+
+    #[test]
+    fn vertex_normals_of_huge_and_tiny_triangles_are_unit() {
+        // The summed normal's squared length overflowed (1e10 edges: 1e40) or
+        // underflowed (1e-13 edges: 1e-52) into a zero normal.
+        let indices = [0u32, 1, 2];
+        for scale in [1e10f32, 1e18, 1e-13, 1e-19] {
+            let positions = [[0.0, 0.0, 0.0], [scale, 0.0, 0.0], [0.0, scale, 0.0]];
+            let mesh = MeshView::new(&positions, &indices).unwrap();
+            let mut normals = [Vec3::ZERO; 3];
+            vertex_normals(&mesh, &mut normals).unwrap();
+            assert_eq!(normals, [Vec3::Z; 3], "edges of {scale}");
+        }
+        // Still zero where the sum is zero (a flat fan cancels).
+        let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let mesh = MeshView::new(&positions, &[0, 1, 2, 0, 2, 1]).unwrap();
+        let mut normals = [Vec3::ONE; 3];
+        vertex_normals(&mesh, &mut normals).unwrap();
+        assert_eq!(normals, [Vec3::ZERO; 3]);
+    }
+
+    #[test]
+    fn a_far_eye_still_gets_the_glossy_term() {
+        // (eye - position).length_squared() overflowed for an eye 1e20 away, so
+        // the view direction was zero and the glossy term vanished.
+        let (positions, indices) = bumpy_sphere(10, 16, 0.25, 0.3);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let normals = normals_of(&mesh);
+        let scene = HemiScene::new(ClusteredMesh::unclustered(mesh));
+        let table = TransferTable::<9>::new();
+        let method = TransferMethod::Cells(&table);
+        let mut light = ShRgb::<9>::ZERO;
+        light.r[0] = 1.0;
+        light.g[2] = 0.5;
+        light.b[3] = -0.2;
+        let lobe = PhongLobe::new(10.0).unwrap();
+        let v = 20;
+        let (p, n) = (mesh.position(v), normals[v]);
+        let direction = (n + Vec3::new(0.1, 0.2, 0.0)).normalize();
+        let shade = |distance: f32| {
+            let material = Material {
+                albedo: Vec3::splat(0.5),
+                specular: Vec3::splat(0.3),
+                lobe: Some(&lobe),
+                eye: p + distance * direction,
+            };
+            let options = BatchOptions::default();
+            shade_vertex(&scene, p, n, &options, method, &light, &material).glossy
+        };
+        let near = shade(1e3);
+        assert_ne!(near, Vec3::ZERO);
+        for distance in [1e20f32, 1e30] {
+            let far = shade(distance);
+            assert!(
+                (far - near).abs().max_element() < 1e-4 * near.abs().max_element(),
+                "{distance}: {far} vs {near}"
+            );
+        }
+    }
+}

@@ -138,8 +138,8 @@ impl BoxCells {
     }
 
     /// The cells triangles in the box can still set in `mask`, when there
-    /// are at most `N` (reached as [`BoxCells::can_add_to`] bounds them, so
-    /// a few more than [`BoxCells::reaches`] may be listed, valid and clear);
+    /// are at most `N` (reached as `BoxCells::can_add_to` bounds them, so
+    /// a few more than `BoxCells::reaches` may be listed, valid and clear);
     /// `None` when there are more, or the box is close enough to reach any
     /// cell. Few cells are cheaper to test one by one against the box's
     /// triangles than the triangles are to rasterize.
@@ -261,7 +261,7 @@ impl<const N: usize> OpenCells<N> {
 }
 
 /// A cell with the inverse of its center direction in world axes, for the
-/// slab test of [`RayCells::meeting`].
+/// slab test of [`RayCells::meet_into`].
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct RayCell {
     /// Column.
@@ -380,7 +380,7 @@ impl<const N: usize> RayCells<N> {
     }
 }
 
-/// The widening of boxes for [`RayCells::meeting`] in a receiver's pass
+/// The widening of boxes for [`RayCells::meet_into`] in a receiver's pass
 /// over a mesh with bounds `root`: [`RAY_SLACK`] times the mesh's diagonal
 /// plus the origin's distance to its center, so every box of the mesh (and
 /// all its children) gets the same pad, at least the slack times its

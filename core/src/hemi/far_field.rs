@@ -189,28 +189,15 @@ impl<'a> FarLevels<'a> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_meshes::bumpy_sphere;
     use super::*;
     use crate::hemi::{BatchOptions, scene_mask, vertex_normals};
     use alloc::vec;
     use glam::Vec3;
 
-    /// A bumpy sphere, twisted about +z by `twist` radians per unit of height.
-    fn sphere(twist: f32) -> (Vec<[f32; 3]>, Vec<u32>) {
-        crate::geom::uv_sphere(48, 64, |theta, phi| {
-            let radius = 1.0 + 0.2 * libm::sinf(6.0 * theta) * libm::sinf(5.0 * phi);
-            let z = radius * libm::cosf(theta);
-            let angle = phi + twist * z;
-            [
-                radius * libm::sinf(theta) * libm::cosf(angle),
-                radius * libm::sinf(theta) * libm::sinf(angle),
-                z,
-            ]
-        })
-    }
-
     #[test]
     fn levels_double_their_cubes_and_radii() {
-        let (positions, indices) = sphere(0.0);
+        let (positions, indices) = bumpy_sphere(48, 64, 0.2, 0.0);
         let mesh = MeshView::new(&positions, &indices).unwrap();
         let mut field = FarField::new(&mesh, 1200, 4).unwrap();
         assert_eq!(field.level_count(), 4);
@@ -235,7 +222,7 @@ mod tests {
 
     #[test]
     fn too_coarse_levels_are_left_out() {
-        let (positions, indices) = sphere(0.0);
+        let (positions, indices) = bumpy_sphere(48, 64, 0.2, 0.0);
         let mesh = MeshView::new(&positions, &indices).unwrap();
         // Cubes 128 times those of a 200-triangle mesh hold the whole sphere.
         let field = FarField::new(&mesh, 200, MAX_FAR_LEVELS + 3).unwrap();
@@ -248,7 +235,7 @@ mod tests {
 
     #[test]
     fn one_level_is_the_two_level_scene_and_every_level_follows_the_pose() {
-        let (rest, indices) = sphere(0.0);
+        let (rest, indices) = bumpy_sphere(48, 64, 0.2, 0.0);
         let rest_mesh = MeshView::new(&rest, &indices).unwrap();
         let mut field = FarField::new(&rest_mesh, 1500, 1).unwrap();
         let mut deep = FarField::new(&rest_mesh, 1500, 3).unwrap();
@@ -259,7 +246,7 @@ mod tests {
             ..BatchOptions::default()
         };
         for twist in [0.0f32, 1.2] {
-            let (positions, _) = sphere(twist);
+            let (positions, _) = bumpy_sphere(48, 64, 0.2, twist);
             let mesh = MeshView::new(&positions, &indices).unwrap();
             let mut normals = vec![Vec3::ZERO; mesh.vertex_count()];
             vertex_normals(&mesh, &mut normals).unwrap();

@@ -96,7 +96,9 @@
 
 mod batch;
 mod box_cells;
+mod chunk;
 mod clusters;
+mod cone_mask;
 mod far_field;
 mod far_mesh;
 mod half_space;
@@ -107,7 +109,10 @@ mod shading;
 mod table;
 mod transfer;
 mod triangle;
+mod walk;
 
+#[cfg(test)]
+mod test_meshes;
 #[cfg(test)]
 mod tests;
 
@@ -316,7 +321,7 @@ pub fn rasterize_receiver_with_counts(
     options: &RasterOptions<'_>,
 ) -> (HemiMask, TriangleCounts) {
     let receiver = Receiver::new(position, normal, options.normal_offset);
-    lod::rasterize_mesh_batched(
+    chunk::rasterize_mesh_batched(
         mesh,
         &receiver,
         options.skip_triangles,

@@ -362,23 +362,10 @@ fn scene<'s>(
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_meshes::bumpy_sphere;
     use super::*;
     use crate::hemi::{Material, PhongLobe, TransferTable, shade_vertex};
     use alloc::vec;
-
-    /// A bumpy sphere twisted about +z by `twist` radians per unit of height.
-    fn sphere(rings: u32, segments: u32, twist: f32) -> (Vec<[f32; 3]>, Vec<u32>) {
-        crate::geom::uv_sphere(rings, segments, |theta, phi| {
-            let radius = 1.0 + 0.2 * libm::sinf(5.0 * theta) * libm::sinf(4.0 * phi);
-            let z = radius * libm::cosf(theta);
-            let angle = phi + twist * z;
-            [
-                radius * libm::sinf(theta) * libm::cosf(angle),
-                radius * libm::sinf(theta) * libm::sinf(angle),
-                z,
-            ]
-        })
-    }
 
     fn options() -> BatchOptions<'static> {
         BatchOptions {
@@ -389,9 +376,9 @@ mod tests {
 
     #[test]
     fn frames_are_the_batches_on_the_scene_built_by_hand() {
-        let (rest, indices) = sphere(24, 36, 0.0);
+        let (rest, indices) = bumpy_sphere(24, 36, 0.2, 0.0);
         let rest_mesh = MeshView::new(&rest, &indices).unwrap();
-        let (far_rest, far_indices) = sphere(8, 12, 0.0);
+        let (far_rest, far_indices) = bumpy_sphere(8, 12, 0.2, 0.0);
         let far_rest_mesh = MeshView::new(&far_rest, &far_indices).unwrap();
         let table = TransferTable::<9>::new();
         let method = TransferMethod::Cells(&table);
@@ -433,8 +420,8 @@ mod tests {
         light.r[0] = 1.0;
         light.g[2] = 0.4;
         for twist in [0.0f32, 0.8] {
-            let (positions, _) = sphere(24, 36, twist);
-            let (far_positions, _) = sphere(8, 12, twist);
+            let (positions, _) = bumpy_sphere(24, 36, 0.2, twist);
+            let (far_positions, _) = bumpy_sphere(8, 12, 0.2, twist);
             let mesh = MeshView::new(&positions, &indices).unwrap();
             let far = MeshView::new(&far_positions, &far_indices).unwrap();
             let mut normals = vec![Vec3::ZERO; mesh.vertex_count()];
@@ -491,9 +478,9 @@ mod tests {
 
     #[test]
     fn shaders_refuse_what_does_not_fit() {
-        let (positions, indices) = sphere(8, 12, 0.0);
+        let (positions, indices) = bumpy_sphere(8, 12, 0.2, 0.0);
         let mesh = MeshView::new(&positions, &indices).unwrap();
-        let (other, other_indices) = sphere(6, 12, 0.0);
+        let (other, other_indices) = bumpy_sphere(6, 12, 0.2, 0.0);
         let other_mesh = MeshView::new(&other, &other_indices).unwrap();
         let own = ShaderSetup {
             far_field: Some(FarFieldSetup {

@@ -13,23 +13,11 @@ use glam::Vec3;
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng, rngs::SmallRng};
 
+use super::test_meshes::bumpy_sphere;
 use super::*;
 use crate::raycast::BruteForceCaster;
 
 // --- scenes ---
-
-/// A closed UV sphere, counter-clockwise seen from outside, with its radius
-/// modulated by `bump` (0 = round) so that it has concave regions.
-fn bumpy_sphere(rings: u32, segments: u32, bump: f32) -> (Vec<[f32; 3]>, Vec<u32>) {
-    crate::geom::uv_sphere(rings, segments, |theta, phi| {
-        let radius = 1.0 + bump * libm::sinf(5.0 * theta) * libm::sinf(4.0 * phi);
-        [
-            radius * libm::sinf(theta) * libm::cosf(phi),
-            radius * libm::sinf(theta) * libm::sinf(phi),
-            radius * libm::cosf(theta),
-        ]
-    })
-}
 
 /// `count` random triangles with corners within `size` of centers in the cube
 /// `[-half, half]³`.
@@ -584,7 +572,7 @@ fn culling_classes() {
 /// grazing the silhouette.
 #[test]
 fn backface_culling_changes_only_silhouette_ties_on_a_closed_mesh() {
-    let (positions, indices) = bumpy_sphere(24, 48, 0.15);
+    let (positions, indices) = bumpy_sphere(24, 48, 0.15, 0.0);
     let mesh = MeshView::new(&positions, &indices).unwrap();
     let triangles = mesh_triangles(&mesh);
     let normals = vertex_normals(&positions, &indices);
@@ -624,7 +612,7 @@ fn backface_culling_changes_only_silhouette_ties_on_a_closed_mesh() {
 
 #[test]
 fn receiver_at_a_vertex_culls_its_incident_triangles() {
-    let (positions, indices) = bumpy_sphere(16, 32, 0.2);
+    let (positions, indices) = bumpy_sphere(16, 32, 0.2, 0.0);
     let mesh = MeshView::new(&positions, &indices).unwrap();
     let triangles = mesh_triangles(&mesh);
     let normals = vertex_normals(&positions, &indices);
@@ -726,7 +714,7 @@ fn exact_rasterization_agrees_with_ray_casting() {
             .collect();
         check(&positions, &indices, &receivers, false);
     }
-    let (positions, indices) = bumpy_sphere(20, 40, 0.2);
+    let (positions, indices) = bumpy_sphere(20, 40, 0.2, 0.0);
     let normals = vertex_normals(&positions, &indices);
     let receivers: Vec<_> = (0..positions.len())
         .step_by(7)
@@ -788,7 +776,7 @@ fn receiver_helpers_follow_the_conventions() {
 fn batched_receiver_loop_is_the_one_triangle_loop() {
     let mut rng = SmallRng::seed_from_u64(0x5eed_4a11);
     let table = HalfSpaceTable::new(64);
-    let (sphere_p, sphere_i) = bumpy_sphere(18, 30, 0.2);
+    let (sphere_p, sphere_i) = bumpy_sphere(18, 30, 0.2, 0.0);
     let (mut soup_p, mut soup_i) = soup(&mut rng, 400, 3.0, 0.4);
     let (tiny_p, tiny_i) = soup(&mut rng, 300, 3.0, 1e-3);
     let base = soup_p.len() as u32;
@@ -886,7 +874,7 @@ fn meshes_of_extreme_size_rasterize_like_rays() {
 /// scaled back into the same range, exactly.
 #[test]
 fn power_of_two_scaled_meshes_keep_their_masks_in_every_loop() {
-    let (positions, indices) = bumpy_sphere(12, 20, 0.2);
+    let (positions, indices) = bumpy_sphere(12, 20, 0.2, 0.0);
     let mesh = MeshView::new(&positions, &indices).unwrap();
     let normals = vertex_normals(&positions, &indices);
     let table = HalfSpaceTable::new(64);

@@ -1,0 +1,322 @@
+//! The walk of a receiver over a mesh's hierarchy of cluster boxes. Speed: most
+//! triangles of a closed mesh lie below a receiver's horizon, and each is still
+//! read and culled. With [`TriangleClusters`](super::TriangleClusters) the
+//! triangles are grouped once into clusters of nearby triangles (a Morton order
+//! of their centroids), each cluster's bounding box is recomputed every frame
+//! ([`TriangleClusters::update`](super::TriangleClusters::update)), and a whole
+//! cluster is skipped when its box is at or below the receiver's tangent plane
+//! through the center of projection, or entirely inside (far mesh) or outside
+//! (full mesh) the near radius. The boxes form a hierarchy (each node the union
+//! of 16 neighbours in the Morton order below it, refitted with the clusters),
+//! traversed per receiver depth first, each node's children nearest first
+//! (after Laine and Karras 2010, method 2): a node failing a test fails it for
+//! every box below, and a node whose reachable cells ([`BoxCells`]: a rectangle
+//! of the grid and a ring of elevations) are all set already, or hold no cell
+//! center, is skipped whole (exact quality: a table mask may set cells just
+//! outside its cone), since the mask, an OR, would not change. A node whose
+//! rectangle and ring hold at most [`LISTED`] clear cells lists them and keeps
+//! those whose center rays meet its box ([`RayCells`]; the rectangle of a small
+//! far box holds about seven times the cells its rays meet); its children then
+//! test only those rays, as a ray tracer's traversal would, instead of bounding
+//! their own rectangles. A cluster met by at most [`CELL_PATH`] rays tests the
+//! three edge planes of its triangles on those cells alone (`test_cells`
+//! (chunk.rs)): the cells no triangle of the box can set are exactly those left
+//! out, and the test is the exact mask's predicate on the same `f32` values, so
+//! the bits are the same. Inside a box of cells that the mask already covers, a
+//! cone's exact rasterization adds nothing and is skipped. The masks are
+//! identical to the unclustered loop's, bit for bit (the counts of `rasterized`
+//! triangles drop by those of the skipped nodes): the box tests evaluate the
+//! same `f32` expressions as the per-triangle tests on the box corner that
+//! maximises them, and `f32` subtraction, multiplication by a fixed factor and
+//! addition are monotone, so a box that fails a test proves every corner in it
+//! fails the same test in the same arithmetic. The mask, an OR over triangles,
+//! does not depend on their order (tested on spheres in `lod.rs` and on the twisting
+//! bunny in `tests/tests/hemi_lod.rs`).
+
+use glam::Vec3;
+
+use super::Accumulator;
+use super::box_cells::{BoxCells, RayCells, ray_pad};
+use super::chunk::{Projected, chunk_loop, take};
+use super::clusters::{Aabb, ClusteredMesh, GROUP};
+use super::cone_mask::ConeMask;
+use super::lod::{Pass, Select};
+use super::mask::HemiMask;
+
+/// Adds the triangles of `mesh` that `select` takes, cluster by cluster when there
+/// are clusters.
+#[inline(always)]
+pub(super) fn mesh_loop<M: ConeMask>(
+    mesh: &ClusteredMesh<'_>,
+    acc: &mut Accumulator<'_>,
+    pass: &Pass<M>,
+    select: Select,
+    projected: &mut Projected,
+    walk: &mut Walk,
+) {
+    let view = &mesh.mesh;
+    let Some(clusters) = mesh.clusters else {
+        for t in 0..view.triangle_count() {
+            take(view, t, acc, pass, select);
+        }
+        return;
+    };
+    // The scaled normal: the same expression as the triangles' horizon test.
+    let (n, o) = (acc.frame.normal, acc.receiver.origin);
+    // Depth first through the hierarchy, the children of a node nearest
+    // first, so near occluders fill the mask before the boxes behind them
+    // are tested against it. A node's box holds its children's, so each test
+    // it fails, every box below it fails too (the tests are monotone in the
+    // box).
+    let Walk {
+        stack,
+        inherited,
+        rays,
+        listing,
+    } = walk;
+    let mut len = 0;
+    let top = clusters.nodes.len() - 1;
+    let pad = match clusters.nodes[top].split_first() {
+        Some((first, rest)) => {
+            let root = rest.iter().fold(*first, |all, b| all.union(b));
+            ray_pad(&root, o)
+        }
+        None => 0.0,
+    };
+    let roots = Push {
+        boxes: &clusters.nodes[top],
+        level: top,
+        children: 0..clusters.nodes[top].len(),
+        select,
+        inherits: false,
+    };
+    push_nearest_first(roots, (n, o), pass, stack, &mut len);
+    while len > 0 {
+        len -= 1;
+        let Visit {
+            level,
+            index,
+            select,
+            inherits,
+        } = stack[len];
+        let (level, index) = (level as usize, index as usize);
+        // Tested here rather than when pushed: the mask has grown since.
+        let bounds = &clusters.nodes[level][index];
+        acc.counts.nodes += 1;
+        let mut listed = false;
+        if pass.skip_hidden {
+            let met = if inherits {
+                // The parent's rays that meet this box, still clear.
+                Some(inherited[level].meet_into(bounds, o, pad, &acc.mask, rays))
+            } else {
+                // A few open cells in reach: those whose rays meet the box.
+                // Many: every triangle is looked at.
+                let reach = BoxCells::of(bounds, &acc.frame, o);
+                reach.open_cells::<LISTED>(&acc.mask).map(|cells| {
+                    listing.set_from(&cells, &acc.frame);
+                    listing.meet_into(bounds, o, pad, &HemiMask::EMPTY, rays)
+                })
+            };
+            match met {
+                Some(0) => continue,
+                Some(_) => listed = true,
+                None => {}
+            }
+        }
+        if level == 0 {
+            // A cluster whose rays are few: its triangles tested on those
+            // cells alone.
+            let cells = listed
+                .then(|| rays.as_slice())
+                .filter(|cells| cells.len() <= CELL_PATH);
+            let chunks = clusters.cluster_chunks[index] as usize
+                ..clusters.cluster_chunks[index + 1] as usize;
+            for chunk in &clusters.chunks[chunks] {
+                chunk_loop(view, clusters, chunk, acc, pass, select, projected, cells);
+            }
+        } else {
+            if listed {
+                inherited[level - 1].copy_from(rays);
+            }
+            let below = &clusters.nodes[level - 1];
+            let children = Push {
+                boxes: below,
+                level: level - 1,
+                children: index * GROUP..((index + 1) * GROUP).min(below.len()),
+                select,
+                inherits: listed,
+            };
+            push_nearest_first(children, (n, o), pass, stack, &mut len);
+        }
+    }
+}
+
+/// The most open cells a node may reach for them to be listed and tested
+/// ray by ray against its box ([`BoxCells::open_cells`], [`RayCells`]) and
+/// then its children's.
+const LISTED: usize = 64;
+
+/// The most cells whose rays meet a cluster for its triangles to be tested on
+/// them one by one (`test_cells` (chunk.rs)) rather than rasterized: the three plane
+/// tests of four triangles on one cell cost about a tenth of classifying
+/// them.
+const CELL_PATH: usize = 32;
+
+/// Levels of the hierarchy at most: nine levels of sixteen hold more than
+/// `u32::MAX` clusters.
+const MAX_LEVELS: usize = 9;
+
+/// What a receiver's walk over a hierarchy keeps on the stack, made once per
+/// receiver and reused for each of its meshes: every entry is written before
+/// it is read.
+pub(super) struct Walk {
+    /// Nodes still to visit.
+    stack: [Visit; STACK],
+    /// Per level, the cells whose rays met the parent of the nodes of that
+    /// level on the stack (depth first, those nodes share one parent): a
+    /// child's rays are among them.
+    inherited: [RayCells<LISTED>; MAX_LEVELS],
+    /// The rays meeting the node visited.
+    rays: RayCells<LISTED>,
+    /// The cells of a node listed afresh.
+    listing: RayCells<LISTED>,
+}
+
+impl Walk {
+    pub(super) const EMPTY: Walk = Walk {
+        stack: [Visit {
+            level: 0,
+            index: 0,
+            select: Select::All,
+            inherits: false,
+        }; STACK],
+        inherited: [RayCells::EMPTY; MAX_LEVELS],
+        rays: RayCells::EMPTY,
+        listing: RayCells::EMPTY,
+    };
+}
+
+/// A node of [`TriangleClusters::nodes`](super::TriangleClusters) still to visit, with the rule its
+/// triangles still need.
+#[derive(Clone, Copy)]
+struct Visit {
+    level: u32,
+    index: u32,
+    select: Select,
+    /// Whether the parent's rays (the level's entry of the inherited lists)
+    /// hold every cell the node can still set.
+    inherits: bool,
+}
+
+/// Visits on the stack at most: each level of the hierarchy holds at most
+/// [`GROUP`] of them (the children of the node last opened there).
+const STACK: usize = MAX_LEVELS * GROUP;
+
+/// Sibling nodes to push: `children` of level `level` (boxes `boxes`), under
+/// the rule `select`, and whether they inherit their parent's rays.
+struct Push<'b> {
+    boxes: &'b [Aabb],
+    level: usize,
+    children: core::ops::Range<usize>,
+    select: Select,
+    inherits: bool,
+}
+
+/// Pushes the nodes of `push` that the receiver may take (horizon test
+/// with scaled normal `n` through the center of projection `o`, and the
+/// pass's radii), the farthest from `o` first, so the nearest is visited
+/// next.
+#[inline(always)]
+fn push_nearest_first<M: ConeMask>(
+    push: Push<'_>,
+    (n, o): (Vec3, Vec3),
+    pass: &Pass<M>,
+    stack: &mut [Visit; STACK],
+    len: &mut usize,
+) {
+    let Push {
+        boxes,
+        level,
+        children,
+        select,
+        inherits,
+    } = push;
+    let mut sorted = [(
+        0f32,
+        Visit {
+            level: level as u32,
+            index: 0,
+            select,
+            inherits,
+        },
+    ); GROUP];
+    let mut count = 0;
+    for c in children {
+        let bounds = &boxes[c];
+        let Some(here) = narrow(bounds, n, o, pass, select) else {
+            continue;
+        };
+        let key = bounds.distance_sq(o);
+        // Insertion into the descending order: at most 16 entries.
+        let mut k = count;
+        while k > 0 && sorted[k - 1].0 < key {
+            sorted[k] = sorted[k - 1];
+            k -= 1;
+        }
+        sorted[k] = (
+            key,
+            Visit {
+                level: level as u32,
+                index: c as u32,
+                select: here,
+                inherits,
+            },
+        );
+        count += 1;
+    }
+    for &(_, visit) in &sorted[..count] {
+        stack[*len] = visit;
+        *len += 1;
+    }
+}
+
+/// What a receiver takes of the triangles in box `bounds` under `select`: `None`
+/// when none (the box at or below the tangent plane through `o` with scaled
+/// normal `n`, every corner within the inner radius, or none within the outer
+/// one), else the rule that still needs testing per triangle (`All` when every
+/// corner passes the distance tests alike).
+#[inline(always)]
+fn narrow<M: ConeMask>(
+    bounds: &Aabb,
+    n: Vec3,
+    o: Vec3,
+    pass: &Pass<M>,
+    select: Select,
+) -> Option<Select> {
+    if bounds.below_plane(n, o) {
+        return None;
+    }
+    if select == Select::All {
+        return Some(Select::All);
+    }
+    let (near, far) = bounds.distance_range_sq(pass.position);
+    // Which of the two tests every corner passes or fails alike.
+    let needs_inner = select != Select::Near;
+    let needs_outer = select != Select::Far;
+    let (all_beyond_inner, all_within_inner) = (near > pass.inner_r2, far <= pass.inner_r2);
+    let (all_beyond_outer, all_within_outer) = (near > pass.outer_r2, far <= pass.outer_r2);
+    if (needs_inner && all_within_inner) || (needs_outer && all_beyond_outer) {
+        return None;
+    }
+    Some(
+        match (
+            needs_inner && !all_beyond_inner,
+            needs_outer && !all_within_outer,
+        ) {
+            (false, false) => Select::All,
+            (false, true) => Select::Near,
+            (true, false) => Select::Far,
+            (true, true) => Select::Band,
+        },
+    )
+}
