@@ -1,7 +1,9 @@
 //! Per-vertex shading of deforming meshes with the hemispherical rasterizer, as
 //! `antumbra demo` and `antumbra bench hemi` use it: SH lighting from an
 //! environment map, a far level of detail built once, a twist deformation applied
-//! to both levels every frame, and the core's batch shading of every vertex.
+//! to both levels every frame, and the library's deforming-mesh shader (core's
+//! `HemiShader`: normals, cluster boxes, far levels and the shading of every
+//! vertex, posed from each frame's positions).
 //!
 //! Choices, shared by the demo and the benchmark:
 //!
@@ -46,8 +48,8 @@ use std::time::{Duration, Instant};
 
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
-    BatchOptions, FarMesh, HalfSpaceTable, HemiScene, Material, PhongLobe, Quality, TransferMethod,
-    TransferTable, TriangleClusters, VertexShading, shade_batch_split, vertex_normals,
+    BatchOptions, FarField, FarFieldSetup, FarMesh, HalfSpaceTable, HemiShader, Material,
+    PhongLobe, Quality, ShaderSetup, TransferMethod, TransferTable, VertexShading, VertexSurface,
 };
 use antumbra_core::sh::{EquirectMapping, Sh, ShRgb, ZonalKernel, project_equirect};
 use glam::{Quat, Vec3};
@@ -227,21 +229,36 @@ impl LodMesh {
     }
 }
 
-/// The current pose of a [`LodMesh`] and the per-frame state that goes with it:
-/// positions of both levels, normals, cluster boxes.
+/// Which occluders a [`Posed`] mesh's receivers see beyond their neighbourhood.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Occluders {
+    /// The full mesh everywhere.
+    Full,
+    /// The full mesh near, the [`LodMesh`]'s far mesh beyond its near radius.
+    FarMesh,
+    /// The full mesh near, then the library's own far field of this many
+    /// levels (core's `FarField`), its finest level about the far mesh's size
+    /// and its first radius the near radius.
+    FarLevels(usize),
+}
+
+/// The current pose of a [`LodMesh`] and the library's deforming-mesh shader
+/// (core's `HemiShader`: clusters, far levels, normals and shading buffers,
+/// posed from each frame's positions); the positions of both levels are kept
+/// here, since the deformation is the caller's.
 pub struct Posed<'m> {
     lod: &'m LodMesh,
+    occluders: Occluders,
     positions: Vec<[f32; 3]>,
     far_positions: Vec<[f32; 3]>,
-    normals: Vec<Vec3>,
-    clusters: TriangleClusters,
-    far_clusters: TriangleClusters,
+    shader: HemiShader,
 }
 
 /// What one frame cost.
 #[derive(Clone, Copy, Debug)]
 pub struct FrameTime {
-    /// Deforming both levels, normals and cluster boxes.
+    /// Deforming the mesh, then posing the shader: normals, cluster boxes,
+    /// far levels.
     pub pose: Duration,
     /// Shading every vertex.
     pub shade: Duration,
@@ -255,22 +272,37 @@ impl FrameTime {
 }
 
 impl<'m> Posed<'m> {
-    /// The rest pose; clusters are grouped once here, from the rest positions.
-    pub fn new(lod: &'m LodMesh) -> Self {
-        let positions = lod.full.positions().to_vec();
-        let far_positions = lod.far.positions().to_vec();
-        let clusters = TriangleClusters::new(&lod.full.view(), TriangleClusters::DEFAULT_SIZE);
-        let far_clusters = TriangleClusters::new(&lod.far.view(), TriangleClusters::DEFAULT_SIZE);
-        let mut posed = Posed {
-            lod,
-            positions,
-            far_positions,
-            normals: vec![Vec3::ZERO; lod.full.vertex_count()],
-            clusters,
-            far_clusters,
+    /// The rest pose; clusters are grouped once here, from the rest positions,
+    /// and the far levels built when `occluders` asks for them.
+    pub fn new(lod: &'m LodMesh, occluders: Occluders) -> Result<Self> {
+        let far_field = match occluders {
+            Occluders::FarLevels(levels) => Some(FarFieldSetup {
+                triangles: lod.far.triangle_count(),
+                levels,
+            }),
+            Occluders::Full | Occluders::FarMesh => None,
         };
-        posed.update_normals();
-        posed
+        let far_view = lod.far.view();
+        let setup = ShaderSetup {
+            far_field,
+            near_radius: lod.near_radius,
+            shading: true,
+            ..ShaderSetup::default()
+        };
+        let far = (occluders == Occluders::FarMesh).then_some(&far_view);
+        let shader = HemiShader::new(&lod.full.view(), far, &setup).map_err(|e| {
+            Error::msg(format!(
+                "cannot make the shader of {}: {e}",
+                lod.full.name()
+            ))
+        })?;
+        Ok(Posed {
+            lod,
+            occluders,
+            positions: lod.full.positions().to_vec(),
+            far_positions: lod.far.positions().to_vec(),
+            shader,
+        })
     }
 
     /// Current positions of the full mesh.
@@ -278,9 +310,15 @@ impl<'m> Posed<'m> {
         &self.positions
     }
 
+    /// The library's far levels, if this pose has them.
+    pub fn far_field(&self) -> Option<&FarField> {
+        self.shader.far_field()
+    }
+
     /// Moves every vertex of both levels to `deform(rest position)`: the far
     /// mesh's vertices are deformed by the same function at their own rest
-    /// positions. Recomputes the normals from the new positions.
+    /// positions (the library's far levels follow the full mesh by
+    /// themselves).
     pub fn set_pose(&mut self, deform: impl Fn(Vec3) -> Vec3) {
         let pose = |rest: &[[f32; 3]], out: &mut [[f32; 3]]| {
             for (o, &p) in out.iter_mut().zip(rest) {
@@ -288,75 +326,74 @@ impl<'m> Posed<'m> {
             }
         };
         pose(self.lod.full.positions(), &mut self.positions);
-        pose(self.lod.far.positions(), &mut self.far_positions);
-        self.update_normals();
-    }
-
-    fn update_normals(&mut self) {
-        let view = MeshView::new(&self.positions, self.lod.full.indices())
-            .expect("deformation keeps the mesh valid");
-        vertex_normals(&view, &mut self.normals).expect("one normal per vertex");
+        if self.occluders == Occluders::FarMesh {
+            pose(self.lod.far.positions(), &mut self.far_positions);
+        }
     }
 
     /// Shades every vertex of the current pose into `out` (diffuse and glossy
-    /// radiance, linear RGB), with or without the far mesh, on rayon's current
-    /// pool. Updates the cluster boxes first.
+    /// radiance, linear RGB) on rayon's current pool: the shader's frame
+    /// (normals, cluster boxes and far levels from the positions), then its
+    /// shading. Returns the time of each step.
     pub fn shade(
         &mut self,
         shader: &Shader,
         quality: Quality<'_>,
-        use_far: bool,
         lighting: &ShRgb<COEFFICIENTS>,
         material: &Material<'_>,
         out: &mut [VertexShading],
-    ) -> Result<()> {
+    ) -> Result<FrameTime> {
+        let started = Instant::now();
         let lod = self.lod;
-        let mesh = MeshView::new(&self.positions, lod.full.indices())
-            .expect("deformation keeps the mesh valid");
-        let far = MeshView::new(&self.far_positions, lod.far.indices())
-            .expect("deformation keeps the mesh valid");
-        let full = self.clusters.update(mesh);
-        let scene = if use_far {
-            HemiScene::with_far(full, self.far_clusters.update(far), lod.near_radius)
-        } else {
-            HemiScene::new(full)
+        let failed = |e: &dyn std::fmt::Display| {
+            Error::msg(format!("shading {} failed: {e}", lod.full.name()))
         };
+        let mesh = MeshView::new(&self.positions, lod.full.indices()).map_err(|e| failed(&e))?;
+        let far = MeshView::new(&self.far_positions, lod.far.indices()).map_err(|e| failed(&e))?;
+        let far = (self.occluders == Occluders::FarMesh).then_some(far);
+        let mut frame = self.shader.frame(mesh, None, far).map_err(|e| failed(&e))?;
+        let posed = Instant::now();
         let options = BatchOptions {
             quality,
             normal_offset: lod.normal_offset,
             ..BatchOptions::default()
         };
-        shade_batch_split(
-            &scene,
-            &self.normals,
-            &options,
-            TransferMethod::Cells(&shader.table),
-            lighting,
-            material,
-            out,
-        )
-        .map_err(|e| Error::msg(format!("shading {} failed: {e}", lod.full.name())))
+        let surface = |_| VertexSurface {
+            material: *material,
+            to_eye: None,
+        };
+        let shading = frame
+            .shade(
+                &options,
+                TransferMethod::Cells(shader.table()),
+                lighting,
+                surface,
+            )
+            .map_err(|e| failed(&e))?;
+        out.copy_from_slice(shading);
+        Ok(FrameTime {
+            pose: posed - started,
+            shade: posed.elapsed(),
+        })
     }
 
     /// One frame: pose by `deform`, then [`Posed::shade`], timed.
-    #[allow(clippy::too_many_arguments)]
     pub fn frame(
         &mut self,
         deform: impl Fn(Vec3) -> Vec3,
         shader: &Shader,
         quality: Quality<'_>,
-        use_far: bool,
         lighting: &ShRgb<COEFFICIENTS>,
         material: &Material<'_>,
         out: &mut [VertexShading],
     ) -> Result<FrameTime> {
         let started = Instant::now();
         self.set_pose(deform);
-        let posed = Instant::now();
-        self.shade(shader, quality, use_far, lighting, material, out)?;
+        let deformed = started.elapsed();
+        let time = self.shade(shader, quality, lighting, material, out)?;
         Ok(FrameTime {
-            pose: posed - started,
-            shade: posed.elapsed(),
+            pose: deformed + time.pose,
+            shade: time.shade,
         })
     }
 }
@@ -398,18 +435,17 @@ mod tests {
             lobe: None,
             eye: Vec3::new(0.0, 0.0, 10.0),
         };
-        let mut posed = Posed::new(&lod);
         let twist = Twist::of_bounds(&lod.full.bounds());
         let count = lod.full.vertex_count();
         let none = VertexShading::default();
         let (mut full, mut far) = (vec![none; count], vec![none; count]);
-        for (out, use_far) in [(&mut full, false), (&mut far, true)] {
-            posed
+        for (out, occluders) in [(&mut full, Occluders::Full), (&mut far, Occluders::FarMesh)] {
+            Posed::new(&lod, occluders)
+                .unwrap()
                 .frame(
                     |p| twist.apply(p, 0.5),
                     &shader,
                     Quality::Exact,
-                    use_far,
                     &lighting,
                     &material,
                     out,

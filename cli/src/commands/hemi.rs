@@ -14,15 +14,15 @@
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
+use antumbra_core::Frame;
 use antumbra_core::hemi::{
-    BatchOptions, FarField, FarFieldSetup, FarMesh, HemiMask, HemiScene, HemiShader, Material,
-    Quality, RasterOptions, Receiver, ShaderSetup, TransferMethod, TransferRotation, TransferSpace,
-    TransferTable, TriangleClusters, VertexShading, VertexSurface, cell_direction, cell_directions,
-    rasterize_receiver_with_counts, scene_mask_with_counts, vertex_transfer,
+    BatchOptions, FarField, FarMesh, HemiMask, HemiScene, Material, Quality, RasterOptions,
+    Receiver, TransferMethod, TransferRotation, TransferSpace, TransferTable, TriangleClusters,
+    VertexShading, cell_direction, cell_directions, rasterize_receiver_with_counts,
+    scene_mask_with_counts, vertex_transfer,
 };
 use antumbra_core::raycast::BvhScene;
 use antumbra_core::sh::Sh;
-use antumbra_core::{Frame, MeshView};
 use antumbra_core::{Ray, RayCaster};
 use antumbra_tests::oracle::{OracleOptions, try_cast, try_frame};
 use glam::Vec3;
@@ -33,7 +33,7 @@ use crate::cli::{BenchHemiArgs, QualityArg, VerifyHemiArgs};
 use crate::error::{Error, Result};
 use crate::hemi_shading::{
     COEFFICIENTS, FAR_CELL_OF_DIAGONAL, LodMesh, NEAR_RADIUS_OF_DIAGONAL, OFFSET_OF_DIAGONAL,
-    PHONG_EXPONENT, Posed, Shader, Twist, half_space_table, sky_lighting,
+    Occluders, PHONG_EXPONENT, Posed, Shader, Twist, half_space_table, sky_lighting,
 };
 use crate::mesh::TriangleMesh;
 
@@ -573,10 +573,18 @@ fn frame_rates(
         lod.near_radius,
         1.0 / NEAR_RADIUS_OF_DIAGONAL
     );
-    let mut posed = Posed::new(&lod);
     let mut out = vec![VertexShading::default(); lod.full.vertex_count()];
     let mut rates = Vec::new();
-    for use_far in [false, true] {
+    let mut levels_built = 0;
+    for occluders in [
+        Occluders::Full,
+        Occluders::FarMesh,
+        Occluders::FarLevels(FRAME_FAR_LEVELS),
+    ] {
+        let mut posed = Posed::new(&lod, occluders)?;
+        if let Some(field) = posed.far_field() {
+            levels_built = field.level_count();
+        }
         let mut row = Vec::new();
         for pool in [Some(&one), None] {
             let mut frame = |k: usize| -> Result<Duration> {
@@ -586,7 +594,6 @@ fn frame_rates(
                         |p| twist.apply(p, angle),
                         &shader,
                         quality,
-                        use_far,
                         &lighting,
                         &material,
                         &mut out,
@@ -602,59 +609,6 @@ fn frame_rates(
         }
         rates.push(row);
     }
-    // The library's own far field in levels, through core's shader: posed from
-    // the full mesh every frame, its first level about the far mesh's size.
-    let setup = ShaderSetup {
-        far_field: Some(FarFieldSetup {
-            triangles: lod.far.triangle_count(),
-            levels: FRAME_FAR_LEVELS,
-        }),
-        near_radius: lod.near_radius,
-        shading: true,
-        ..ShaderSetup::default()
-    };
-    let mut levels = HemiShader::new(&lod.full.view(), None, &setup)
-        .map_err(|e| Error::msg(format!("cannot make the far levels: {e}")))?;
-    let mut positions = lod.full.positions().to_vec();
-    let options = BatchOptions {
-        quality,
-        normal_offset: lod.normal_offset,
-        ..BatchOptions::default()
-    };
-    let method = TransferMethod::Cells(shader.table());
-    let mut row = Vec::new();
-    for pool in [Some(&one), None] {
-        let mut frame = |k: usize| -> Result<Duration> {
-            let angle = FRAME_TWIST_DEGREES[k % FRAME_TWIST_DEGREES.len()].to_radians();
-            let mut run = || -> Result<Duration> {
-                let started = Instant::now();
-                for (p, &rest) in positions.iter_mut().zip(lod.full.positions()) {
-                    *p = twist.apply(Vec3::from(rest), angle).to_array();
-                }
-                let view = MeshView::new(&positions, lod.full.indices())
-                    .map_err(|e| Error::msg(e.to_string()))?;
-                let mut frame = levels
-                    .frame(view, None, None)
-                    .map_err(|e| Error::msg(e.to_string()))?;
-                let surface = |_| VertexSurface {
-                    material,
-                    to_eye: None,
-                };
-                black_box(
-                    frame
-                        .shade(&options, method, &lighting, surface)
-                        .map_err(|e| Error::msg(e.to_string()))?,
-                );
-                Ok(started.elapsed())
-            };
-            match pool {
-                Some(pool) => pool.install(run),
-                None => run(),
-            }
-        };
-        row.push(time_frames(min_time, &mut frame)?);
-    }
-    rates.push(row);
     let cell = |d: Duration| {
         let fps = 1.0 / d.as_secs_f64().max(1e-9);
         // Three significant digits, also for the large meshes' fractions of a frame.
@@ -671,10 +625,7 @@ fn frame_rates(
     let names = [
         "full mesh".to_string(),
         "full near + far mesh".to_string(),
-        format!(
-            "full near + {} far levels",
-            levels.far_field().map_or(0, |f| f.level_count())
-        ),
+        format!("full near + {levels_built} far levels"),
     ];
     for (name, row) in names.iter().zip(&rates) {
         println!("{name:<26} {:>24} {:>24}", cell(row[0]), cell(row[1]));

@@ -30,7 +30,9 @@ use crate::bounds::Bounds;
 use crate::camera::Camera;
 use crate::envmap::EnvironmentMap;
 use crate::error::Result;
-use crate::hemi_shading::{COEFFICIENTS, FAR_CELL_OF_DIAGONAL, LodMesh, Posed, Shader, simplify};
+use crate::hemi_shading::{
+    COEFFICIENTS, FAR_CELL_OF_DIAGONAL, LodMesh, Occluders, Posed, Shader, simplify,
+};
 use crate::mesh::TriangleMesh;
 use crate::picture::HdrImage;
 use crate::raster::Framebuffer;
@@ -141,12 +143,11 @@ impl HemiStage {
     /// Shades the rest pose (full mesh, exact masks) and returns the vertex
     /// radiance.
     pub fn shade_rest(&self, glossy: bool, eye: Vec3) -> Result<Vec<Vec3>> {
-        let mut posed = Posed::new(&self.lod);
+        let mut posed = Posed::new(&self.lod, Occluders::Full)?;
         let mut shading = vec![VertexShading::default(); self.lod.full.vertex_count()];
         posed.shade(
             &self.shader,
             self.shader.quality(false),
-            false,
             &self.lighting,
             &self.material(glossy, eye),
             &mut shading,

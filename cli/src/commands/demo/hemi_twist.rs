@@ -11,7 +11,7 @@ use antumbra_core::hemi::VertexShading;
 
 use crate::bounds::Bounds;
 use crate::error::Result;
-use crate::hemi_shading::{Posed, Twist};
+use crate::hemi_shading::{Occluders, Posed, Twist};
 use crate::picture::HdrImage;
 
 /// The twist of the top of the bunny in each frame, in degrees (the bottom stays).
@@ -55,7 +55,7 @@ fn render(context: &DemoContext) -> Result<(image::RgbImage, String)> {
     let (width, height) = context.render_size();
     let rows = TWIST_DEGREES.len().div_ceil(COLUMNS);
     let mut sheet = HdrImage::new(width * COLUMNS, height * rows);
-    let mut posed = Posed::new(lod);
+    let mut posed = Posed::new(lod, Occluders::FarMesh)?;
     let mut shading = vec![VertexShading::default(); lod.full.vertex_count()];
     let mut timings = String::new();
     for (k, degrees) in TWIST_DEGREES.iter().enumerate() {
@@ -64,7 +64,6 @@ fn render(context: &DemoContext) -> Result<(image::RgbImage, String)> {
             |p| twist.apply(p, angle),
             &stage.shader,
             quality,
-            true,
             &stage.lighting,
             &material,
             &mut shading,
