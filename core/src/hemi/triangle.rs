@@ -19,7 +19,7 @@
 //!   degenerate ones (`(a×b)·c == 0`, an edge normal that rounds to zero, or a
 //!   non-finite value), and, on request, back-facing ones (see [`Culled`]).
 
-use glam::{Vec3, Vec4, Vec4Swizzles};
+use glam::{DVec3, Vec3, Vec4, Vec4Swizzles};
 
 use super::half_space::{RowSolver, inside, normalize_exponent};
 use super::mask::{CELL_COORD, CELL_Z, GRID, HemiMask, ROW_FIRST, ROW_LAST};
@@ -288,14 +288,47 @@ impl TriangleCone {
 
     /// ORs the exact mask of a cone too small for the corners' proven box into
     /// `mask`: through the normals' proven box ([`proven_box_from_normals`]),
-    /// or every row for slivers and extreme scales.
+    /// then, for cones whose planes nearly share a line (a triangle far
+    /// smaller than a cell, seen from afar), the few cells around that line
+    /// ([`thin_cone_axis`]), or every row for slivers and extreme scales.
     #[inline(never)]
     fn or_tiny_into(&self, mask: &mut HemiMask) {
         match proven_box_from_normals(self.normals) {
             Proven::Cells(None) => {}
             Proven::Cells(Some(cells)) => self.or_in_proven_box(cells, mask),
             Proven::Wide => self.or_general_into(mask),
-            Proven::Tiny => *mask |= self.mask_every_row(),
+            Proven::Tiny => match thin_cone_axis(self.normals) {
+                Some((axis, reach)) => self.or_near_axis(axis, reach, mask),
+                None => *mask |= self.mask_every_row(),
+            },
+        }
+    }
+
+    /// ORs into `mask` the cells within `reach` (in disk coordinates) of the
+    /// directions `axis` and `-axis` that pass the three predicates: every
+    /// cell the predicate sets, when [`thin_cone_axis`] gave them.
+    #[cold]
+    fn or_near_axis(&self, axis: DVec3, reach: f64, mask: &mut HemiMask) {
+        // Centers at (2k - 31) / 32: k within 16 (x ± reach) + 15.5.
+        let range = |x: f64| {
+            let first = libm::ceil(16.0 * (x - reach) + 15.5).max(0.0);
+            let last = libm::floor(16.0 * (x + reach) + 15.5).min(31.0);
+            (first as usize, last as usize, first <= last)
+        };
+        for end in [axis, -axis] {
+            let ((i0, i1, columns), (j0, j1, rows)) = (range(end.x), range(end.y));
+            if !(columns && rows) {
+                continue;
+            }
+            for j in j0..=j1 {
+                let first = i0.max(ROW_FIRST[j] as usize);
+                let last = i1.min(ROW_LAST[j] as usize);
+                for i in first..=last {
+                    if self.normals.iter().all(|&m| inside(m, i, j)) {
+                        mask.rows[j] |= 1 << i;
+                    }
+                }
+            }
         }
     }
 
@@ -1030,6 +1063,90 @@ fn proven_box_from_normals(normals: [Vec3; 3]) -> Proven {
     )
 }
 
+/// Largest distance, in disk coordinates, from a thin cone's axis to the
+/// cells [`thin_cone_axis`] lets [`TriangleCone::or_near_axis`] test: beyond
+/// it every row is solved (a few cells either side of the axis).
+const THIN_REACH: f64 = 0.05;
+
+/// Bound on `-n̂·d` for a cell direction `d` passing the predicate
+/// `fl(N·d) >= 0` ([`inside`]): the three-term `f32` dot is within
+/// `γ₃ Σ|N_i d_i| <= 1.8e-7 |N|` of `N·d` (`|d|` within 2e-7 of 1, products
+/// underflowing by at most `2^-149` against `|N| >= 1`); five times that.
+const PREDICATE_SLACK: f64 = 1e-6;
+
+/// For a cone whose three planes nearly share a line (the edge planes of a
+/// triangle far smaller than a cell, or seen from far away, where
+/// [`proven_box_from_normals`] cannot orient its corners): that line's
+/// direction `e` and a reach `r` such that every cell the predicate sets is
+/// within `r` of `e` or `-e` in disk coordinates; `None` when the normals do
+/// not surround the line with a margin, or the reach exceeds [`THIN_REACH`].
+///
+/// Why: with unit normals `n̂_k` (in `f64`, exact to 1e-15 from the `f32`
+/// ones), `e` the unit cross product of the two most distinct of them and
+/// `δ = max |n̂_k·e|`, write a passing unit direction `d = α e + β t`, `t`
+/// a unit vector perpendicular to `e`. The normals' projections onto the
+/// plane perpendicular to `e` surround it with largest angular gap `g < π`,
+/// so `-t` lies in a gap and some projection is within `g/2` of it:
+/// `n̂_k·t <= -ρ cos(g/2)`, `ρ = sqrt(1 - δ²)` the shortest projection
+/// (`cos(g/2)` is the least distance from `e` to the chords between the unit
+/// projections, computed without angles). The
+/// predicate gives `n̂_k·d = α n̂_k·e + β n̂_k·t >= -ε`
+/// ([`PREDICATE_SLACK`]), so `β <= (ε + δ) / (ρ cos(g/2))`: `d` is within
+/// angle `asin β` of `e` or `-e`, and its disk coordinates within
+/// `β sqrt(1 + β²)` of theirs (the 1 % and 1e-6 added below cover that and
+/// `|d| != 1`). The cone's own size enters through `δ`.
+#[inline(never)]
+fn thin_cone_axis(normals: [Vec3; 3]) -> Option<(DVec3, f64)> {
+    let unit = normals.map(|m| {
+        let m = m.as_dvec3();
+        m / m.length()
+    });
+    if !unit.iter().all(|n| n.is_finite()) {
+        return None;
+    }
+    let crosses = [
+        unit[0].cross(unit[1]),
+        unit[1].cross(unit[2]),
+        unit[2].cross(unit[0]),
+    ];
+    let widest = crosses
+        .into_iter()
+        .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?;
+    let length = widest.length();
+    if length <= 1e-6 {
+        return None;
+    }
+    let axis = widest / length;
+    let delta = unit.iter().map(|n| n.dot(axis).abs()).fold(0.0, f64::max) + 1e-12;
+    if delta >= 0.5 {
+        return None;
+    }
+    // The projections onto the plane perpendicular to the axis, unit: they
+    // surround it when they turn the same way pair after pair, and the
+    // chord between neighbours at angle γ passes at cos(γ/2) from it.
+    let projected = unit.map(|n| {
+        let p = n - axis * n.dot(axis);
+        p / p.length()
+    });
+    let mut margin = f64::INFINITY;
+    let mut turns = [0.0; 3];
+    for k in 0..3 {
+        let (p, q) = (projected[k], projected[(k + 1) % 3]);
+        turns[k] = p.cross(q).dot(axis);
+        margin = margin.min(turns[k].abs() / (p - q).length());
+    }
+    let surround = turns.iter().all(|&t| t > 0.0) || turns.iter().all(|&t| t < 0.0);
+    // Less the rounding of the f64 steps, far below it.
+    let margin = margin - 1e-9;
+    if !surround || margin <= 1e-3 {
+        return None;
+    }
+    let rho = libm::sqrt(1.0 - delta * delta);
+    let beta = (PREDICATE_SLACK + delta) / (rho * margin);
+    let reach = 1.01 * beta + 1e-6;
+    (reach <= THIN_REACH).then_some((axis, reach))
+}
+
 /// The box of the cells whose directions can have every barycentric weight
 /// at least `-tau` against unit corners (lanes `(a, b, c, a)` of `ux, uy, uz`,
 /// each coordinate within `corner_error` of the true one): see
@@ -1570,6 +1687,20 @@ mod proven_box_tests {
             prop_assert_eq!(ored, start | reference);
             prop_assert_eq!(cone.mask_exact(), reference);
             prop_assert_eq!(cone.mask_every_row(), reference);
+            if let Some((axis, reach)) = thin_cone_axis(cone.normals) {
+                // Every cell the predicate sets is near the axis or its opposite.
+                for (i, j) in reference.occluded_cells() {
+                    let near = |end: DVec3| {
+                        (f64::from(CELL_COORD[i]) - end.x).abs() <= reach
+                            && (f64::from(CELL_COORD[j]) - end.y).abs() <= reach
+                    };
+                    prop_assert!(near(axis) || near(-axis),
+                        "cell ({}, {}) beyond {} of ±{:?}", i, j, reach, axis);
+                }
+                let mut near_axis = HemiMask::EMPTY;
+                cone.or_near_axis(axis, reach, &mut near_axis);
+                prop_assert_eq!(near_axis, reference);
+            }
             for proven in [cone.proven_box(), proven_box_from_normals(cone.normals)] {
                 match proven {
                     Proven::Wide => prop_assert_eq!(cone.mask_exact_general(), reference),
@@ -1720,6 +1851,85 @@ mod proven_box_tests {
             assert_eq!(cone.mask_exact(), cone.mask_reference());
         }
         assert_eq!(proven, tiny);
+    }
+
+    #[test]
+    fn far_tiny_triangles_take_the_axis() {
+        // 1e-6 to 1e-5 rad across (a triangle of a thousandth of the mesh
+        // seen from a thousand mesh sizes away), about every cell center:
+        // too small for both proven boxes, whose corners cannot be oriented.
+        // The axis must decide them all (else the every-row solve, a thousand
+        // times slower, is back), with the predicate's bits.
+        let (mut tiny, mut axis) = (0, 0);
+        for k in 0..VALID_CELL_COUNT as usize {
+            for (jitter, s) in [
+                (Vec3::ZERO, 1e-5),
+                (Vec3::new(0.02, 0.01, 0.0), 1e-5),
+                (Vec3::ZERO, 1e-6),
+            ] {
+                let c = cell_dir(k, jitter) * 300.0;
+                let (e1, e2) = c.normalize().any_orthonormal_pair();
+                let s = s * 300.0;
+                let corners = [c + e1 * s, c + e2 * s, c - (e1 + e2) * s];
+                let cone = TriangleCone::new(corners[0], corners[1], corners[2], false).unwrap();
+                if !matches!(proven_box_from_normals(cone.normals), Proven::Tiny) {
+                    continue;
+                }
+                tiny += 1;
+                axis += usize::from(thin_cone_axis(cone.normals).is_some());
+                assert_eq!(cone.mask_exact(), cone.mask_reference());
+            }
+        }
+        assert!(tiny > VALID_CELL_COUNT as usize, "{tiny} tiny cones");
+        assert_eq!(axis, tiny);
+    }
+
+    #[test]
+    fn thin_cones_about_a_cell_center_set_it() {
+        // Three planes through a cell's direction d, turned 120° apart about
+        // it and tilted towards it by 1e-7 to 1e-6 rad: a cone around d too
+        // thin for the normals' box. The axis path must keep d's cell (the
+        // predicate's bits), not only drop the cones that set nothing.
+        let (mut decided, mut holding) = (0, 0);
+        for k in 0..VALID_CELL_COUNT as usize {
+            let d = cell_dir(k, Vec3::ZERO);
+            let (e1, e2) = d.any_orthonormal_pair();
+            for tilt in [1e-7f32, 3e-7, 1e-6] {
+                let normals = [0.0f32, 2.1, 4.2].map(|angle| {
+                    let t = e1 * libm::cosf(angle) + e2 * libm::sinf(angle);
+                    normalize_exponent(t + d * tilt)
+                });
+                let cone = TriangleCone {
+                    corners: [d; 3],
+                    normals,
+                    det_abs: 1.0,
+                };
+                if !matches!(proven_box_from_normals(normals), Proven::Tiny) {
+                    continue;
+                }
+                let Some((axis, reach)) = thin_cone_axis(normals) else {
+                    continue;
+                };
+                decided += 1;
+                let reference = cone.mask_reference();
+                let mut near_axis = HemiMask::EMPTY;
+                cone.or_near_axis(axis, reach, &mut near_axis);
+                assert_eq!(near_axis, reference);
+                let mut tiny = HemiMask::EMPTY;
+                cone.or_tiny_into(&mut tiny);
+                assert_eq!(tiny, reference);
+                holding += usize::from(reference != HemiMask::EMPTY);
+            }
+        }
+        let cones = 3 * VALID_CELL_COUNT as usize;
+        assert!(
+            decided > cones * 9 / 10,
+            "{decided} of {cones} thin cones decided"
+        );
+        assert!(
+            holding > decided / 2,
+            "{holding} of {decided} thin cones hold a cell"
+        );
     }
 
     #[test]
