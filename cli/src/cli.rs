@@ -380,9 +380,19 @@ pub struct BenchRaycastArgs {
 /// Arguments of `antumbra bench hemi`.
 #[derive(Debug, Args)]
 pub struct BenchHemiArgs {
-    /// Mesh (Wavefront OBJ) [default: the built-in bunny].
+    /// Mesh (Wavefront OBJ) [default: the built-in bunny]. With --scaling it may
+    /// be given several times, each mesh a further row group after the built-in
+    /// bunny, teapot and armadillo.
     #[arg(long, value_name = "FILE.obj")]
-    pub mesh: Option<PathBuf>,
+    pub mesh: Vec<PathBuf>,
+
+    /// Print only the scaling table: per vertex, a deforming-mesh frame (exact,
+    /// and with the library's far field at several settings) against Embree's
+    /// frame on the same receivers, the ambient-occlusion error of each
+    /// setting, and the triangles and hierarchy nodes tested per receiver, for
+    /// the built-in bunny, teapot and armadillo and every --mesh.
+    #[arg(long)]
+    pub scaling: bool,
 
     /// Number of receivers timed (vertices spread evenly over the mesh).
     #[arg(long, value_name = "N", default_value_t = 400, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]

@@ -428,6 +428,48 @@ fn verify_ssv_prints_the_agreement_line_and_passes_on_the_bunny() {
 }
 
 #[test]
+fn bench_hemi_scaling_has_a_row_per_mesh_and_far_field_setting() {
+    let mesh = data("teapot.obj");
+    let output = antumbra(&[
+        "bench",
+        "hemi",
+        "--scaling",
+        "--mesh",
+        mesh.as_str(),
+        "--receivers",
+        "5",
+        "--min-time",
+        "1",
+        "--no-embree",
+    ]);
+    assert_success(&output);
+    let text = stdout(&output);
+    // The field after the mesh's name and its triangle count.
+    let setting = |line: &str, mesh: &str| {
+        line.strip_prefix(mesh)
+            .and_then(|rest| rest.split_whitespace().nth(1).map(str::to_string))
+    };
+    let rows = |mesh: &str, far: &str| {
+        text.lines()
+            .filter(|l| setting(l, mesh).as_deref() == Some(far))
+            .count()
+    };
+    // The exact path for every mesh; far fields only below a quarter of the
+    // triangles: the armadillo's 52,000, not the teapot's 992.
+    assert_eq!(rows("built-in bunny", "none"), 1, "{text}");
+    assert_eq!(rows("teapot.obj", "none"), 1, "{text}");
+    assert_eq!(rows("teapot.obj", "2000"), 0, "{text}");
+    assert_eq!(rows("built-in armadillo", "2000"), 2, "{text}");
+    assert_eq!(rows("built-in armadillo", "8000"), 2, "{text}");
+    // Far-field rows carry their error, the exact rows say so.
+    for line in text.lines().filter(|l| l.starts_with("built-in armadillo")) {
+        let exact = setting(line, "built-in armadillo").as_deref() == Some("none");
+        assert_eq!(line.contains("exact"), exact, "{line}");
+        assert_eq!(line.contains('%'), !exact, "{line}");
+    }
+}
+
+#[test]
 fn bench_ssv_reports_every_structure_and_orientation() {
     let output = antumbra(&[
         "bench",

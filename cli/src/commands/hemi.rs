@@ -63,12 +63,20 @@ fn quality(arg: QualityArg) -> Quality<'static> {
 /// normals; vertices without a normal (only degenerate triangles) are skipped.
 fn receivers(mesh: &TriangleMesh, count: usize) -> Vec<(Vec3, Vec3)> {
     let normals = mesh.vertex_normals();
+    receiver_vertices(mesh, count)
+        .into_iter()
+        .map(|v| (Vec3::from(mesh.positions()[v]), normals[v]))
+        .collect()
+}
+
+/// The vertices of [`receivers`].
+pub(super) fn receiver_vertices(mesh: &TriangleMesh, count: usize) -> Vec<usize> {
+    let normals = mesh.vertex_normals();
     let vertices = mesh.vertex_count();
     let step = (vertices as f64 / count.max(1) as f64).max(1.0);
     (0..count.min(vertices))
         .map(|k| (k as f64 * step) as usize)
         .filter(|&v| normals[v].is_finite() && normals[v].length_squared() > 0.5)
-        .map(|v| (Vec3::from(mesh.positions()[v]), normals[v]))
         .collect()
 }
 
@@ -80,7 +88,7 @@ fn load(mesh: &Option<std::path::PathBuf>) -> Result<TriangleMesh> {
 }
 
 /// One ray per valid cell of every receiver, in receiver then row-major cell order.
-fn cell_rays(receivers: &[Receiver]) -> Vec<Ray> {
+pub(super) fn cell_rays(receivers: &[Receiver]) -> Vec<Ray> {
     receivers
         .iter()
         .flat_map(|r| (0..32).flat_map(move |j| (0..32).filter_map(move |i| r.cell_ray(i, j))))
@@ -166,7 +174,15 @@ pub(super) fn time_per_call(min_time: Duration, mut work: impl FnMut()) -> Durat
 
 /// Runs `antumbra bench hemi`.
 pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
-    let mesh = load(&args.mesh)?;
+    if args.scaling {
+        return super::hemi_scaling::run(args);
+    }
+    if args.mesh.len() > 1 {
+        return Err(Error::msg(
+            "--mesh is given more than once: only --scaling takes several meshes",
+        ));
+    }
+    let mesh = load(&args.mesh.first().cloned())?;
     // The frames per second need a far mesh, sized from the diagonal: refuse
     // before any timing rather than after.
     mesh.require_extent()?;

@@ -5,6 +5,7 @@ mod bench;
 mod bench_transfer;
 mod demo;
 mod hemi;
+mod hemi_scaling;
 mod render;
 mod ssv;
 mod ssv_frame;

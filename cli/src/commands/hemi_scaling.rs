@@ -1,0 +1,274 @@
+//! `antumbra bench hemi --scaling`: how a deforming-mesh frame's cost per
+//! vertex grows with the mesh, for the exact path and the library's far field,
+//! against Embree's frame on the same receivers, with the error each far-field
+//! setting costs.
+//!
+//! Per mesh (the built-in bunny, teapot and armadillo, then each `--mesh`), one row per
+//! setting of `antumbra_hemi_shading_options` (`far_triangles`, `far_levels`):
+//!
+//! - **ours**: one frame of core's `HemiShader` (what `antumbra_hemi_shader_transfer`
+//!   runs), one thread: the frame's posing (normals, cluster boxes, far levels)
+//!   over every vertex, divided by the vertex count, plus the transfer vector
+//!   (3 bands, exact masks) of each timed receiver;
+//! - **Embree**: the scene's build divided by the vertex count, plus the 812
+//!   occlusion rays of each timed receiver (one batch, one thread);
+//! - **error**: relative RMS over the receivers of the transfer vector's
+//!   constant coefficient (ambient occlusion) against the full mesh's exact
+//!   one, divided by its mean;
+//! - **tested**: triangles and hierarchy nodes tested per receiver.
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use antumbra_core::MeshView;
+use antumbra_core::hemi::{
+    BatchOptions, FarFieldSetup, HemiShader, Receiver, ShaderSetup, TransferMethod, TransferSpace,
+    TransferTable, scene_mask_with_counts, vertex_transfer,
+};
+use antumbra_core::sh::Sh;
+use antumbra_tests::oracle::{OracleOptions, try_cast, try_frame};
+use glam::Vec3;
+
+use super::hemi::{cell_rays, receiver_vertices, time_per_call};
+use crate::builtin;
+use crate::cli::BenchHemiArgs;
+use crate::error::{Error, Result};
+use crate::hemi_shading::OFFSET_OF_DIAGONAL;
+use crate::mesh::TriangleMesh;
+
+/// SH coefficients of the transfer vectors: 3 bands, as the frames users shade
+/// diffuse surfaces with.
+const COEFFICIENTS: usize = 9;
+
+/// First far levels (`far_triangles`) of the table, those below a quarter of
+/// the mesh's triangles.
+const FAR_TRIANGLES: [usize; 2] = [2_000, 8_000];
+
+/// Far levels (`far_levels`) of the table.
+const FAR_LEVELS: [usize; 2] = [1, 3];
+
+/// One row: a setting's frame and error.
+struct Row {
+    setting: String,
+    micros: f64,
+    error: Option<f64>,
+    triangles: f64,
+    nodes: f64,
+}
+
+/// Runs the scaling table.
+pub fn run(args: &BenchHemiArgs) -> Result<()> {
+    let mut meshes = vec![builtin::bunny()?, builtin::teapot()?, builtin::armadillo()?];
+    for path in &args.mesh {
+        meshes.push(TriangleMesh::load_obj(path)?);
+    }
+    let min_time = Duration::from_millis(args.min_time);
+    println!(
+        "bench hemi --scaling: a deforming-mesh frame per vertex (posing over every vertex, \
+         then {COEFFICIENTS}-coefficient transfer vectors of {} receivers, exact masks, one \
+         thread) against Embree's frame (scene build per vertex, then 812 rays per receiver); \
+         error: relative RMS of the constant coefficient against the full mesh's",
+        args.receivers
+    );
+    // Meshes by file name, not path.
+    let names: Vec<String> = meshes
+        .iter()
+        .map(|m| {
+            let name = std::path::Path::new(m.name());
+            name.file_name()
+                .map_or(m.name().to_string(), |f| f.to_string_lossy().into_owned())
+        })
+        .collect();
+    let width = names
+        .iter()
+        .map(|n| n.chars().count())
+        .max()
+        .unwrap_or(4)
+        .max(4);
+    println!(
+        "{:<width$} {:>9} {:<14} {:>12} {:>12} {:>12} {:>8} {:>10} {:>8}",
+        "mesh",
+        "triangles",
+        "far field",
+        "µs / vertex",
+        "Embree µs",
+        "Embree/ours",
+        "error",
+        "triangles",
+        "nodes"
+    );
+    let mut worst: Option<(String, f64)> = None;
+    for (mesh, name) in meshes.iter().zip(&names) {
+        let embree = if args.no_embree {
+            None
+        } else {
+            Some(embree_frame(mesh, args.receivers as usize)?)
+        };
+        for row in rows(mesh, args.receivers as usize, min_time)? {
+            let ratio = embree.map(|e| e / row.micros);
+            println!(
+                "{name:<width$} {:>9} {:<14} {:>12.2} {:>12} {:>12} {:>8} {:>10.0} {:>8.0}",
+                mesh.triangle_count(),
+                row.setting,
+                row.micros,
+                embree.map_or("-".to_string(), |e| format!("{e:.2}")),
+                ratio.map_or("-".to_string(), |r| format!("{r:.2}x")),
+                row.error
+                    .map_or("exact".to_string(), |e| format!("{:.2}%", 100.0 * e)),
+                row.triangles,
+                row.nodes,
+            );
+            if let Some(ratio) = ratio
+                && worst.as_ref().is_none_or(|(_, w)| ratio < *w)
+            {
+                worst = Some((format!("{name}, far field {}", row.setting), ratio));
+            }
+        }
+    }
+    if let Some((name, ratio)) = worst {
+        println!("worst row: {name}, {ratio:.2}x Embree's frame");
+    }
+    Ok(())
+}
+
+/// Embree's frame per vertex on `mesh`: the scene's build over the vertex
+/// count plus the 812 cell rays of each of `count` receivers.
+fn embree_frame(mesh: &TriangleMesh, count: usize) -> Result<f64> {
+    let offset = OFFSET_OF_DIAGONAL * mesh.bounds().diagonal();
+    let normals = mesh.vertex_normals();
+    let receivers: Vec<Receiver> = receiver_vertices(mesh, count)
+        .into_iter()
+        .map(|v| Receiver::new(Vec3::from(mesh.positions()[v]), normals[v], offset))
+        .collect();
+    let hint = "\n(use --no-embree to skip Embree's figures)";
+    let rays = try_cast(
+        mesh.positions(),
+        mesh.indices(),
+        &cell_rays(&receivers),
+        OracleOptions {
+            timing: true,
+            timing_passes: 3,
+            ..OracleOptions::default()
+        },
+    )
+    .map_err(|e| Error::msg(format!("{e}{hint}")))?
+    .occluded_seconds
+    .expect("timing was requested");
+    let center = mesh.bounds().center();
+    let build = try_frame(
+        mesh.positions(),
+        mesh.indices(),
+        &[center],
+        &[center + Vec3::X],
+        3,
+    )
+    .map_err(|e| Error::msg(format!("{e}{hint}")))?
+    .build_seconds;
+    let per_vertex = build / mesh.vertex_count().max(1) as f64;
+    Ok(1e6 * (per_vertex + rays / receivers.len().max(1) as f64))
+}
+
+/// The rows of `mesh`: the exact path, then each far-field setting below a
+/// quarter of its triangles.
+fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row>> {
+    let view = mesh.view();
+    let vertices = receiver_vertices(mesh, count);
+    let table = TransferTable::<COEFFICIENTS>::new();
+    let method = TransferMethod::Cells(&table);
+    let options = BatchOptions {
+        normal_offset: OFFSET_OF_DIAGONAL * mesh.bounds().diagonal(),
+        parallel: false,
+        ..BatchOptions::default()
+    };
+    let mut settings = vec![None];
+    for triangles in FAR_TRIANGLES {
+        if 4 * triangles <= mesh.triangle_count() {
+            settings.extend(FAR_LEVELS.map(|levels| Some(FarFieldSetup { triangles, levels })));
+        }
+    }
+    let mut exact: Vec<f64> = Vec::new();
+    let mut rows = Vec::new();
+    for far_field in settings {
+        let setup = ShaderSetup {
+            far_field,
+            ..ShaderSetup::default()
+        };
+        let mut shader = HemiShader::new(&view, None, &setup)
+            .map_err(|e| Error::msg(format!("cannot make the shader of {}: {e}", mesh.name())))?;
+        let frame_view = || MeshView::new(mesh.positions(), mesh.indices());
+        // Posing the whole mesh, per vertex.
+        let pose = time_per_call(min_time, || {
+            let view = frame_view().expect("the mesh was validated when loaded");
+            black_box(
+                shader
+                    .frame(view, None, None)
+                    .expect("the shader fits the mesh"),
+            );
+        });
+        let frame = shader
+            .frame(
+                frame_view().map_err(|e| Error::msg(e.to_string()))?,
+                None,
+                None,
+            )
+            .map_err(|e| Error::msg(e.to_string()))?;
+        let scene = frame.scene();
+        let normals = frame.normals();
+        let transfer = |v: usize| -> Sh<COEFFICIENTS> {
+            let p = Vec3::from(mesh.positions()[v]);
+            vertex_transfer(
+                &scene,
+                p,
+                normals[v],
+                &options,
+                method,
+                TransferSpace::Local,
+            )
+        };
+        let ambient: Vec<f64> = vertices
+            .iter()
+            .map(|&v| f64::from(transfer(v)[0]))
+            .collect();
+        let (mut triangles, mut nodes) = (0u64, 0u64);
+        for &v in &vertices {
+            let p = Vec3::from(mesh.positions()[v]);
+            let counts = scene_mask_with_counts(&scene, p, normals[v], &options).1;
+            triangles += u64::from(counts.rasterized);
+            nodes += u64::from(counts.nodes);
+        }
+        let receivers = time_per_call(min_time, || {
+            for &v in &vertices {
+                black_box(transfer(black_box(v)));
+            }
+        });
+        let n = vertices.len().max(1) as f64;
+        let micros = 1e6
+            * (pose.as_secs_f64() / mesh.vertex_count().max(1) as f64
+                + receivers.as_secs_f64() / n);
+        let (setting, error) = match far_field {
+            None => {
+                exact = ambient;
+                ("none".to_string(), None)
+            }
+            Some(FarFieldSetup { triangles, .. }) => {
+                let built = shader.far_field().map_or(0, |f| f.level_count());
+                let mean = exact.iter().sum::<f64>() / n;
+                let squared: f64 = exact
+                    .iter()
+                    .zip(&ambient)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum();
+                let error = (squared / n).sqrt() / mean.abs().max(f64::MIN_POSITIVE);
+                (format!("{triangles} x {built}"), Some(error))
+            }
+        };
+        rows.push(Row {
+            setting,
+            micros,
+            error,
+            triangles: triangles as f64 / n,
+            nodes: nodes as f64 / n,
+        });
+    }
+    Ok(rows)
+}
