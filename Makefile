@@ -145,6 +145,7 @@ perf: pyenv
 	$(ANTUMBRA) bench raycast
 	$(ANTUMBRA) bench hemi
 	$(ANTUMBRA) bench hemi --mesh tests/data/armadillo.obj
+	$(ANTUMBRA) bench hemi --scaling --receivers 300 --min-time 300
 	$(ANTUMBRA) bench ssv --frame --passes 2
 	$(ANTUMBRA) bench transfer --bands 4,5,6,7
 
