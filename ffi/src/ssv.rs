@@ -18,8 +18,8 @@ use core::sync::atomic::{AtomicBool, Ordering};
 
 use antumbra_core::raycast::MAX_COORDINATE;
 use antumbra_core::ssv::{
-    LightError, LightPolygon, MAX_LIGHT_VERTICES, MAX_SAMPLES, QueryInfo, SamplePattern,
-    SoftShadows, SsvError, SsvOptions, Structure,
+    LightError, LightPolygon, MAX_LIGHT_VERTICES, MAX_SAMPLES, SamplePattern, SoftShadows,
+    SsvError, SsvOptions, Structure,
 };
 use glam::Vec3;
 
@@ -559,11 +559,6 @@ impl Poisonable for antumbra_ssv {
     }
 }
 
-/// Points per rayon task: one query costs tens of microseconds (hundreds of
-/// candidate edges times N samples), so small tasks balance well.
-#[cfg(feature = "std")]
-const PARALLEL_GRAIN: usize = 16;
-
 /// A work counter of the handle. The bare-metal target has no 64-bit atomics, and
 /// its calls are single-threaded by contract.
 #[cfg(not(feature = "std"))]
@@ -590,83 +585,6 @@ impl Counter {
 // documented contract), so the cell is never accessed concurrently.
 #[cfg(not(feature = "std"))]
 unsafe impl Sync for Counter {}
-
-/// Runs the queries of a call one after another.
-fn serial_queries(
-    bits: &mut [u64],
-    mut counts: Option<&mut [u32]>,
-    words: usize,
-    one: &(dyn Fn(usize, &mut [u64]) -> QueryInfo + Sync),
-) -> Work {
-    let mut work = Work::default();
-    for (k, out) in bits.chunks_exact_mut(words).enumerate() {
-        let info = one(k, out);
-        if let Some(counts) = counts.as_deref_mut() {
-            counts[k] = info.visible;
-        }
-        work = work.add(&info);
-    }
-    work
-}
-
-/// Runs the queries of a call on the library's worker threads.
-#[cfg(feature = "std")]
-fn parallel_queries(
-    bits: &mut [u64],
-    counts: Option<&mut [u32]>,
-    words: usize,
-    one: &(dyn Fn(usize, &mut [u64]) -> QueryInfo + Sync),
-) -> Work {
-    use rayon::prelude::*;
-    match counts {
-        Some(counts) => bits
-            .par_chunks_mut(words)
-            .zip(counts.par_iter_mut())
-            .enumerate()
-            .with_min_len(PARALLEL_GRAIN)
-            .fold(Work::default, |work, (k, (out, count))| {
-                let info = one(k, out);
-                *count = info.visible;
-                work.add(&info)
-            })
-            .reduce(Work::default, Work::merge),
-        None => bits
-            .par_chunks_mut(words)
-            .enumerate()
-            .with_min_len(PARALLEL_GRAIN)
-            .fold(Work::default, |work, (k, out)| work.add(&one(k, out)))
-            .reduce(Work::default, Work::merge),
-    }
-}
-
-/// Work counters of a run of queries, added to the handle's once per run.
-#[derive(Clone, Copy, Default)]
-struct Work {
-    queries: u64,
-    candidates: u64,
-    silhouettes: u64,
-    rays: u64,
-}
-
-impl Work {
-    fn add(mut self, info: &QueryInfo) -> Self {
-        self.queries += 1;
-        self.candidates += u64::from(info.candidates);
-        self.silhouettes += u64::from(info.silhouettes);
-        self.rays += u64::from(info.rays);
-        self
-    }
-
-    #[cfg(feature = "std")]
-    fn merge(self, other: Work) -> Work {
-        Work {
-            queries: self.queries + other.queries,
-            candidates: self.candidates + other.candidates,
-            silhouettes: self.silhouettes + other.silhouettes,
-            rays: self.rays + other.rays,
-        }
-    }
-}
 
 /// The visibility bits of a batch of receiver points.
 ///
@@ -738,30 +656,14 @@ pub unsafe extern "C" fn antumbra_ssv_query(
             Some(unsafe { raw::slice_mut(visible_counts, point_count, "visible_counts") }?)
         };
         // Every input is valid: the core query fails only on non-finite points
-        // and short outputs, both excluded above.
-        // Preparing the hierarchy for the batch only saves work: without memory
-        // for the points' copy the queries build what they need themselves.
-        if let Ok(receivers) = to_vec3s(floats, "the query points") {
-            ssv.shadows.prepare(&receivers, ssv.parallel);
-        }
-        let one = |k: usize, out: &mut [u64]| -> QueryInfo {
-            let p = Vec3::from_slice(&floats[3 * k..]);
-            ssv.shadows
-                .query_detailed(p, out)
-                .expect("validated receiver and output")
-        };
-        let work = if point_count == 0 {
-            Work::default()
-        } else {
-            #[cfg(feature = "std")]
-            if ssv.parallel && point_count > 1 {
-                parallel_queries(bits, counts, words, &one)
-            } else {
-                serial_queries(bits, counts, words, &one)
-            }
-            #[cfg(not(feature = "std"))]
-            serial_queries(bits, counts, words, &one)
-        };
+        // and short outputs, both excluded above. The batch prepares the
+        // hierarchy for its points and runs on the pool when the handle was
+        // made with `parallel`.
+        let receivers: &[[f32; 3]] = bytemuck::cast_slice(floats);
+        let work = ssv
+            .shadows
+            .query_batch(receivers, bits, counts, ssv.parallel)
+            .expect("validated receivers and outputs");
         ssv.queries.fetch_add(work.queries, Ordering::Relaxed);
         ssv.candidates.fetch_add(work.candidates, Ordering::Relaxed);
         ssv.silhouettes

@@ -119,7 +119,7 @@ fn check_ground(name: &str, obj: &str, grid: usize, points: usize) {
             };
             let bits_of = |ssv: &SoftShadows| {
                 let mut bits = vec![0u64; receivers.len() * ssv.words_per_receiver()];
-                ssv.query_batch(&receivers, &mut bits, None)
+                ssv.query_batch(&receivers, &mut bits, None, true)
                     .expect("valid receivers");
                 bits
             };

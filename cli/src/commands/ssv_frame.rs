@@ -76,7 +76,7 @@ fn parallel_cold(
         let ssv = SoftShadows::new(&scene.occluders.view(), light.clone(), samples, options)
             .map_err(|e| Error::msg(format!("cannot prepare the soft shadows: {e}")))?;
         let mut bits = vec![0u64; receivers.len() * ssv.words_per_receiver()];
-        ssv.query_batch(receivers, &mut bits, None)
+        ssv.query_batch(receivers, &mut bits, None, true)
             .map_err(|e| Error::msg(format!("query failed: {e}")))?;
         best = best.min(started.elapsed());
     }

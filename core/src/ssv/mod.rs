@@ -365,6 +365,53 @@ pub struct QueryInfo {
     pub rays: u32,
 }
 
+/// What a batch of queries did ([`SoftShadows::query_batch`]): the
+/// [`QueryInfo`] of each query, summed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct QueryWork {
+    /// Queries answered.
+    pub queries: u64,
+    /// Samples visible, over all queries.
+    pub visible: u64,
+    /// Candidate edges handed to the exact tests.
+    pub candidates: u64,
+    /// Candidates with a non-zero silhouette weight at their receiver.
+    pub silhouettes: u64,
+    /// Reference rays cast.
+    pub rays: u64,
+}
+
+impl QueryWork {
+    /// This work and one more query's.
+    #[must_use]
+    pub fn with(self, info: &QueryInfo) -> QueryWork {
+        QueryWork {
+            queries: self.queries + 1,
+            visible: self.visible + u64::from(info.visible),
+            candidates: self.candidates + u64::from(info.candidates),
+            silhouettes: self.silhouettes + u64::from(info.silhouettes),
+            rays: self.rays + u64::from(info.rays),
+        }
+    }
+
+    /// The work of two batches together.
+    #[must_use]
+    pub fn merge(self, other: QueryWork) -> QueryWork {
+        QueryWork {
+            queries: self.queries + other.queries,
+            visible: self.visible + other.visible,
+            candidates: self.candidates + other.candidates,
+            silhouettes: self.silhouettes + other.silhouettes,
+            rays: self.rays + other.rays,
+        }
+    }
+}
+
+/// Points per rayon task of [`SoftShadows::query_batch`]: one query costs tens
+/// of microseconds (hundreds of candidate edges times N samples), so small
+/// tasks balance well.
+pub const PARALLEL_GRAIN: usize = 16;
+
 /// The reference caster: the owned BVH (with `bvh`) or a brute-force loop.
 enum Caster {
     #[cfg(feature = "bvh")]
@@ -1083,13 +1130,14 @@ impl SoftShadows {
     /// querying a batch one point at a time. With `parallel` (and the
     /// `parallel` feature) the work is spread over rayon's pool. Non-finite
     /// points are skipped. Never changes a query's bits.
-    pub fn prepare(&self, points: &[Vec3], parallel: bool) {
+    pub fn prepare<P: Copy + Into<Vec3>>(&self, points: &[P], parallel: bool) {
         if let Some(h) = &self.hierarchy {
             // Preparing only saves the queries work: without memory, skip it.
             let Ok(points) = fallible::collect(
                 points
                     .iter()
-                    .filter(|p| p.is_finite())
+                    .map(|&p| p.into())
+                    .filter(|p: &Vec3| p.is_finite())
                     .map(|p| p.as_dvec3()),
             ) else {
                 return;
@@ -1100,15 +1148,20 @@ impl SoftShadows {
 
     /// Queries every point: receiver `r`'s bits go to
     /// `bits[r * words_per_receiver()..][..words_per_receiver()]`, its visible
-    /// count to `visible[r]` when given. Every point is checked before any is
-    /// computed. With the `parallel` feature the points are spread over rayon's
-    /// pool (same results).
-    pub fn query_batch(
+    /// count to `visible[r]` when given; returns the work of all the queries,
+    /// summed. Every point is checked before any is computed, and the
+    /// hierarchy is prepared for the batch first ([`SoftShadows::prepare`]).
+    /// With `parallel` (and the `parallel` feature) the points are spread
+    /// over rayon's pool, [`PARALLEL_GRAIN`] at least per task; the results
+    /// are the same either way. Points are anything that converts to a
+    /// `Vec3` (`[f32; 3]` too, so a caller's flat array need not be copied).
+    pub fn query_batch<P: Copy + Into<Vec3> + Sync>(
         &self,
-        points: &[Vec3],
+        points: &[P],
         bits: &mut [u64],
         visible: Option<&mut [u32]>,
-    ) -> Result<(), SsvError> {
+        parallel: bool,
+    ) -> Result<QueryWork, SsvError> {
         let words = self.words_per_receiver();
         let needed = points.len() * words;
         if bits.len() < needed {
@@ -1125,36 +1178,51 @@ impl SoftShadows {
                 got: v.len(),
             });
         }
-        if points.iter().any(|p| !p.is_finite()) {
+        if points.iter().any(|&p| !p.into().is_finite()) {
             return Err(SsvError::NonFiniteReceiver);
         }
+        if points.is_empty() {
+            return Ok(QueryWork::default());
+        }
         let bits = &mut bits[..needed];
-        self.prepare(points, cfg!(feature = "parallel"));
-        let one = |p: Vec3, out: &mut [u64]| self.query(p, out).unwrap_or(0);
+        self.prepare(points, parallel);
+        let one = |p: P, out: &mut [u64]| {
+            self.query_detailed(p.into(), out)
+                .expect("the point is finite and its words are there")
+        };
         #[cfg(feature = "parallel")]
-        {
+        if parallel && points.len() > 1 {
             use rayon::prelude::*;
             let chunks = bits.par_chunks_mut(words.max(1)).zip(points.par_iter());
-            match visible {
+            let work = match visible {
                 Some(v) => chunks
                     .zip(v[..points.len()].par_iter_mut())
-                    .for_each(|((out, &p), v)| *v = one(p, out)),
-                None => chunks.for_each(|(out, &p)| {
-                    one(p, out);
-                }),
-            }
+                    .with_min_len(PARALLEL_GRAIN)
+                    .fold(QueryWork::default, |work, ((out, &p), v)| {
+                        let info = one(p, out);
+                        *v = info.visible;
+                        work.with(&info)
+                    })
+                    .reduce(QueryWork::default, QueryWork::merge),
+                None => chunks
+                    .with_min_len(PARALLEL_GRAIN)
+                    .fold(QueryWork::default, |work, (out, &p)| {
+                        work.with(&one(p, out))
+                    })
+                    .reduce(QueryWork::default, QueryWork::merge),
+            };
+            return Ok(work);
         }
-        #[cfg(not(feature = "parallel"))]
-        {
-            let mut visible = visible;
-            for (r, (out, &p)) in bits.chunks_mut(words.max(1)).zip(points).enumerate() {
-                let count = one(p, out);
-                if let Some(v) = visible.as_deref_mut() {
-                    v[r] = count;
-                }
+        let mut visible = visible;
+        let mut work = QueryWork::default();
+        for (r, (out, &p)) in bits.chunks_mut(words.max(1)).zip(points).enumerate() {
+            let info = one(p, out);
+            if let Some(v) = visible.as_deref_mut() {
+                v[r] = info.visible;
             }
+            work = work.with(&info);
         }
-        Ok(())
+        Ok(work)
     }
 
     /// The Monte Carlo estimate, from a receiver's bits, of

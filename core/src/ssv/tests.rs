@@ -598,13 +598,31 @@ fn depth_complexity_batch_and_irradiance() {
         }
         let mut batch = vec![0u64; receivers.len()];
         let mut counts = vec![0u32; receivers.len()];
-        ss.query_batch(&receivers, &mut batch, Some(&mut counts))
+        let work = ss
+            .query_batch(&receivers, &mut batch, Some(&mut counts), false)
             .unwrap();
+        let mut summed = QueryWork::default();
         for (r, &p) in receivers.iter().enumerate() {
             let mut one = [0u64; 1];
-            assert_eq!(ss.query(p, &mut one), Ok(counts[r]));
+            let info = ss.query_detailed(p, &mut one).unwrap();
+            assert_eq!(info.visible, counts[r]);
             assert_eq!(one[0], batch[r]);
+            summed = summed.with(&info);
         }
+        // The batch's work is its queries' work, on the pool or not, and the
+        // same bits either way. (Candidates and silhouettes depend on the
+        // nodes the lazy hierarchy has built by then, not on the receiver.)
+        let fixed = |w: QueryWork| (w.queries, w.visible, w.rays);
+        assert_eq!(fixed(work), fixed(summed));
+        assert_eq!(work.queries, receivers.len() as u64);
+        assert!(work.candidates >= work.silhouettes);
+        let (mut pooled, mut pooled_counts) =
+            (vec![0u64; receivers.len()], vec![0u32; receivers.len()]);
+        let pooled_work = ss
+            .query_batch(&receivers, &mut pooled, Some(&mut pooled_counts), true)
+            .unwrap();
+        assert_eq!((pooled, pooled_counts), (batch, counts));
+        assert_eq!(fixed(pooled_work), fixed(work));
     }
     // A small light far above an empty scene: E = A cos cos / r^2.
     let small = quad_light(Vec3::new(0.0, 0.0, 100.0), 0.01);
@@ -1423,7 +1441,7 @@ fn parallel_creation_and_batches_give_the_sequential_bits() {
         };
         let ss = SoftShadows::new(&soup.view(), light.clone(), &samples, options).unwrap();
         let mut bits = vec![0u64; receivers.len() * ss.words_per_receiver()];
-        ss.query_batch(&receivers, &mut bits, None).unwrap();
+        ss.query_batch(&receivers, &mut bits, None, true).unwrap();
         bits
     };
     let serial = bits(false, Structure::BruteForce);
