@@ -1,0 +1,285 @@
+//! Building the soft shadows of a light over a set of occluders: the welded
+//! edges, the samples' angular order, the near-light band and the chosen
+//! structure.
+
+use super::*;
+
+/// The default root box: a cube about the bounds of the occluders and the
+/// light, twice their largest extent on a side.
+pub(super) fn default_root(occluders: &MeshView<'_>, light: &LightPolygon) -> Aabb {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for &v in occluders.indices() {
+        let p = occluders.position(v as usize).as_dvec3();
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    for v in light.vertices() {
+        lo = lo.min(v.as_dvec3());
+        hi = hi.max(v.as_dvec3());
+    }
+    // A cube about the bounds' centre, half again their largest extent on
+    // every side: octree cells then stay cubes (a tall root over a
+    // ground made tall, thin cells that the lists shrank slowly in).
+    let centre = 0.5 * (lo + hi);
+    let half = (hi - lo).max_element().max(1e-30);
+    Aabb {
+        min: centre - DVec3::splat(half),
+        max: centre + DVec3::splat(half),
+    }
+}
+
+impl SoftShadows {
+    /// Prepares the occluders for `light` and `samples` (validated: on the light
+    /// within [`LightPolygon::tolerance`], 1 to [`MAX_SAMPLES`] of them; make them
+    /// with [`LightPolygon::samples`]).
+    ///
+    /// With the `bvh` feature the reference caster is an owned `BvhScene`
+    /// (obvhs); without it a brute-force loop over
+    /// the triangles (correct, but linear per query).
+    pub fn new(
+        occluders: &MeshView<'_>,
+        light: LightPolygon,
+        samples: &[Vec3],
+        options: SsvOptions,
+    ) -> Result<Self, SsvError> {
+        if samples.is_empty() || samples.len() > MAX_SAMPLES {
+            return Err(SsvError::SampleCount {
+                count: samples.len(),
+            });
+        }
+        light.validate_samples(samples)?;
+        if options.leaf_edges == 0
+            || options.hemicube_resolution == 0
+            || options.hemicube_resolution > 1024
+            || options
+                .root_bounds
+                .is_some_and(|[lo, hi]| !(lo.is_finite() && hi.is_finite() && lo.cmplt(hi).all()))
+        {
+            return Err(SsvError::InvalidOptions);
+        }
+        let tolerance = f64::from(light.tolerance());
+        let plane_normal = light.normal().as_dvec3();
+        let plane_point = light.centroid().as_dvec3();
+        // The band holds the light's vertices (planar within the tolerance) and
+        // the samples (on the plane within the tolerance), with room to spare.
+        let band_half_width = 4.0 * tolerance;
+        let (u_axis, v_axis) = plane_normal.any_orthonormal_pair();
+        let light_uv: Vec<(f64, f64)> = fallible::collect(light.vertices().iter().map(|v| {
+            let d = v.as_dvec3() - plane_point;
+            (d.dot(u_axis), d.dot(v_axis))
+        }))?;
+        let (mut umin, mut umax, mut vmin, mut vmax) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for &(u, v) in &light_uv {
+            umin = umin.min(u);
+            umax = umax.max(u);
+            vmin = vmin.min(v);
+            vmax = vmax.max(v);
+        }
+        let margin = 4.0 * tolerance;
+        // Regular triangles as indices into the occluders' positions.
+        // (Within its capacity: pushing allocates nothing.)
+        let mut regular: Vec<[u32; 3]> = fallible::with_capacity(occluders.triangle_count())?;
+        let mut near_light = Vec::new();
+        let mut band = Vec::new();
+        let mut occluder_lo = DVec3::splat(f64::INFINITY);
+        let mut occluder_hi = DVec3::splat(f64::NEG_INFINITY);
+        for (t, tri) in occluders.triangles().enumerate() {
+            if edges::degenerate(tri[0], tri[1], tri[2]) {
+                continue;
+            }
+            for v in tri {
+                occluder_lo = occluder_lo.min(v.as_dvec3());
+                occluder_hi = occluder_hi.max(v.as_dvec3());
+            }
+            let heights = tri.map(|v| (v.as_dvec3() - plane_point).dot(plane_normal));
+            let (hmin, hmax) = (
+                heights[0].min(heights[1]).min(heights[2]),
+                heights[0].max(heights[1]).max(heights[2]),
+            );
+            if hmin > band_half_width || hmax < -band_half_width {
+                regular.push(occluders.triangle_indices(t));
+                continue;
+            }
+            fallible::push(&mut band, tri)?;
+            // Conservative: the triangle's footprint box in the plane against the
+            // light's, both grown by the margin.
+            let (mut tu0, mut tu1, mut tv0, mut tv1) = (
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            );
+            for v in tri {
+                let d = v.as_dvec3() - plane_point;
+                let (u, w) = (d.dot(u_axis), d.dot(v_axis));
+                tu0 = tu0.min(u);
+                tu1 = tu1.max(u);
+                tv0 = tv0.min(w);
+                tv1 = tv1.max(w);
+            }
+            if tu0 > umax + margin
+                || tu1 < umin - margin
+                || tv0 > vmax + margin
+                || tv1 < vmin - margin
+            {
+                regular.push(occluders.triangle_indices(t));
+            } else {
+                fallible::push(&mut near_light, tri)?;
+            }
+        }
+        let positions: Vec<Vec3> =
+            fallible::collect((0..occluders.vertex_count()).map(|v| occluders.position(v)))?;
+        let graph = EdgeGraph::from_indexed(&positions, &regular)?;
+        let potential: Vec<u32> = fallible::collect(
+            (0..graph.edges.len() as u32).filter(|&e| !graph.is_flat(&graph.edges[e as usize])),
+        )?;
+        let shape = LightShape {
+            vertices: fallible::collect(light.vertices().iter().map(|v| v.as_dvec3()))?,
+            normal: plane_normal,
+            tolerance,
+        };
+        // The reference caster and the structure, side by side on rayon's
+        // threads with `options.parallel`.
+        type Structures = (Option<Hierarchy>, Option<Box<Hemicube>>);
+        let structure = || -> Result<Structures, OutOfMemory> {
+            Ok(match options.structure {
+                Structure::Hierarchy => {
+                    let root = match options.root_bounds {
+                        Some([lo, hi]) => Aabb {
+                            min: lo.as_dvec3(),
+                            max: hi.as_dvec3(),
+                        },
+                        None => default_root(occluders, &light),
+                    };
+                    let hierarchy = Hierarchy::new(&graph, &shape, &potential, root, options)?;
+                    (Some(hierarchy), None)
+                }
+                Structure::Hemicube => {
+                    let hemicube = Hemicube::new(
+                        &graph,
+                        &shape,
+                        &potential,
+                        light.centroid().as_dvec3(),
+                        options.hemicube_resolution as usize,
+                    );
+                    (None, Some(Box::new(hemicube)))
+                }
+                Structure::BruteForce | Structure::RayTrace => (None, None),
+            })
+        };
+        #[cfg(feature = "parallel")]
+        let (caster, structures) = if options.parallel {
+            rayon::join(|| Self::build_caster(&graph), structure)
+        } else {
+            (Self::build_caster(&graph), structure())
+        };
+        #[cfg(not(feature = "parallel"))]
+        let (caster, structures) = (Self::build_caster(&graph), structure());
+        let caster = caster?;
+        let (hierarchy, hemicube) = structures?;
+        // Angular order of the samples about the centroid (receiver-independent).
+        let angle_radius = 1e-3 * f64::from(light.diameter());
+        let mut keyed: Vec<(f64, u32)> = fallible::with_capacity(samples.len())?;
+        let mut central: Vec<u32> = Vec::new();
+        let mut sample_offset: f64 = 0.0;
+        for (i, s) in samples.iter().enumerate() {
+            let d = s.as_dvec3() - plane_point;
+            sample_offset = sample_offset.max(d.dot(plane_normal).abs());
+            let (x, y) = (d.dot(u_axis), d.dot(v_axis));
+            if libm::hypot(x, y) < angle_radius {
+                fallible::push(&mut central, i as u32)?;
+            } else {
+                keyed.push((pseudo_angle(x, y), i as u32));
+            }
+        }
+        // Unstable sort (no scratch memory): the index breaks every tie.
+        keyed.sort_unstable_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+        let angles: Vec<f64> = fallible::collect(keyed.iter().map(|k| k.0))?;
+        let angle_starts = fallible::collect(
+            (0..=ANGLE_BUCKETS)
+                .map(|k| angles.partition_point(|&t| t < k as f64 / ANGLE_SCALE) as u32),
+        )?;
+        let mut order: Vec<u32> = fallible::with_capacity(samples.len())?;
+        order.extend(keyed.iter().map(|k| k.1).chain(central));
+        let twice_area: f64 = (0..light_uv.len())
+            .map(|i| {
+                let ((x0, y0), (x1, y1)) = (light_uv[i], light_uv[(i + 1) % light_uv.len()]);
+                x0 * y1 - x1 * y0
+            })
+            .sum();
+        let orientation = if twice_area < 0.0 { -1.0 } else { 1.0 };
+        let insets = fallible::collect(order.iter().map(|&o| {
+            inset(
+                &light_uv,
+                orientation,
+                samples[o as usize].as_dvec3() - plane_point,
+                u_axis,
+                v_axis,
+            )
+        }))?;
+        let axis = |axis: usize| {
+            fallible::collect(order.iter().map(|&o| f64::from(samples[o as usize][axis])))
+        };
+        let soa = [axis(0)?, axis(1)?, axis(2)?];
+        let (sample_lo, sample_hi) = samples.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), s| (lo.min(s.as_dvec3()), hi.max(s.as_dvec3())),
+        );
+        let words = samples.len().div_ceil(64);
+        let near_sides = plane_sides(&near_light, samples, words)?;
+        let band_sides = plane_sides(&band, samples, words)?;
+        let near_planes = fallible::collect(near_light.iter().map(AxisPlane::of))?;
+        let band_planes = fallible::collect(band.iter().map(AxisPlane::of))?;
+        let mut rank = fallible::filled(0u32, order.len())?;
+        for (k, &i) in order.iter().enumerate() {
+            rank[i as usize] = k as u32;
+        }
+        let this = SoftShadows {
+            occluder_box: occluder_lo
+                .cmple(occluder_hi)
+                .all()
+                .then_some((occluder_lo, occluder_hi)),
+            insets,
+            soa,
+            near_sides,
+            band_sides,
+            near_planes,
+            band_planes,
+            sample_lo,
+            sample_hi,
+            rank,
+            order,
+            angles,
+            angle_starts,
+            u_axis,
+            v_axis,
+            angle_radius,
+            sample_offset,
+            shape_diameter: f64::from(light.diameter()),
+            centroid: light.centroid(),
+            light,
+            samples: fallible::copied(samples)?,
+            structure: options.structure,
+            graph,
+            potential,
+            near_light,
+            band,
+            caster,
+            shape,
+            plane_normal,
+            plane_point,
+            band_half_width,
+            hierarchy,
+            hemicube,
+            queries: AtomicUsize::new(0),
+            candidates: AtomicUsize::new(0),
+        };
+        Ok(this)
+    }
+}

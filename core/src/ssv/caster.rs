@@ -1,0 +1,73 @@
+//! The reference ray's caster: the owned BVH (with `bvh`) or a brute-force
+//! loop over the occluders.
+
+use super::*;
+
+/// The reference caster: the owned BVH (with `bvh`) or a brute-force loop.
+pub(super) enum Caster {
+    #[cfg(feature = "bvh")]
+    Bvh(crate::raycast::BvhScene),
+    #[cfg(not(feature = "bvh"))]
+    Brute(Vec<[Vec3; 3]>),
+}
+
+impl Caster {
+    pub(super) fn occluded(&self, ray: &Ray) -> bool {
+        match self {
+            #[cfg(feature = "bvh")]
+            Caster::Bvh(scene) => crate::raycast::RayCaster::occluded(scene, ray),
+            #[cfg(not(feature = "bvh"))]
+            Caster::Brute(tris) => {
+                let Some(prepared) = crate::raycast::PreparedRay::new(ray) else {
+                    return false;
+                };
+                tris.iter()
+                    .any(|&[a, b, c]| prepared.intersect(a, b, c).is_some())
+            }
+        }
+    }
+
+    /// The nearest hit in the ray's interval: `(t, triangle index)`.
+    pub(super) fn closest_hit(&self, ray: &Ray) -> Option<(f32, usize)> {
+        match self {
+            #[cfg(feature = "bvh")]
+            Caster::Bvh(scene) => crate::raycast::RayCaster::closest_hit(scene, ray)
+                .map(|h| (h.t, h.triangle as usize)),
+            #[cfg(not(feature = "bvh"))]
+            Caster::Brute(tris) => {
+                let mut prepared = crate::raycast::PreparedRay::new(ray)?;
+                let mut best = None;
+                for (i, &[a, b, c]) in tris.iter().enumerate() {
+                    if let Some(hit) = prepared.intersect(a, b, c) {
+                        prepared.set_t_max(hit.t);
+                        best = Some((hit.t, i));
+                    }
+                }
+                best
+            }
+        }
+    }
+}
+
+impl SoftShadows {
+    pub(super) fn build_caster(graph: &EdgeGraph) -> Result<Caster, SsvError> {
+        #[cfg(feature = "bvh")]
+        {
+            let positions: Vec<[f32; 3]> = graph.positions.iter().map(|p| p.to_array()).collect();
+            let indices: Vec<u32> = graph.triangles.iter().flatten().copied().collect();
+            let mesh = MeshView::new(&positions, &indices).map_err(|_| SsvError::Caster)?;
+            // One reference ray per receiver: a quick build pays.
+            let scene =
+                crate::raycast::BvhScene::with_quality(&mesh, crate::raycast::BuildQuality::Fast)
+                    .map_err(|_| SsvError::Caster)?;
+            Ok(Caster::Bvh(scene))
+        }
+        #[cfg(not(feature = "bvh"))]
+        {
+            let p = |i: u32| graph.positions[i as usize];
+            Ok(Caster::Brute(fallible::collect(
+                graph.triangles.iter().map(|&[a, b, c]| [p(a), p(b), p(c)]),
+            )?))
+        }
+    }
+}

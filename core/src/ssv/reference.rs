@@ -1,0 +1,298 @@
+//! The reference decision of a query: which samples of least depth
+//! complexity are blocked, by one `f32` ray away from every silhouette edge
+//! it might cross differently from the exact segment, else exactly.
+
+use super::*;
+
+/// Pieces of a segment whose boxes find the triangles of an exact reference
+/// decision ([`SoftShadows::exactly_blocked`]); a power of two, so the
+/// pieces' parameters are exact.
+#[cfg(feature = "bvh")]
+pub(super) const SEGMENT_PIECES: usize = 32;
+
+/// Most hits the reference ray re-checks exactly before it calls the segment
+/// blocked (each is a hit the `f32` caster reports that the exact test refutes,
+/// such as a triangle through a receiver on a surface).
+pub(super) const MAX_REFUTED_HITS: usize = 64;
+
+/// Most silhouette edges a query records for [`SoftShadows::reference_sample`];
+/// past this every reference decision is exact ([`SoftShadows::exactly_blocked`]).
+pub(super) const RECORDED_SILHOUETTES: usize = 1024;
+
+/// Angle (as a sine) within which a reference segment counts as near a
+/// silhouette edge, as seen from the receiver. The `f32` ray departs from the
+/// exact segment by a few units of `f32` rounding in angle (the rounded
+/// direction, the corners moved to the origin and sheared, the edge functions'
+/// own rounding: about `20 ε₃₂ ≈ 1.2e-6` in all), so beyond this the ray crosses
+/// each silhouette edge on the same side as the segment, with a factor of fifty
+/// to spare.
+pub(super) const NEAR_ANGLE: f64 = 1.0 / 16384.0;
+
+/// Reference candidates tried before a query decides its reference exactly.
+pub(super) const REFERENCE_TRIES: usize = 8;
+
+/// The silhouette edges of one receiver whose plane through it comes within
+/// [`NEAR_ANGLE`] of the light (the edges near which an `f32` ray can cross
+/// differently from the exact segment), each with that plane's unit normal.
+///
+/// The slots are left uninitialised until recorded: a query makes one of
+/// these 16 KiB records on its stack, and writing it whole would cost more than
+/// the bunny's reference ray.
+pub(super) struct Silhouettes {
+    /// Edge and unit `a' × b'` (rounded to `f32`: the test that reads it
+    /// allows for that); the first `len` are written.
+    pub(super) slots: [MaybeUninit<(u32, [f32; 3])>; RECORDED_SILHOUETTES],
+    pub(super) len: usize,
+    /// More edges were met than fit.
+    pub(super) overflow: bool,
+}
+
+impl Silhouettes {
+    pub(super) fn new() -> Self {
+        Silhouettes {
+            slots: [const { MaybeUninit::uninit() }; RECORDED_SILHOUETTES],
+            len: 0,
+            overflow: false,
+        }
+    }
+
+    pub(super) fn record(&mut self, edge: u32, unit_normal: DVec3) {
+        match self.slots.get_mut(self.len) {
+            Some(slot) => {
+                slot.write((edge, unit_normal.as_vec3().to_array()));
+                self.len += 1;
+            }
+            None => self.overflow = true,
+        }
+    }
+
+    /// The recorded edges and normals.
+    pub(super) fn recorded(&self) -> impl Iterator<Item = (u32, Vec3)> + '_ {
+        self.slots[..self.len].iter().map(|slot| {
+            #[allow(unsafe_code)]
+            // SAFETY: `record` writes slot `len` before it increments `len`,
+            // and nothing else changes either, so every slot below `len` holds
+            // a written value (a plain `Copy` tuple).
+            let (edge, normal) = unsafe { slot.assume_init() };
+            (edge, Vec3::from_array(normal))
+        })
+    }
+}
+
+impl SoftShadows {
+    /// Whether the samples of least relative depth complexity `min` (in
+    /// `counters`, angular order) are blocked: exactly when the segment to any
+    /// one of them meets a triangle (they share the depth complexity).
+    ///
+    /// An `f32` ray decides it when the segment keeps clear of every
+    /// silhouette edge the sweep met ([`Self::reference_sample`]): then the
+    /// ray, within a few units of `f32` rounding of the segment, meets the
+    /// surfaces the segment meets. Near an edge that is not a silhouette from
+    /// `p` the two triangles are on either side of the segment's plane and
+    /// the watertight test cannot slip between them; near a silhouette edge
+    /// it can (the segment grazing a surface that the ray misses, or a
+    /// boundary edge). Without such a sample among the first tries, or when a
+    /// hit away from the receiver's own plane is refuted, the decision is
+    /// exact ([`Self::exactly_blocked`]).
+    pub(super) fn minimum_blocked(
+        &self,
+        p: Vec3,
+        counters: &[i32],
+        min: i32,
+        silhouettes: &Silhouettes,
+    ) -> bool {
+        let candidates = counters
+            .iter()
+            .enumerate()
+            .filter(|&(_, &r)| r == min)
+            .map(|(k, _)| k);
+        match self.reference_sample(p, candidates, silhouettes) {
+            Some(s) => self
+                .reference_blocked(p, s, true)
+                .unwrap_or_else(|| self.exactly_blocked(p, s)),
+            None => {
+                let first = counters.iter().position(|&r| r == min).unwrap_or(0);
+                self.exactly_blocked(p, self.samples[self.order[first] as usize])
+            }
+        }
+    }
+
+    /// The first of the first [`REFERENCE_TRIES`] `candidates` (angular
+    /// indices) whose segment from `p` stays more than [`NEAR_ANGLE`] (seen
+    /// from `p`) from every silhouette edge at `p`: the recorded ones, or
+    /// when the record overflowed the structure's candidates again. The sample
+    /// must also lie that far inside the light (projected from `p`), so that
+    /// an edge near its segment overlaps the light and is a candidate of every
+    /// structure (their culling keeps every edge whose projection overlaps
+    /// the light). `None` if no candidate qualifies.
+    pub(super) fn reference_sample(
+        &self,
+        p: Vec3,
+        candidates: impl Iterator<Item = usize>,
+        silhouettes: &Silhouettes,
+    ) -> Option<Vec3> {
+        let pw = p.as_dvec3();
+        // Height of p over the light's plane: a direction off by an angle α
+        // meets the plane α |s'|² / h from s.
+        let height = (self.plane_point - pw).dot(self.plane_normal).abs();
+        let near = |sw: DVec3, e: u32| {
+            let edge = &self.graph.edges[e as usize];
+            let [a, b] = [edge.a, edge.b].map(|v| self.graph.positions[v as usize].as_dvec3() - pw);
+            direction_near_edge(sw, a, b)
+        };
+        let chosen = candidates.take(REFERENCE_TRIES).find(|&k| {
+            let s = self.samples[self.order[k] as usize];
+            let sw = s.as_dvec3() - pw;
+            let deep_inside = self.insets[k] > 4.0 * NEAR_ANGLE * sw.length_squared() / height;
+            if !deep_inside {
+                return false;
+            }
+            if silhouettes.overflow {
+                // Every silhouette again, from the structure's candidates:
+                // the cheap test of the direction first.
+                let mut clear = true;
+                self.for_each_candidate(p, |e| {
+                    clear &= !(near(sw, e) && self.silhouette_weight(p, e) != 0);
+                });
+                return clear;
+            }
+            // The f32 unit normals are within 1e-7 of the exact ones: the
+            // prefilter's bound allows for it.
+            let bound = (NEAR_ANGLE + 1e-6) * sw.length();
+            silhouettes
+                .recorded()
+                .all(|(e, n)| n.as_dvec3().dot(sw).abs() > bound || !near(sw, e))
+        });
+        chosen.map(|k| self.samples[self.order[k] as usize])
+    }
+
+    /// The reference ray over the open segment `p → s`, through the caster.
+    ///
+    /// The `f32` watertight test may report a triangle the segment only touches
+    /// at `p` (a receiver on a surface: the triangle's plane holds `p` and
+    /// rounding puts the hit at `t ≈ 1e-17`). So an occlusion is confirmed: the
+    /// nearest hit is re-checked with the exact segment test, and if refuted
+    /// the search goes on beyond it. With `certified`, a refuted hit whose
+    /// plane does not hold `p` returns `None` instead: the ray then passes
+    /// within rounding of that triangle's edge, where it may also have skipped
+    /// the neighbour the segment does cross.
+    pub(super) fn reference_blocked(&self, p: Vec3, s: Vec3, certified: bool) -> Option<bool> {
+        let mut ray = Ray::new(p, s - p, 1.0);
+        if !self.caster.occluded(&ray) {
+            return Some(false);
+        }
+        for _ in 0..MAX_REFUTED_HITS {
+            let Some((t, triangle)) = self.caster.closest_hit(&ray) else {
+                return Some(false);
+            };
+            let [a, b, c] =
+                self.graph.triangles[triangle].map(|v| self.graph.positions[v as usize]);
+            if segment_meets_triangle(p, s, a, b, c) || t <= ray.t_min || t.is_nan() {
+                return Some(true);
+            }
+            if certified && orient3d(a, b, c, p) != 0 {
+                return None;
+            }
+            ray.t_min = t;
+        }
+        Some(true)
+    }
+
+    /// Whether the open segment `p → s` meets an occluder triangle, exactly
+    /// ([`segment_meets_triangle`] on every triangle whose box meets the box of
+    /// one of [`SEGMENT_PIECES`] consecutive pieces of the segment, found
+    /// through the reference caster's hierarchy; without `bvh`, every triangle
+    /// whose box meets the segment's), for the rare references
+    /// [`Self::minimum_blocked`] cannot leave to a ray.
+    #[cold]
+    #[inline(never)]
+    pub(super) fn exactly_blocked(&self, p: Vec3, s: Vec3) -> bool {
+        let meets = |t: usize| {
+            let [a, b, c] = self.graph.triangles[t].map(|v| self.graph.positions[v as usize]);
+            segment_meets_triangle(p, s, a, b, c)
+        };
+        #[cfg(feature = "bvh")]
+        {
+            let Caster::Bvh(scene) = &self.caster;
+            let (pw, sw) = (p.as_dvec3(), s.as_dvec3());
+            let d = sw - pw;
+            // Every point of a piece is in the box of its ends; the ends are
+            // off by the rounding of `p + t d` (t is exact: a power of two
+            // divides it), far below this pad.
+            let pad = 4.0 * f64::EPSILON * (pw.abs() + sw.abs());
+            (0..SEGMENT_PIECES).any(|k| {
+                let t = |k: usize| k as f64 / SEGMENT_PIECES as f64;
+                let (x0, x1) = (pw + d * t(k), pw + d * t(k + 1));
+                let lo = (x0.min(x1) - pad).to_array().map(crate::geom::f32_down);
+                let hi = (x0.max(x1) + pad).to_array().map(crate::geom::f32_up);
+                scene.any_in_box(Vec3::from(lo), Vec3::from(hi), meets)
+            })
+        }
+        #[cfg(not(feature = "bvh"))]
+        {
+            let (lo, hi) = (p.min(s), p.max(s));
+            (0..self.graph.triangles.len()).any(|t| {
+                let [a, b, c] = self.graph.triangles[t].map(|v| self.graph.positions[v as usize]);
+                let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
+                tlo.cmple(hi).all() && thi.cmpge(lo).all() && meets(t)
+            })
+        }
+    }
+
+    /// Clears in `bits` every sample `s` for which one of `triangles` meets the
+    /// open segment `p → s`, exactly as [`segment_meets_triangle`] decides, with
+    /// the samples' sides of each plane taken from `sides` (see
+    /// [`plane_sides`]).
+    ///
+    /// [`segment_meets_triangle`] needs `p` and `s` strictly on opposite sides
+    /// of the triangle's plane (an open segment with an endpoint on the plane,
+    /// or both on one side, touches the plane at most at that endpoint, which it
+    /// excludes; a segment in the plane is declared not to meet the triangle).
+    /// Both signs are the same exact `orient3d(a, b, c, ·)`, so with the side of
+    /// `p` computed once per triangle only the samples strictly on the other
+    /// side go on to the edge tests, and the result is the same bit for bit.
+    /// This matters most for receivers on a near-light triangle's plane (a
+    /// floor crossing the light's plane): there the sign of `p` needs the exact
+    /// expansion, once per triangle instead of once per sample.
+    pub(super) fn clear_blocked(
+        &self,
+        triangles: &[[Vec3; 3]],
+        sides: &[u64],
+        planes: &[Option<AxisPlane>],
+        p: Vec3,
+        bits: &mut [u64],
+    ) {
+        let words = bits.len();
+        for ((&[a, b, c], side), plane) in triangles
+            .iter()
+            .zip(sides.chunks_exact(2 * words))
+            .zip(planes)
+        {
+            let p_side = match plane {
+                Some(plane) => plane.side(p),
+                None => orient3d(a, b, c, p),
+            };
+            let opposite = match p_side {
+                1 => &side[words..],
+                -1 => &side[..words],
+                _ => continue,
+            };
+            for (k, (w, &o)) in bits.iter_mut().zip(opposite).enumerate() {
+                let mut todo = *w & o;
+                while todo != 0 {
+                    let j = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    if crossing_in_triangle(p, self.samples[64 * k + j], a, b, c) {
+                        *w &= !(1 << j);
+                    }
+                }
+            }
+        }
+    }
+
+    pub(super) fn near_blocked(&self, p: Vec3, s: Vec3) -> bool {
+        self.near_light
+            .iter()
+            .any(|&[a, b, c]| segment_meets_triangle(p, s, a, b, c))
+    }
+}
