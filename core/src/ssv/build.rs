@@ -29,75 +29,95 @@ pub(super) fn default_root(occluders: &MeshView<'_>, light: &LightPolygon) -> Aa
     }
 }
 
-impl SoftShadows {
-    /// Prepares the occluders for `light` and `samples` (validated: on the light
-    /// within [`LightPolygon::tolerance`], 1 to [`MAX_SAMPLES`] of them; make them
-    /// with [`LightPolygon::samples`]).
-    ///
-    /// With the `bvh` feature the reference caster is an owned `BvhScene`
-    /// (obvhs); without it a brute-force loop over
-    /// the triangles (correct, but linear per query).
-    pub fn new(
-        occluders: &MeshView<'_>,
-        light: LightPolygon,
-        samples: &[Vec3],
-        options: SsvOptions,
-    ) -> Result<Self, SsvError> {
-        if samples.is_empty() || samples.len() > MAX_SAMPLES {
-            return Err(SsvError::SampleCount {
-                count: samples.len(),
-            });
-        }
-        light.validate_samples(samples)?;
-        if options.leaf_edges == 0
-            || options.hemicube_resolution == 0
-            || options.hemicube_resolution > 1024
-            || options
-                .root_bounds
-                .is_some_and(|[lo, hi]| !(lo.is_finite() && hi.is_finite() && lo.cmplt(hi).all()))
-        {
-            return Err(SsvError::InvalidOptions);
-        }
-        let tolerance = f64::from(light.tolerance());
-        let plane_normal = light.normal().as_dvec3();
-        let plane_point = light.centroid().as_dvec3();
-        // The band holds the light's vertices (planar within the tolerance) and
-        // the samples (on the plane within the tolerance), with room to spare.
-        let band_half_width = 4.0 * tolerance;
-        let (u_axis, v_axis) = plane_normal.any_orthonormal_pair();
-        let light_uv: Vec<(f64, f64)> = fallible::collect(light.vertices().iter().map(|v| {
-            let d = v.as_dvec3() - plane_point;
+/// The light's plane: a point, the normal, axes in the plane, and the light's
+/// polygon in those axes with its bounding rectangle.
+struct LightPlane {
+    point: DVec3,
+    normal: DVec3,
+    u_axis: DVec3,
+    v_axis: DVec3,
+    /// The light's vertices in `(u, v)`.
+    uv: Vec<(f64, f64)>,
+    /// `(u_min, u_max, v_min, v_max)` of `uv`.
+    uv_box: (f64, f64, f64, f64),
+    tolerance: f64,
+}
+
+impl LightPlane {
+    fn of(light: &LightPolygon) -> Result<Self, OutOfMemory> {
+        let point = light.centroid().as_dvec3();
+        let normal = light.normal().as_dvec3();
+        let (u_axis, v_axis) = normal.any_orthonormal_pair();
+        let uv: Vec<(f64, f64)> = fallible::collect(light.vertices().iter().map(|v| {
+            let d = v.as_dvec3() - point;
             (d.dot(u_axis), d.dot(v_axis))
         }))?;
-        let (mut umin, mut umax, mut vmin, mut vmax) = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
+        let uv_box = uv.iter().fold(
+            (
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ),
+            |(u0, u1, v0, v1), &(u, v)| (u0.min(u), u1.max(u), v0.min(v), v1.max(v)),
         );
-        for &(u, v) in &light_uv {
-            umin = umin.min(u);
-            umax = umax.max(u);
-            vmin = vmin.min(v);
-            vmax = vmax.max(v);
-        }
-        let margin = 4.0 * tolerance;
-        // Regular triangles as indices into the occluders' positions.
+        Ok(LightPlane {
+            point,
+            normal,
+            u_axis,
+            v_axis,
+            uv,
+            uv_box,
+            tolerance: f64::from(light.tolerance()),
+        })
+    }
+
+    /// Half the width of the band about the plane: it holds the light's
+    /// vertices (planar within the tolerance) and the samples (on the plane
+    /// within the tolerance), with room to spare.
+    fn band_half_width(&self) -> f64 {
+        4.0 * self.tolerance
+    }
+
+    /// `d` (relative to the plane's point) in the plane's axes.
+    fn uv(&self, d: DVec3) -> (f64, f64) {
+        (d.dot(self.u_axis), d.dot(self.v_axis))
+    }
+}
+
+/// The occluders sorted by where they lie against the light's plane.
+struct SortedOccluders {
+    /// Triangles clear of the band about the plane, or whose footprint misses
+    /// the light's: indices into the occluders' positions.
+    regular: Vec<[u32; 3]>,
+    /// Triangles in the band over the light: tested against every sample.
+    near_light: Vec<[Vec3; 3]>,
+    /// Every triangle in the band (for receivers in it).
+    band: Vec<[Vec3; 3]>,
+    /// The box of the non-degenerate occluders, if any.
+    bounds: Option<(DVec3, DVec3)>,
+}
+
+impl SortedOccluders {
+    fn new(occluders: &MeshView<'_>, plane: &LightPlane) -> Result<Self, OutOfMemory> {
+        let band_half_width = plane.band_half_width();
+        let margin = 4.0 * plane.tolerance;
+        let (umin, umax, vmin, vmax) = plane.uv_box;
         // (Within its capacity: pushing allocates nothing.)
         let mut regular: Vec<[u32; 3]> = fallible::with_capacity(occluders.triangle_count())?;
         let mut near_light = Vec::new();
         let mut band = Vec::new();
-        let mut occluder_lo = DVec3::splat(f64::INFINITY);
-        let mut occluder_hi = DVec3::splat(f64::NEG_INFINITY);
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
         for (t, tri) in occluders.triangles().enumerate() {
             if edges::degenerate(tri[0], tri[1], tri[2]) {
                 continue;
             }
             for v in tri {
-                occluder_lo = occluder_lo.min(v.as_dvec3());
-                occluder_hi = occluder_hi.max(v.as_dvec3());
+                lo = lo.min(v.as_dvec3());
+                hi = hi.max(v.as_dvec3());
             }
-            let heights = tri.map(|v| (v.as_dvec3() - plane_point).dot(plane_normal));
+            let heights = tri.map(|v| (v.as_dvec3() - plane.point).dot(plane.normal));
             let (hmin, hmax) = (
                 heights[0].min(heights[1]).min(heights[2]),
                 heights[0].max(heights[1]).max(heights[2]),
@@ -116,8 +136,7 @@ impl SoftShadows {
                 f64::NEG_INFINITY,
             );
             for v in tri {
-                let d = v.as_dvec3() - plane_point;
-                let (u, w) = (d.dot(u_axis), d.dot(v_axis));
+                let (u, w) = plane.uv(v.as_dvec3() - plane.point);
                 tu0 = tu0.min(u);
                 tu1 = tu1.max(u);
                 tv0 = tv0.min(w);
@@ -133,65 +152,52 @@ impl SoftShadows {
                 fallible::push(&mut near_light, tri)?;
             }
         }
-        let positions: Vec<Vec3> =
-            fallible::collect((0..occluders.vertex_count()).map(|v| occluders.position(v)))?;
-        let graph = EdgeGraph::from_indexed(&positions, &regular)?;
-        let potential: Vec<u32> = fallible::collect(
-            (0..graph.edges.len() as u32).filter(|&e| !graph.is_flat(&graph.edges[e as usize])),
-        )?;
-        let shape = LightShape {
-            vertices: fallible::collect(light.vertices().iter().map(|v| v.as_dvec3()))?,
-            normal: plane_normal,
-            tolerance,
-        };
-        // The reference caster and the structure, side by side on rayon's
-        // threads with `options.parallel`.
-        type Structures = (Option<Hierarchy>, Option<Box<Hemicube>>);
-        let structure = || -> Result<Structures, OutOfMemory> {
-            Ok(match options.structure {
-                Structure::Hierarchy => {
-                    let root = match options.root_bounds {
-                        Some([lo, hi]) => Aabb {
-                            min: lo.as_dvec3(),
-                            max: hi.as_dvec3(),
-                        },
-                        None => default_root(occluders, &light),
-                    };
-                    let hierarchy = Hierarchy::new(&graph, &shape, &potential, root, options)?;
-                    (Some(hierarchy), None)
-                }
-                Structure::Hemicube => {
-                    let hemicube = Hemicube::new(
-                        &graph,
-                        &shape,
-                        &potential,
-                        light.centroid().as_dvec3(),
-                        options.hemicube_resolution as usize,
-                    );
-                    (None, Some(Box::new(hemicube)))
-                }
-                Structure::BruteForce | Structure::RayTrace => (None, None),
-            })
-        };
-        #[cfg(feature = "parallel")]
-        let (caster, structures) = if options.parallel {
-            rayon::join(|| Self::build_caster(&graph), structure)
-        } else {
-            (Self::build_caster(&graph), structure())
-        };
-        #[cfg(not(feature = "parallel"))]
-        let (caster, structures) = (Self::build_caster(&graph), structure());
-        let caster = caster?;
-        let (hierarchy, hemicube) = structures?;
-        // Angular order of the samples about the centroid (receiver-independent).
+        Ok(SortedOccluders {
+            regular,
+            near_light,
+            band,
+            bounds: lo.cmple(hi).all().then_some((lo, hi)),
+        })
+    }
+}
+
+/// The samples in their angular order about the light's centroid
+/// (receiver-independent), with what the sweep reads per sample in that order.
+struct SampleOrder {
+    /// Sample indices: by angle, then the central ones.
+    order: Vec<u32>,
+    /// Position of each sample in `order`.
+    rank: Vec<u32>,
+    /// Pseudo-angles of the non-central samples, ascending.
+    angles: Vec<f64>,
+    /// Per angle bucket, the first entry of `angles` in it.
+    angle_starts: Vec<u32>,
+    /// Distance within which a sample counts as central.
+    angle_radius: f64,
+    /// Farthest sample from the plane.
+    offset: f64,
+    /// Each sample's inset into the light polygon, in `order`.
+    insets: Vec<f64>,
+    /// x, y and z of the samples in `order`.
+    soa: [Vec<f64>; 3],
+    /// The samples' bounding box.
+    bounds: (DVec3, DVec3),
+}
+
+impl SampleOrder {
+    fn new(
+        samples: &[Vec3],
+        light: &LightPolygon,
+        plane: &LightPlane,
+    ) -> Result<Self, OutOfMemory> {
         let angle_radius = 1e-3 * f64::from(light.diameter());
         let mut keyed: Vec<(f64, u32)> = fallible::with_capacity(samples.len())?;
         let mut central: Vec<u32> = Vec::new();
-        let mut sample_offset: f64 = 0.0;
+        let mut offset: f64 = 0.0;
         for (i, s) in samples.iter().enumerate() {
-            let d = s.as_dvec3() - plane_point;
-            sample_offset = sample_offset.max(d.dot(plane_normal).abs());
-            let (x, y) = (d.dot(u_axis), d.dot(v_axis));
+            let d = s.as_dvec3() - plane.point;
+            offset = offset.max(d.dot(plane.normal).abs());
+            let (x, y) = plane.uv(d);
             if libm::hypot(x, y) < angle_radius {
                 fallible::push(&mut central, i as u32)?;
             } else {
@@ -207,60 +213,124 @@ impl SoftShadows {
         )?;
         let mut order: Vec<u32> = fallible::with_capacity(samples.len())?;
         order.extend(keyed.iter().map(|k| k.1).chain(central));
-        let twice_area: f64 = (0..light_uv.len())
+        let uv = &plane.uv;
+        let twice_area: f64 = (0..uv.len())
             .map(|i| {
-                let ((x0, y0), (x1, y1)) = (light_uv[i], light_uv[(i + 1) % light_uv.len()]);
+                let ((x0, y0), (x1, y1)) = (uv[i], uv[(i + 1) % uv.len()]);
                 x0 * y1 - x1 * y0
             })
             .sum();
         let orientation = if twice_area < 0.0 { -1.0 } else { 1.0 };
         let insets = fallible::collect(order.iter().map(|&o| {
             inset(
-                &light_uv,
+                uv,
                 orientation,
-                samples[o as usize].as_dvec3() - plane_point,
-                u_axis,
-                v_axis,
+                samples[o as usize].as_dvec3() - plane.point,
+                plane.u_axis,
+                plane.v_axis,
             )
         }))?;
         let axis = |axis: usize| {
             fallible::collect(order.iter().map(|&o| f64::from(samples[o as usize][axis])))
         };
         let soa = [axis(0)?, axis(1)?, axis(2)?];
-        let (sample_lo, sample_hi) = samples.iter().fold(
+        let bounds = samples.iter().fold(
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), s| (lo.min(s.as_dvec3()), hi.max(s.as_dvec3())),
         );
-        let words = samples.len().div_ceil(64);
-        let near_sides = plane_sides(&near_light, samples, words)?;
-        let band_sides = plane_sides(&band, samples, words)?;
-        let near_planes = fallible::collect(near_light.iter().map(AxisPlane::of))?;
-        let band_planes = fallible::collect(band.iter().map(AxisPlane::of))?;
         let mut rank = fallible::filled(0u32, order.len())?;
         for (k, &i) in order.iter().enumerate() {
             rank[i as usize] = k as u32;
         }
-        let this = SoftShadows {
-            occluder_box: occluder_lo
-                .cmple(occluder_hi)
-                .all()
-                .then_some((occluder_lo, occluder_hi)),
+        Ok(SampleOrder {
+            order,
+            rank,
+            angles,
+            angle_starts,
+            angle_radius,
+            offset,
             insets,
             soa,
+            bounds,
+        })
+    }
+}
+
+/// The structure that finds a receiver's candidate edges.
+type Structures = (Option<Hierarchy>, Option<Box<Hemicube>>);
+
+impl SoftShadows {
+    /// Prepares the occluders for `light` and `samples` (validated: on the light
+    /// within [`LightPolygon::tolerance`], 1 to [`MAX_SAMPLES`] of them; make them
+    /// with [`LightPolygon::samples`]).
+    ///
+    /// With the `bvh` feature the reference caster is an owned `BvhScene`
+    /// (obvhs); without it a brute-force loop over
+    /// the triangles (correct, but linear per query).
+    pub fn new(
+        occluders: &MeshView<'_>,
+        light: LightPolygon,
+        samples: &[Vec3],
+        options: SsvOptions,
+    ) -> Result<Self, SsvError> {
+        check(&light, samples, &options)?;
+        let plane = LightPlane::of(&light)?;
+        let sorted = SortedOccluders::new(occluders, &plane)?;
+        let positions: Vec<Vec3> =
+            fallible::collect((0..occluders.vertex_count()).map(|v| occluders.position(v)))?;
+        let graph = EdgeGraph::from_indexed(&positions, &sorted.regular)?;
+        let potential: Vec<u32> = fallible::collect(
+            (0..graph.edges.len() as u32).filter(|&e| !graph.is_flat(&graph.edges[e as usize])),
+        )?;
+        let shape = LightShape {
+            vertices: fallible::collect(light.vertices().iter().map(|v| v.as_dvec3()))?,
+            normal: plane.normal,
+            tolerance: plane.tolerance,
+        };
+        // The reference caster and the structure, side by side on rayon's
+        // threads with `options.parallel`.
+        let structure = || structures(occluders, &light, &graph, &shape, &potential, &options);
+        #[cfg(feature = "parallel")]
+        let (caster, structures) = if options.parallel {
+            rayon::join(|| Self::build_caster(&graph), structure)
+        } else {
+            (Self::build_caster(&graph), structure())
+        };
+        #[cfg(not(feature = "parallel"))]
+        let (caster, structures) = (Self::build_caster(&graph), structure());
+        let caster = caster?;
+        let (hierarchy, hemicube) = structures?;
+        let sampled = SampleOrder::new(samples, &light, &plane)?;
+        let words = samples.len().div_ceil(64);
+        let SortedOccluders {
+            near_light,
+            band,
+            bounds: occluder_box,
+            ..
+        } = sorted;
+        let near_sides = plane_sides(&near_light, samples, words)?;
+        let band_sides = plane_sides(&band, samples, words)?;
+        let near_planes = fallible::collect(near_light.iter().map(AxisPlane::of))?;
+        let band_planes = fallible::collect(band.iter().map(AxisPlane::of))?;
+        let band_half_width = plane.band_half_width();
+        Ok(SoftShadows {
+            occluder_box,
+            insets: sampled.insets,
+            soa: sampled.soa,
             near_sides,
             band_sides,
             near_planes,
             band_planes,
-            sample_lo,
-            sample_hi,
-            rank,
-            order,
-            angles,
-            angle_starts,
-            u_axis,
-            v_axis,
-            angle_radius,
-            sample_offset,
+            sample_lo: sampled.bounds.0,
+            sample_hi: sampled.bounds.1,
+            rank: sampled.rank,
+            order: sampled.order,
+            angles: sampled.angles,
+            angle_starts: sampled.angle_starts,
+            u_axis: plane.u_axis,
+            v_axis: plane.v_axis,
+            angle_radius: sampled.angle_radius,
+            sample_offset: sampled.offset,
             shape_diameter: f64::from(light.diameter()),
             centroid: light.centroid(),
             light,
@@ -272,14 +342,68 @@ impl SoftShadows {
             band,
             caster,
             shape,
-            plane_normal,
-            plane_point,
+            plane_normal: plane.normal,
+            plane_point: plane.point,
             band_half_width,
             hierarchy,
             hemicube,
             queries: AtomicUsize::new(0),
             candidates: AtomicUsize::new(0),
-        };
-        Ok(this)
+        })
     }
+}
+
+/// The sample count and the options [`SoftShadows::new`] accepts.
+fn check(light: &LightPolygon, samples: &[Vec3], options: &SsvOptions) -> Result<(), SsvError> {
+    if samples.is_empty() || samples.len() > MAX_SAMPLES {
+        return Err(SsvError::SampleCount {
+            count: samples.len(),
+        });
+    }
+    light.validate_samples(samples)?;
+    if options.leaf_edges == 0
+        || options.hemicube_resolution == 0
+        || options.hemicube_resolution > 1024
+        || options
+            .root_bounds
+            .is_some_and(|[lo, hi]| !(lo.is_finite() && hi.is_finite() && lo.cmplt(hi).all()))
+    {
+        return Err(SsvError::InvalidOptions);
+    }
+    Ok(())
+}
+
+/// The structure `options` asks for, over the potential silhouette edges.
+fn structures(
+    occluders: &MeshView<'_>,
+    light: &LightPolygon,
+    graph: &EdgeGraph,
+    shape: &LightShape,
+    potential: &[u32],
+    options: &SsvOptions,
+) -> Result<Structures, OutOfMemory> {
+    Ok(match options.structure {
+        Structure::Hierarchy => {
+            let root = match options.root_bounds {
+                Some([lo, hi]) => Aabb {
+                    min: lo.as_dvec3(),
+                    max: hi.as_dvec3(),
+                },
+                None => default_root(occluders, light),
+            };
+            let hierarchy = Hierarchy::new(graph, shape, potential, root, *options)?;
+            (Some(hierarchy), None)
+        }
+        Structure::Hemicube => {
+            let hemicube = Hemicube::new(
+                graph,
+                shape,
+                potential,
+                light.centroid().as_dvec3(),
+                options.hemicube_resolution as usize,
+            );
+            (None, Some(Box::new(hemicube)))
+        }
+        Structure::BruteForce | Structure::RayTrace => (None, None),
+    })
 }
