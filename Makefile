@@ -1,6 +1,7 @@
 # Antumbra: the two commands of the README.
 #   make demo   the main job: render the demo pictures with built-in data
-#   make test   every check: fmt, clippy, API docs, cargo tests, no_std build, header,
+#   make test   every check: fmt, clippy, API docs, cargo tests, Miri over the
+#               unsafe code, no_std build, header,
 #               C examples (static, shared, valgrind, sanitizers), the bare-metal
 #               library as Cortex-M4 firmware under QEMU, install with CMake and
 #               pkg-config consumers, Embree cross-checks, the C ABI from Python
@@ -22,7 +23,7 @@ export PROPTEST_RNG_SEED ?= 20261122
 # Root installs system packages directly; anyone else goes through sudo.
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
-TEST_STEPS := fmt clippy docs no-std cargo-test header oracle-selfcheck embree c-examples \
+TEST_STEPS := fmt clippy docs no-std cargo-test miri header oracle-selfcheck embree c-examples \
               embedded install-check python-abi
 PREFIX ?= /usr/local
 DESTDIR ?=
@@ -114,6 +115,18 @@ cargo-test:
 	$(CARGO) test --workspace --exclude antumbra-tests
 	$(CARGO) test -p antumbra-core --no-default-features
 	$(CARGO) test -p antumbra-core --all-features
+
+# Miri, the undefined-behaviour checker, over the tests that reach core's unsafe
+# code: the AVX lanes of the BVH and of the edge bounds, prefetching, the
+# silhouette record's uninitialised slots and fallible allocation. Soft floats,
+# since libm's x86 `asm!` stops Miri; AVX2 and FMA on, so the vector paths run.
+MIRI_TESTS := miri_ avx_octants_equal_the_portable_ones
+miri:
+	rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
+	rustup component add --toolchain nightly miri rust-src >/dev/null
+	MIRIFLAGS="-Zmiri-disable-isolation" RUSTFLAGS="-C target-feature=+avx2,+fma" \
+	  $(CARGO) +nightly miri test -p antumbra-core --features "std bvh libm/force-soft-floats" \
+	  -- $(MIRI_TESTS)
 
 header:
 	$(CARGO) test -p antumbra-ffi --test header

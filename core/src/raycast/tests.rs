@@ -621,6 +621,17 @@ mod bvh_against_brute_force {
         assert!(hits > 2000, "too few hits to mean anything: {hits}");
     }
 
+    /// A small closed mesh through every path (the AVX and portable box
+    /// tests, both traversal loops) against brute force: small enough for
+    /// `make miri`, which runs it to check the unsafe AVX and prefetch code.
+    #[test]
+    fn miri_small_mesh_takes_every_path() {
+        let mut rng = SmallRng::seed_from_u64(7);
+        let (positions, indices) = closed_sphere(2);
+        let hits = compare(&positions, &indices, 48, &mut rng);
+        assert!(hits > 4, "too few hits to mean anything: {hits}");
+    }
+
     #[test]
     fn closed_sphere_matches_brute_force() {
         let mut rng = SmallRng::seed_from_u64(4);

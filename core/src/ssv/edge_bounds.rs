@@ -768,7 +768,10 @@ mod tests {
         let mut rng = SplitMix64::new(21);
         let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
         let mut compared = 0usize;
-        for round in 0..300 {
+        // Fewer rounds under Miri (`make miri`), which runs this for the AVX
+        // kernel's unsafe loads and stores.
+        let rounds = if cfg!(miri) { 4 } else { 300 };
+        for round in 0..rounds {
             let mut v = || Vec3::new(r(-1.0, 1.0) as f32, r(-1.0, 1.0) as f32, r(0.3, 2.0) as f32);
             let (a, b, c, d) = (v(), v(), v(), v());
             let graph = EdgeGraph::new([[a, b, c], [b, a, d]].into_iter());
@@ -807,7 +810,8 @@ mod tests {
                 }
             }
         }
-        assert!(compared > 1000, "{compared}");
+        // Up to five edges and three combinations per round.
+        assert!(compared >= 10 * rounds, "{compared}");
     }
 
     /// The allocation-free pieces are those of the hemicube's function.

@@ -1450,3 +1450,32 @@ fn parallel_creation_and_batches_give_the_sequential_bits() {
     assert_eq!(bits(true, Structure::Hemicube), serial);
     assert!(serial.iter().any(|&w| w != 0) && serial.iter().any(|&w| w != !0));
 }
+
+/// A small scene through the hierarchy (with its edge bounds) against the
+/// exact oracle: small enough for `make miri`, which runs it to check the
+/// unsafe code a build and a query reach (the AVX lanes of the edge bounds,
+/// the silhouette record's uninitialised slots, fallible allocation, the BVH
+/// of the reference ray).
+#[test]
+fn miri_small_scene_gets_the_oracle_bits() {
+    let mut soup = sphere(Vec3::new(0.0, 0.0, 1.2), 0.5, 3);
+    soup.append(&grid(2, 2, |u, v| {
+        Vec3::new(2.0 * u - 1.0, 2.0 * v - 1.0, 0.0)
+    }));
+    let light = quad_light(Vec3::new(0.1, 0.2, 3.0), 0.6);
+    let samples = light.samples(16, SamplePattern::Jittered, 3);
+    let receivers = receivers_box(Vec3::new(-0.6, -0.6, 0.0), Vec3::new(0.6, 0.6, 0.3), 3, 5);
+    let ss = build(&soup, &light, &samples, Structure::Hierarchy);
+    let tris = soup.triangles();
+    let mut visible = 0;
+    for &p in &receivers {
+        let mut bits = vec![0u64; ss.words_per_receiver()];
+        visible += ss.query(p, &mut bits).unwrap();
+        assert_eq!(bits, oracle(&tris, p, &samples), "at {p:?}");
+    }
+    // Some samples blocked and some visible: the scene casts a penumbra.
+    assert!(
+        visible > 0 && visible < 16 * receivers.len() as u32,
+        "{visible}"
+    );
+}
