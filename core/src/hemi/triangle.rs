@@ -309,25 +309,14 @@ impl TriangleCone {
     /// cell the predicate sets, when [`thin_cone_axis`] gave them.
     #[cold]
     fn or_near_axis(&self, axis: DVec3, reach: f64, mask: &mut HemiMask) {
-        // Centers at (2k - 31) / 32: k within 16 (x ± reach) + 15.5.
-        let range = |x: f64| {
-            let first = libm::ceil(16.0 * (x - reach) + 15.5).max(0.0);
-            let last = libm::floor(16.0 * (x + reach) + 15.5).min(31.0);
-            (first as usize, last as usize, first <= last)
-        };
+        // The 1e-6 covers rounding the axis and the reach to `f32`.
+        let margin = reach as f32 + 1e-6;
         for end in [axis, -axis] {
-            let ((i0, i1, columns), (j0, j1, rows)) = (range(end.x), range(end.y));
-            if !(columns && rows) {
-                continue;
-            }
-            for j in j0..=j1 {
-                let first = i0.max(ROW_FIRST[j] as usize);
-                let last = i1.min(ROW_LAST[j] as usize);
-                for i in first..=last {
-                    if self.normals.iter().all(|&m| inside(m, i, j)) {
-                        mask.rows[j] |= 1 << i;
-                    }
-                }
+            let (x, y) = (end.x as f32, end.y as f32);
+            let (i0, i_end) = cell_range(x, x, margin);
+            let (j0, j_end) = cell_range(y, y, margin);
+            if i0 < i_end && j0 < j_end {
+                self.or_in_proven_box((i0, i_end, j0, j_end), mask);
             }
         }
     }
