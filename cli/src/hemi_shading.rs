@@ -300,7 +300,11 @@ impl<'m> Posed<'m> {
             lod,
             occluders,
             positions: lod.full.positions().to_vec(),
-            far_positions: lod.far.positions().to_vec(),
+            // Posed only for the caller's far mesh.
+            far_positions: match occluders {
+                Occluders::FarMesh => lod.far.positions().to_vec(),
+                Occluders::Full | Occluders::FarLevels(_) => Vec::new(),
+            },
             shader,
         })
     }
@@ -349,8 +353,12 @@ impl<'m> Posed<'m> {
             Error::msg(format!("shading {} failed: {e}", lod.full.name()))
         };
         let mesh = MeshView::new(&self.positions, lod.full.indices()).map_err(|e| failed(&e))?;
-        let far = MeshView::new(&self.far_positions, lod.far.indices()).map_err(|e| failed(&e))?;
-        let far = (self.occluders == Occluders::FarMesh).then_some(far);
+        let far = match self.occluders {
+            Occluders::FarMesh => Some(
+                MeshView::new(&self.far_positions, lod.far.indices()).map_err(|e| failed(&e))?,
+            ),
+            Occluders::Full | Occluders::FarLevels(_) => None,
+        };
         let mut frame = self.shader.frame(mesh, None, far).map_err(|e| failed(&e))?;
         let posed = Instant::now();
         let options = BatchOptions {

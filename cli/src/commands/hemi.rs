@@ -61,23 +61,37 @@ fn quality(arg: QualityArg) -> Quality<'static> {
 
 /// Receivers: `count` vertices spread evenly over the vertex order, with their
 /// normals; vertices without a normal (only degenerate triangles) are skipped.
-fn receivers(mesh: &TriangleMesh, count: usize) -> Vec<(Vec3, Vec3)> {
+pub(super) fn receivers(mesh: &TriangleMesh, count: usize) -> Vec<(Vec3, Vec3)> {
     let normals = mesh.vertex_normals();
-    receiver_vertices(mesh, count)
+    receiver_vertices(&normals, count)
         .into_iter()
         .map(|v| (Vec3::from(mesh.positions()[v]), normals[v]))
         .collect()
 }
 
-/// The vertices of [`receivers`].
-pub(super) fn receiver_vertices(mesh: &TriangleMesh, count: usize) -> Vec<usize> {
-    let normals = mesh.vertex_normals();
-    let vertices = mesh.vertex_count();
+/// The vertices of [`receivers`], from the mesh's vertex `normals`.
+pub(super) fn receiver_vertices(normals: &[Vec3], count: usize) -> Vec<usize> {
+    let vertices = normals.len();
     let step = (vertices as f64 / count.max(1) as f64).max(1.0);
     (0..count.min(vertices))
         .map(|k| (k as f64 * step) as usize)
         .filter(|&v| normals[v].is_finite() && normals[v].length_squared() > 0.5)
         .collect()
+}
+
+/// Seconds Embree takes to create and commit a scene of `mesh` (one core,
+/// the fastest of three), the build part of its deforming frame.
+pub(super) fn embree_build_seconds(mesh: &TriangleMesh) -> Result<f64> {
+    let center = mesh.bounds().center();
+    let run = try_frame(
+        mesh.positions(),
+        mesh.indices(),
+        &[center],
+        &[center + Vec3::X],
+        3,
+    )
+    .map_err(|e| Error::msg(format!("{e}\n(use --no-embree to skip Embree's figures)")))?;
+    Ok(run.build_seconds)
 }
 
 fn load(mesh: &Option<std::path::PathBuf>) -> Result<TriangleMesh> {
@@ -658,16 +672,7 @@ fn frame_rates(
     // then the 812 cell rays of every vertex at the per-receiver cost measured
     // above.
     if let Some(micros) = embree_micros {
-        let center = lod.full.bounds().center();
-        let build = try_frame(
-            lod.full.positions(),
-            lod.full.indices(),
-            &[center],
-            &[center + Vec3::X],
-            3,
-        )
-        .map_err(|e| Error::msg(format!("{e}\n(use --no-embree to skip this figure)")))?
-        .build_seconds;
+        let build = embree_build_seconds(&lod.full)?;
         let embree = build + micros * 1e-6 * lod.full.vertex_count() as f64;
         print!(
             "Embree's frame on 1 thread: {} (scene build {}, 812 rays per vertex); ",

@@ -26,10 +26,10 @@ use antumbra_core::hemi::{
     TransferTable, scene_mask_with_counts, vertex_transfer,
 };
 use antumbra_core::sh::Sh;
-use antumbra_tests::oracle::{OracleOptions, try_cast, try_frame};
+use antumbra_tests::oracle::{OracleOptions, try_cast};
 use glam::Vec3;
 
-use super::hemi::{cell_rays, receiver_vertices, time_per_call};
+use super::hemi::{cell_rays, embree_build_seconds, receiver_vertices, receivers, time_per_call};
 use crate::builtin;
 use crate::cli::BenchHemiArgs;
 use crate::error::{Error, Result};
@@ -135,12 +135,10 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
 /// count plus the 812 cell rays of each of `count` receivers.
 fn embree_frame(mesh: &TriangleMesh, count: usize) -> Result<f64> {
     let offset = OFFSET_OF_DIAGONAL * mesh.bounds().diagonal();
-    let normals = mesh.vertex_normals();
-    let receivers: Vec<Receiver> = receiver_vertices(mesh, count)
+    let receivers: Vec<Receiver> = receivers(mesh, count)
         .into_iter()
-        .map(|v| Receiver::new(Vec3::from(mesh.positions()[v]), normals[v], offset))
+        .map(|(p, n)| Receiver::new(p, n, offset))
         .collect();
-    let hint = "\n(use --no-embree to skip Embree's figures)";
     let rays = try_cast(
         mesh.positions(),
         mesh.indices(),
@@ -151,20 +149,10 @@ fn embree_frame(mesh: &TriangleMesh, count: usize) -> Result<f64> {
             ..OracleOptions::default()
         },
     )
-    .map_err(|e| Error::msg(format!("{e}{hint}")))?
+    .map_err(|e| Error::msg(format!("{e}\n(use --no-embree to skip Embree's figures)")))?
     .occluded_seconds
     .expect("timing was requested");
-    let center = mesh.bounds().center();
-    let build = try_frame(
-        mesh.positions(),
-        mesh.indices(),
-        &[center],
-        &[center + Vec3::X],
-        3,
-    )
-    .map_err(|e| Error::msg(format!("{e}{hint}")))?
-    .build_seconds;
-    let per_vertex = build / mesh.vertex_count().max(1) as f64;
+    let per_vertex = embree_build_seconds(mesh)? / mesh.vertex_count().max(1) as f64;
     Ok(1e6 * (per_vertex + rays / receivers.len().max(1) as f64))
 }
 
@@ -172,7 +160,7 @@ fn embree_frame(mesh: &TriangleMesh, count: usize) -> Result<f64> {
 /// quarter of its triangles.
 fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row>> {
     let view = mesh.view();
-    let vertices = receiver_vertices(mesh, count);
+    let vertices = receiver_vertices(&mesh.vertex_normals(), count);
     let table = TransferTable::<COEFFICIENTS>::new();
     let method = TransferMethod::Cells(&table);
     let options = BatchOptions {
@@ -225,17 +213,19 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
                 TransferSpace::Local,
             )
         };
+        // Untimed: each receiver's ambient occlusion (the local transfer's
+        // constant coefficient, what `transfer` gives) and its counts.
+        let (mut triangles, mut nodes) = (0u64, 0u64);
         let ambient: Vec<f64> = vertices
             .iter()
-            .map(|&v| f64::from(transfer(v)[0]))
+            .map(|&v| {
+                let p = Vec3::from(mesh.positions()[v]);
+                let (mask, counts) = scene_mask_with_counts(&scene, p, normals[v], &options);
+                triangles += u64::from(counts.rasterized);
+                nodes += u64::from(counts.nodes);
+                f64::from(method.transfer(&mask)[0])
+            })
             .collect();
-        let (mut triangles, mut nodes) = (0u64, 0u64);
-        for &v in &vertices {
-            let p = Vec3::from(mesh.positions()[v]);
-            let counts = scene_mask_with_counts(&scene, p, normals[v], &options).1;
-            triangles += u64::from(counts.rasterized);
-            nodes += u64::from(counts.nodes);
-        }
         let receivers = time_per_call(min_time, || {
             for &v in &vertices {
                 black_box(transfer(black_box(v)));
