@@ -1325,6 +1325,44 @@ static void test_transfer_compress(void)
     antumbra_transfer_destroy(diffuse);
 }
 
+static void expect_clustered_fails(const char *what, const antumbra_transfer *set, uint32_t clusters, uint32_t k,
+                                   antumbra_result want, const char *fragment)
+{
+    antumbra_transfer *out;
+    antumbra_result r;
+    memset(&out, SENTINEL, sizeof out);
+    r = antumbra_transfer_compress_clustered(set, clusters, k, &out);
+    expect_failure(what, r, want, "antumbra_transfer_compress_clustered", fragment, NULL);
+    expect_untouched(what, &out, sizeof out);
+}
+
+static void test_transfer_compress_clustered(void)
+{
+    antumbra_transfer *diffuse = bake_square(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    antumbra_transfer *mrt = bake_square(ANTUMBRA_TRANSFER_KIND_MRT);
+    antumbra_transfer *cpca = NULL;
+    antumbra_transfer_info info;
+    expect_clustered_fails("clustered, transfer NULL", NULL, 2, 1, ANTUMBRA_RESULT_NULL_ARGUMENT, "transfer");
+    expect_failure("clustered, out NULL", antumbra_transfer_compress_clustered(mrt, 2, 1, NULL),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_transfer_compress_clustered", "out", NULL);
+    expect_clustered_fails("clustered, diffuse set", diffuse, 2, 1, ANTUMBRA_RESULT_INVALID_ARGUMENT, "MRT");
+    expect_clustered_fails("clustered, 0 clusters", mrt, 0, 1, ANTUMBRA_RESULT_INVALID_ARGUMENT, "clusters");
+    /* 4 vertices: at most 4 clusters and 4 components. */
+    expect_clustered_fails("clustered, 5 clusters", mrt, 5, 1, ANTUMBRA_RESULT_INVALID_ARGUMENT, "clusters");
+    expect_clustered_fails("clustered, 0 components", mrt, 2, 0, ANTUMBRA_RESULT_INVALID_ARGUMENT, "components");
+    expect_clustered_fails("clustered, 5 components", mrt, 2, 5, ANTUMBRA_RESULT_INVALID_ARGUMENT, "components");
+    expect_success("clustered", antumbra_transfer_compress_clustered(mrt, 2, 1, &cpca));
+    expect_success("describe clustered", antumbra_transfer_describe(cpca, &info));
+    expect(info.clusters == 2 && info.components == 1 && info.reserved == 0,
+           "describe clustered: clusters %u, components %u, reserved %u", info.clusters, info.components,
+           info.reserved);
+    expect_clustered_fails("clustered, already compressed", cpca, 2, 1, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                           "already compressed");
+    antumbra_transfer_destroy(cpca);
+    antumbra_transfer_destroy(mrt);
+    antumbra_transfer_destroy(diffuse);
+}
+
 static void expect_shade_fails(const char *what, const antumbra_transfer *set, const float *lighting, size_t count,
                                const antumbra_transfer_material *material, size_t vertices, antumbra_result want,
                                const char *fragment)
@@ -1461,6 +1499,7 @@ int main(void)
     test_transfer_bake();
     test_transfer_files();
     test_transfer_compress();
+    test_transfer_compress_clustered();
     test_transfer_shade();
 #endif
     test_sh_rotate();

@@ -211,7 +211,7 @@ _Static_assert(offsetof(antumbra_transfer_options, reserved) == 44, "transfer_op
 _Static_assert(offsetof(antumbra_transfer_options, seed) == 48, "transfer_options.seed offset");
 _Static_assert(sizeof(antumbra_transfer_options) == 56, "transfer_options size");
 
-/* ---- antumbra_transfer_info: twelve 4-byte fields, then two size_t ---- */
+/* ---- antumbra_transfer_info: fourteen 4-byte fields, then two size_t ---- */
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, kind, uint32_t), "transfer_info.kind type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, bands, uint32_t), "transfer_info.bands type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, coeff_count, uint32_t), "transfer_info.coeff_count type");
@@ -223,6 +223,8 @@ _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, bounces, uint32_t), "transf
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, albedo, float), "transfer_info.albedo type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, brdf, uint32_t), "transfer_info.brdf type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, brdf_params[0], float), "transfer_info.brdf_params type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, clusters, uint32_t), "transfer_info.clusters type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, reserved, uint32_t), "transfer_info.reserved type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, data_bytes, size_t), "transfer_info.data_bytes type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, file_bytes, size_t), "transfer_info.file_bytes type");
 _Static_assert(offsetof(antumbra_transfer_info, kind) == 0, "transfer_info.kind offset");
@@ -232,9 +234,11 @@ _Static_assert(offsetof(antumbra_transfer_info, vertex_count) == 20, "transfer_i
 _Static_assert(offsetof(antumbra_transfer_info, albedo) == 32, "transfer_info.albedo offset");
 _Static_assert(offsetof(antumbra_transfer_info, brdf) == 36, "transfer_info.brdf offset");
 _Static_assert(offsetof(antumbra_transfer_info, brdf_params) == 40, "transfer_info.brdf_params offset");
-_Static_assert(offsetof(antumbra_transfer_info, data_bytes) == 48, "transfer_info.data_bytes offset");
-_Static_assert(offsetof(antumbra_transfer_info, file_bytes) == 48 + sizeof(size_t), "transfer_info.file_bytes offset");
-_Static_assert(sizeof(antumbra_transfer_info) == 48 + 2 * sizeof(size_t), "transfer_info size");
+_Static_assert(offsetof(antumbra_transfer_info, clusters) == 48, "transfer_info.clusters offset");
+_Static_assert(offsetof(antumbra_transfer_info, reserved) == 52, "transfer_info.reserved offset");
+_Static_assert(offsetof(antumbra_transfer_info, data_bytes) == 56, "transfer_info.data_bytes offset");
+_Static_assert(offsetof(antumbra_transfer_info, file_bytes) == 56 + sizeof(size_t), "transfer_info.file_bytes offset");
+_Static_assert(sizeof(antumbra_transfer_info) == 56 + 2 * sizeof(size_t), "transfer_info size");
 
 /* ---- antumbra_transfer_material: ten floats, then a pointer ---- */
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, diffuse[0], float), "transfer_material.diffuse type");
@@ -273,7 +277,7 @@ _Static_assert(offsetof(antumbra_hemi_shading_options, far_triangles) == 40, "LP
 _Static_assert(sizeof(antumbra_hemi_shading_options) == 48, "LP64 shading_options size");
 _Static_assert(offsetof(antumbra_hemi_material, view_directions) == 48, "LP64 material.view_directions");
 _Static_assert(sizeof(antumbra_hemi_material) == 56, "LP64 material size");
-_Static_assert(sizeof(antumbra_transfer_info) == 64, "LP64 transfer_info size");
+_Static_assert(sizeof(antumbra_transfer_info) == 72, "LP64 transfer_info size");
 _Static_assert(sizeof(antumbra_transfer_material) == 48, "LP64 transfer_material size");
 #elif UINTPTR_MAX == UINT32_MAX
 _Static_assert(sizeof(void *) == 4 && sizeof(size_t) == 4, "32-bit guard is honest");
@@ -291,7 +295,7 @@ _Static_assert(offsetof(antumbra_hemi_shading_options, far_triangles) == 36, "IL
 _Static_assert(sizeof(antumbra_hemi_shading_options) == 44, "ILP32 shading_options size");
 _Static_assert(offsetof(antumbra_hemi_material, view_directions) == 44, "ILP32 material.view_directions");
 _Static_assert(sizeof(antumbra_hemi_material) == 48, "ILP32 material size");
-_Static_assert(sizeof(antumbra_transfer_info) == 56, "ILP32 transfer_info size");
+_Static_assert(sizeof(antumbra_transfer_info) == 64, "ILP32 transfer_info size");
 _Static_assert(sizeof(antumbra_transfer_material) == 44, "ILP32 transfer_material size");
 #else
 #error "no literal layout written for this pointer width; add one"

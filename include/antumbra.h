@@ -29,11 +29,11 @@
 /** Major version of this header; a new major version may change the ABI (from 1.0 on). */
 #define ANTUMBRA_VERSION_MAJOR 0
 /** Minor version of this header; before 1.0 a new minor version may change the ABI. */
-#define ANTUMBRA_VERSION_MINOR 1
+#define ANTUMBRA_VERSION_MINOR 2
 /** Patch version of this header; never changes the ABI. */
 #define ANTUMBRA_VERSION_PATCH 0
 /** Version of this header as a string, e.g. "0.1.0"; compare antumbra_version_string(). */
-#define ANTUMBRA_VERSION_STRING "0.1.0"
+#define ANTUMBRA_VERSION_STRING "0.2.0"
 /** Version of this header, packed as antumbra_version() returns the library's. */
 #define ANTUMBRA_VERSION \
     ANTUMBRA_MAKE_VERSION(ANTUMBRA_VERSION_MAJOR, ANTUMBRA_VERSION_MINOR, ANTUMBRA_VERSION_PATCH)
@@ -853,8 +853,8 @@ typedef void (*antumbra_transfer_progress_fn)(size_t done, size_t total, void *u
 /**
  * What a transfer set holds, from `antumbra_transfer_describe`.
  *
- * Layout: twelve 4-byte fields, then two `size_t`; 64 bytes on 64-bit targets,
- * 56 on 32-bit, no padding.
+ * Layout: fourteen 4-byte fields, then two `size_t`; 72 bytes on 64-bit
+ * targets, 64 on 32-bit, no padding.
  */
 typedef struct antumbra_transfer_info {
   /**
@@ -904,8 +904,19 @@ typedef struct antumbra_transfer_info {
    */
   float brdf_params[2];
   /**
-   * Bytes of the per-vertex data in memory (dense blocks, or PCA mean,
-   * components and weights).
+   * Clusters of a compressed MRT set (1 for `antumbra_transfer_compress`,
+   * the requested count for `antumbra_transfer_compress_clustered`); 0 when
+   * uncompressed.
+   */
+  uint32_t clusters;
+  /**
+   * Always 0.
+   */
+  uint32_t reserved;
+  /**
+   * Bytes of the per-vertex data in memory (dense blocks, or the PCA's
+   * means, components, weights and, with several clusters, each vertex's
+   * cluster).
    */
   size_t data_bytes;
   /**
@@ -2279,6 +2290,42 @@ ANTUMBRA_NODISCARD
 antumbra_result antumbra_transfer_compress(const struct antumbra_transfer *transfer,
                                            uint32_t components,
                                            struct antumbra_transfer **out);
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Clustered-PCA-compresses an uncompressed MRT set (Sloan et al. 2003): the
+ * vertices are split into `clusters` groups whose matrices are alike, and each
+ * group gets its own mean and `components` principal components, so the same
+ * K reconstructs far better than one global PCA when the vertex frames point
+ * every way. Shading costs the same per vertex as `antumbra_transfer_compress`
+ * (`4 (K + 1)` RGB multiply-adds) plus `clusters (K + 1)` per-frame products per
+ * grid node. With `clusters` = 1 the result equals `antumbra_transfer_compress`.
+ * Saved as bake-file version 2 when `clusters` > 1.
+ *
+ * @param transfer an uncompressed MRT set.
+ * @param clusters C, 1 to the vertex count.
+ * @param components K per cluster, 1 to min(grid² bands², vertex count).
+ * @param out receives the new compressed set; untouched on failure. The source
+ *        set is unchanged.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (transfer, out); INVALID_ARGUMENT
+ *         (not an uncompressed MRT set, clusters or components out of range,
+ *         misaligned out); POISONED; PANIC.
+ *
+ * Cost: about 9 global PCAs (`antumbra_transfer_compress`) plus 8 · vertices ·
+ * C · (K + 1) · grid² bands² multiply-adds to reclassify; deterministic (the
+ * clustering's seed is fixed).
+ * Ownership: the caller owns `*out`.
+ * Thread safety: any number of threads may use the same source set at once.
+ *
+ * # Safety
+ * `transfer` must be NULL or a live set; `out` NULL or valid.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_transfer_compress_clustered(const struct antumbra_transfer *transfer,
+                                                     uint32_t clusters,
+                                                     uint32_t components,
+                                                     struct antumbra_transfer **out);
 #endif
 
 /**

@@ -79,8 +79,8 @@ pub enum Command {
     /// SH lighting coefficient at once, plus `--bounces` diffuse interreflections
     /// of albedo `--albedo`. MRT bakes a `--grid`² × bands² matrix per vertex for
     /// the chosen BRDF (Phong, or Ward's anisotropic one with --ward) and can be
-    /// PCA-compressed to `--pca K` components (the error and memory per K are
-    /// printed). The file is antumbra's versioned, checksummed bake format
+    /// PCA-compressed to `--pca K` components, with `--clusters C` one basis per
+    /// cluster of alike vertices (the error and memory per K are printed). The file is antumbra's versioned, checksummed bake format
     /// (`antumbra_core::transfer::format`); relight it with `antumbra render
     /// --bake`.
     ///
@@ -241,6 +241,12 @@ pub struct BakeArgs {
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
     pub pca: Option<u32>,
 
+    /// With --pca: clustered PCA, C clusters of vertices each with its own mean
+    /// and K components (far less error than one global basis at the same K;
+    /// written as bake-file version 2 when C > 1).
+    #[arg(long, value_name = "C", requires = "pca", value_parser = clap::value_parser!(u32).range(1..))]
+    pub clusters: Option<u32>,
+
     /// Exponent of the MRT bake's Phong lobe.
     #[arg(long, value_name = "S", default_value_t = 32.0)]
     pub phong_exponent: f32,
@@ -282,6 +288,10 @@ pub struct MergeArgs {
     /// PCA-compress the joined MRT bake to K components (as `bake --pca K`).
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
     pub pca: Option<u32>,
+
+    /// With --pca: C clusters (as `bake --clusters C`).
+    #[arg(long, value_name = "C", requires = "pca", value_parser = clap::value_parser!(u32).range(1..))]
+    pub clusters: Option<u32>,
 }
 
 /// The benchmarks.
@@ -350,6 +360,15 @@ pub struct BenchTransferArgs {
     /// Largest PCA component count of the error and memory table.
     #[arg(long, value_name = "K", default_value_t = 32)]
     pub max_components: usize,
+
+    /// Cluster counts of the clustered-PCA table (each with every K of
+    /// --cluster-components); set to 1 alone to skip the clustered fits.
+    #[arg(long, value_name = "C,...", value_delimiter = ',', default_values_t = [4usize, 16, 64])]
+    pub clusters: Vec<usize>,
+
+    /// Components per cluster of the clustered-PCA table.
+    #[arg(long, value_name = "K,...", value_delimiter = ',', default_values_t = [4usize, 8])]
+    pub cluster_components: Vec<usize>,
 
     /// Time each shading figure over at least this many milliseconds.
     #[arg(long, value_name = "MS", default_value_t = 300)]

@@ -226,6 +226,7 @@ fn transfer_bakes_round_trip_through_render() {
         ("diffuse", &["--bounces", "1"][..]),
         ("glossy-sh", &["--bands", "3"][..]),
         ("mrt", &["--grid", "4", "--pca", "4"][..]),
+        ("mrt", &["--grid", "4", "--pca", "4", "--clusters", "3"][..]),
         ("mrt", &["--grid", "4", "--ward", "0.2,0.5"][..]),
     ] {
         let out = dir.join(format!("teapot-{kind}-{}.xfer", extra.len()));
@@ -247,6 +248,14 @@ fn transfer_bakes_round_trip_through_render() {
         assert!(text.contains("792 vertices"), "{text}");
         if extra.contains(&"--pca") {
             assert!(text.contains("K =   4: relative RMS error"), "{text}");
+        }
+        if extra.contains(&"--clusters") {
+            assert!(
+                text.contains("clustered PCA to 3 clusters of 4 components"),
+                "{text}"
+            );
+            // Clustered sets are bake-file version 2.
+            assert_eq!(std::fs::read(&out).unwrap()[8], 2);
         }
         let png = dir.join(format!("teapot-{kind}-{}.png", extra.len()));
         let output = antumbra(&[
@@ -287,6 +296,20 @@ fn transfer_bakes_round_trip_through_render() {
     // --pca needs an MRT bake; a corrupt file is refused with a message.
     let output = antumbra(&[
         "bake", "--mesh", &teapot, "--kind", "diffuse", "--pca", "2", "-o", "x.xfer",
+    ]);
+    assert!(!output.status.success());
+    assert!(stderr(&output).contains("--pca"), "{}", stderr(&output));
+    // --clusters needs --pca.
+    let output = antumbra(&[
+        "bake",
+        "--mesh",
+        &teapot,
+        "--kind",
+        "mrt",
+        "--clusters",
+        "2",
+        "-o",
+        "x.xfer",
     ]);
     assert!(!output.status.success());
     assert!(stderr(&output).contains("--pca"), "{}", stderr(&output));
@@ -747,6 +770,25 @@ fn sharded_bakes_merge_into_the_single_bake_byte_for_byte() {
             std::fs::read(&whole).unwrap(),
             "{kind}: the merged parts differ from the single bake"
         );
+        if kind == "mrt" {
+            // Clustered PCA at the merge equals it at the single bake.
+            let compressed = |command: &str, out: &Path| {
+                let args: Vec<String> =
+                    format!("{command} --pca 3 --clusters 4 -o {}", out.display())
+                        .split_whitespace()
+                        .map(String::from)
+                        .collect();
+                let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+                assert_success(&antumbra(&refs));
+                std::fs::read(out).unwrap()
+            };
+            let whole = compressed(&format!("bake {common}"), &dir.join("cpca-whole.xfer"));
+            let merged = compressed(
+                &format!("merge {} {} {}", p1.display(), p2.display(), p0.display()),
+                &dir.join("cpca-merged.xfer"),
+            );
+            assert_eq!(merged, whole, "clustered PCA of the merged parts");
+        }
         if kind != "diffuse" {
             continue;
         }

@@ -110,8 +110,8 @@ pub use transfer::{
 };
 #[cfg(feature = "std")]
 pub use transfer::{
-    antumbra_transfer_bake, antumbra_transfer_compress, antumbra_transfer_options,
-    antumbra_transfer_options_init, antumbra_transfer_progress_fn,
+    antumbra_transfer_bake, antumbra_transfer_compress, antumbra_transfer_compress_clustered,
+    antumbra_transfer_options, antumbra_transfer_options_init, antumbra_transfer_progress_fn,
 };
 pub use version::{antumbra_version, antumbra_version_string};
 

@@ -149,8 +149,8 @@ const DEFAULT_OPTIONS: antumbra_transfer_options = antumbra_transfer_options {
 
 /// What a transfer set holds, from `antumbra_transfer_describe`.
 ///
-/// Layout: twelve 4-byte fields, then two `size_t`; 64 bytes on 64-bit targets,
-/// 56 on 32-bit, no padding.
+/// Layout: fourteen 4-byte fields, then two `size_t`; 72 bytes on 64-bit
+/// targets, 64 on 32-bit, no padding.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct antumbra_transfer_info {
@@ -178,8 +178,15 @@ pub struct antumbra_transfer_info {
     pub brdf: u32,
     /// Its parameters.
     pub brdf_params: [f32; 2],
-    /// Bytes of the per-vertex data in memory (dense blocks, or PCA mean,
-    /// components and weights).
+    /// Clusters of a compressed MRT set (1 for `antumbra_transfer_compress`,
+    /// the requested count for `antumbra_transfer_compress_clustered`); 0 when
+    /// uncompressed.
+    pub clusters: u32,
+    /// Always 0.
+    pub reserved: u32,
+    /// Bytes of the per-vertex data in memory (dense blocks, or the PCA's
+    /// means, components, weights and, with several clusters, each vertex's
+    /// cluster).
     pub data_bytes: usize,
     /// Bytes `antumbra_transfer_save` writes.
     pub file_bytes: usize,
@@ -718,6 +725,8 @@ pub unsafe extern "C" fn antumbra_transfer_describe(
             albedo: baked.albedo,
             brdf: baked.brdf.kind,
             brdf_params: baked.brdf.params,
+            clusters: set.pca().map_or(0, |p| p.clusters() as u32),
+            reserved: 0,
             data_bytes: set.data_bytes(),
             file_bytes: set.byte_len(),
         };
@@ -919,21 +928,77 @@ pub unsafe extern "C" fn antumbra_transfer_compress(
 ) -> antumbra_result {
     with_handle("antumbra_transfer_compress", transfer, |t| {
         let out = check_out(out)?;
-        let set = t.set.compress(components as usize).map_err(|e| match e {
-            PcaError::NotDenseMrt => Error::invalid(message!(
-                "transfer: {e} (this set is kind {}{})",
-                t.set.kind() as u32,
-                if t.set.pca().is_some() {
-                    ", already compressed"
-                } else {
-                    ""
-                }
-            )),
-            PcaError::Components { .. } => Error::invalid(message!("components: {e}")),
-        })?;
+        let set = t
+            .set
+            .compress(components as usize)
+            .map_err(|e| pca_error(&t.set, e))?;
         boxed(set, out)?;
         Ok(())
     })
+}
+
+#[cfg(feature = "std")]
+/// Clustered-PCA-compresses an uncompressed MRT set (Sloan et al. 2003): the
+/// vertices are split into `clusters` groups whose matrices are alike, and each
+/// group gets its own mean and `components` principal components, so the same
+/// K reconstructs far better than one global PCA when the vertex frames point
+/// every way. Shading costs the same per vertex as `antumbra_transfer_compress`
+/// (`4 (K + 1)` RGB multiply-adds) plus `clusters (K + 1)` per-frame products per
+/// grid node. With `clusters` = 1 the result equals `antumbra_transfer_compress`.
+/// Saved as bake-file version 2 when `clusters` > 1.
+///
+/// @param transfer an uncompressed MRT set.
+/// @param clusters C, 1 to the vertex count.
+/// @param components K per cluster, 1 to min(grid² bands², vertex count).
+/// @param out receives the new compressed set; untouched on failure. The source
+///        set is unchanged.
+/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (transfer, out); INVALID_ARGUMENT
+///         (not an uncompressed MRT set, clusters or components out of range,
+///         misaligned out); POISONED; PANIC.
+///
+/// Cost: about 9 global PCAs (`antumbra_transfer_compress`) plus 8 · vertices ·
+/// C · (K + 1) · grid² bands² multiply-adds to reclassify; deterministic (the
+/// clustering's seed is fixed).
+/// Ownership: the caller owns `*out`.
+/// Thread safety: any number of threads may use the same source set at once.
+///
+/// # Safety
+/// `transfer` must be NULL or a live set; `out` NULL or valid.
+#[must_use]
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn antumbra_transfer_compress_clustered(
+    transfer: *const antumbra_transfer,
+    clusters: u32,
+    components: u32,
+    out: *mut *mut antumbra_transfer,
+) -> antumbra_result {
+    with_handle("antumbra_transfer_compress_clustered", transfer, |t| {
+        let out = check_out(out)?;
+        let set = t
+            .set
+            .compress_clustered(clusters as usize, components as usize, 0)
+            .map_err(|e| pca_error(&t.set, e))?;
+        boxed(set, out)?;
+        Ok(())
+    })
+}
+
+#[cfg(feature = "std")]
+/// The message of a failed compression, naming the argument.
+fn pca_error(set: &TransferSet, e: PcaError) -> Error {
+    match e {
+        PcaError::NotDenseMrt => Error::invalid(message!(
+            "transfer: {e} (this set is kind {}{})",
+            set.kind() as u32,
+            if set.pca().is_some() {
+                ", already compressed"
+            } else {
+                ""
+            }
+        )),
+        PcaError::Components { .. } => Error::invalid(message!("components: {e}")),
+        PcaError::Clusters { .. } => Error::invalid(message!("clusters: {e}")),
+    }
 }
 
 /// Validates the material's values and borrows its view directions.

@@ -396,6 +396,49 @@ fn pca_with_every_component_reproduces_the_dense_set() {
 }
 
 #[test]
+fn clustered_pca_is_cores_and_reproduces_the_dense_set_with_every_component() {
+    let scene = scene();
+    let vertices = scene.positions.len() / 3;
+    let mut o = options(ANTUMBRA_TRANSFER_KIND_MRT);
+    o.bands = 2;
+    o.grid = 3;
+    let set = bake(&scene, true, &o);
+    let all = (vertices as u32).min(3 * 3 * 4);
+    let mut cpca = ptr::null_mut();
+    // SAFETY: live set, valid out pointer.
+    let r = unsafe { antumbra_transfer_compress_clustered(set, 3, all, &mut cpca) };
+    assert_eq!(r, ANTUMBRA_RESULT_OK, "{}", last_error());
+    // The same bytes as core's clustered PCA (seed 0) of the same set.
+    let dense_core = TransferSet::from_bytes(&save(set)).unwrap();
+    let want = dense_core
+        .compress_clustered(3, all as usize, 0)
+        .unwrap()
+        .to_bytes();
+    assert_eq!(save(cpca), want);
+    let mut info = std::mem::MaybeUninit::uninit();
+    // SAFETY: live set, valid out pointer.
+    let r = unsafe { antumbra_transfer_describe(cpca, info.as_mut_ptr()) };
+    assert_eq!(r, ANTUMBRA_RESULT_OK);
+    // SAFETY: written on success.
+    let info = unsafe { info.assume_init() };
+    assert_eq!((info.clusters, info.components, info.reserved), (3, all, 0));
+    assert_eq!(info.file_bytes, want.len());
+    let (planar, _) = lighting(2);
+    let m = material([0.0, 3.0, 0.5]);
+    let dense = shade(set, &planar, &m, 0, vertices);
+    let got = shade(cpca, &planar, &m, 0, vertices);
+    let max = dense.iter().flatten().fold(0.0f32, |a, &b| a.max(b.abs()));
+    for (g, d) in got.iter().flatten().zip(dense.iter().flatten()) {
+        assert!((g - d).abs() <= 1e-5 * max, "{g} vs {d}");
+    }
+    // SAFETY: each destroyed once.
+    unsafe {
+        antumbra_transfer_destroy(set);
+        antumbra_transfer_destroy(cpca);
+    }
+}
+
+#[test]
 fn sh_rotate_equals_core_rotation_in_place_and_not() {
     let angle = 0.7f32;
     let axis = Vec3::new(0.3, 1.0, -0.2).normalize();

@@ -197,7 +197,7 @@ fn run_transfer(args: &BakeArgs) -> Result<()> {
         );
         return Ok(());
     }
-    let set = compress_if_asked(dense, args.pca)?;
+    let set = compress_if_asked(dense, args.pca, args.clusters)?;
     let bytes = set.to_bytes();
     write_file(&args.out, &bytes)?;
     println!(
@@ -209,18 +209,29 @@ fn run_transfer(args: &BakeArgs) -> Result<()> {
     Ok(())
 }
 
-/// `dense`, PCA-compressed to `pca` components when asked, with the error and
-/// memory table printed.
-fn compress_if_asked(dense: TransferSet, pca: Option<u32>) -> Result<TransferSet> {
+/// `dense`, PCA-compressed to `pca` components in `clusters` clusters (1 when
+/// not given) when asked, with the error and memory table printed. The
+/// clustering's seed is fixed, so `merge` compresses exactly as `bake` does.
+fn compress_if_asked(
+    dense: TransferSet,
+    pca: Option<u32>,
+    clusters: Option<u32>,
+) -> Result<TransferSet> {
     Ok(match pca {
         None => dense,
         Some(k) => {
             let started = Instant::now();
+            let c = clusters.unwrap_or(1);
             let compressed = dense
-                .compress(k as usize)
+                .compress_clustered(c as usize, k as usize, 0)
                 .map_err(|e| Error::msg(format!("cannot compress: {e}")))?;
+            let what = if c > 1 {
+                format!("clustered PCA to {c} clusters of {k} components")
+            } else {
+                format!("PCA to {k} components")
+            };
             println!(
-                "  PCA to {k} components in {}; error and memory against K:",
+                "  {what} in {}; error and memory against K:",
                 format_duration(started.elapsed())
             );
             let dense_per_vertex = dense.data_bytes() as f64 / dense.vertex_count() as f64;
@@ -261,7 +272,7 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
         return Err(Error::msg("--pca compresses MRT bakes only"));
     }
     let vertices = joined.vertex_count();
-    let set = compress_if_asked(joined, args.pca)?;
+    let set = compress_if_asked(joined, args.pca, args.clusters)?;
     let bytes = set.to_bytes();
     write_file(&args.out, &bytes)?;
     println!(

@@ -409,13 +409,15 @@ fn kernel_costs(
     let baked = pca.components();
     for &k in ks {
         let mut terms = vec![[0.0f32; 3]; pca.frame_terms_len(k)];
+        let part = pca.cluster_terms_len(k);
         out.push(per_vertex(fastest_time(min_time, || {
             pca.frame_terms(lighting, k, &mut terms);
             for v in 0..vertices {
                 let w = &pca.weights()[v * baked..v * baked + k];
+                let start = pca.cluster_of(v) * part;
                 black_box(shade_mrt_pca(
                     black_box(w),
-                    &terms,
+                    &terms[start..start + part],
                     k,
                     grid,
                     &frames[v],
@@ -566,6 +568,136 @@ fn shading_costs(
             level.bytes_per_vertex,
             dense / level.bytes_per_vertex,
             100.0 * level.relative_rms_error
+        );
+    }
+    clustered_table(&mrt, args, &lighting, eye, min_time)
+}
+
+/// One row of the clustered-PCA table.
+struct ClusteredRow {
+    clusters: usize,
+    components: usize,
+    bytes_per_vertex: f64,
+    error: f64,
+    /// Components of the global PCA with the most bytes per vertex not above
+    /// this row's, and its error.
+    global_components: usize,
+    global_error: f64,
+    shade_ns: f64,
+    global_shade_ns: f64,
+    fit_seconds: f64,
+}
+
+/// Clustered PCA at every (C, K) of the arguments against one global PCA: the
+/// error at the same K, and at equal bytes per vertex (cluster bases amortised
+/// over the vertices), and the batch shading time at the same K.
+fn clustered_table(
+    mrt: &TransferSet,
+    args: &BenchTransferArgs,
+    lighting: &[[f32; 3]],
+    eye: [f32; 3],
+    min_time: Duration,
+) -> Result<()> {
+    let vertices = mrt.vertex_count();
+    let max = mrt.block_len().min(vertices);
+    let mut fits = Vec::new();
+    for &c in args
+        .clusters
+        .iter()
+        .filter(|&&c| (2..=vertices).contains(&c))
+    {
+        for &k in args
+            .cluster_components
+            .iter()
+            .filter(|&&k| (1..=max).contains(&k))
+        {
+            let started = std::time::Instant::now();
+            let set = mrt
+                .compress_clustered(c, k, 0)
+                .map_err(|e| Error::msg(format!("cannot compress: {e}")))?;
+            fits.push((c, k, set, started.elapsed().as_secs_f64()));
+        }
+    }
+    if fits.is_empty() {
+        return Ok(());
+    }
+    // One global PCA with enough components to match the largest row's bytes.
+    let level_of = |set: &TransferSet, k: usize| {
+        mrt.pca_levels(set, &[k]).expect("compressed from this set")[0]
+    };
+    let largest = fits
+        .iter()
+        .map(|(_, k, set, _)| level_of(set, *k).bytes)
+        .max()
+        .unwrap_or(0);
+    let d = mrt.block_len();
+    // Global bytes at K: 4 (D (K + 1) + V K).
+    let global_k_for = |bytes: usize| -> usize {
+        let per_k = 4 * (d + vertices);
+        (bytes.saturating_sub(4 * d) / per_k).clamp(1, max)
+    };
+    let global_max = global_k_for(largest)
+        .max(args.cluster_components.iter().copied().max().unwrap_or(1))
+        .min(max);
+    let started = std::time::Instant::now();
+    let global = mrt
+        .compress(global_max)
+        .map_err(|e| Error::msg(format!("cannot compress: {e}")))?;
+    let global_seconds = started.elapsed().as_secs_f64();
+    let all_k: Vec<usize> = (1..=global_max).collect();
+    let global_levels = mrt
+        .pca_levels(&global, &all_k)
+        .expect("compressed from this set");
+    let mut rows = Vec::new();
+    for (c, k, set, fit_seconds) in &fits {
+        let level = level_of(set, *k);
+        let equal = global_k_for(level.bytes).min(global_max);
+        rows.push(ClusteredRow {
+            clusters: *c,
+            components: *k,
+            bytes_per_vertex: level.bytes_per_vertex,
+            error: level.relative_rms_error,
+            global_components: equal,
+            global_error: global_levels[equal - 1].relative_rms_error,
+            shade_ns: time_shade(set, lighting, eye, Some(*k), min_time)?,
+            global_shade_ns: time_shade(&global, lighting, eye, Some(*k), min_time)?,
+            fit_seconds: *fit_seconds,
+        });
+    }
+    println!(
+        "clustered PCA (Sloan et al. 2003) against one global PCA (fitted to K = {global_max} in {global_seconds:.2} s); bytes include every cluster's basis and each vertex's cluster:"
+    );
+    println!(
+        "  {:>4} {:>4} {:>10} {:>9} | global at equal bytes: {:>4} {:>9} {:>7} | global at this K {:>9} | shading ns/vertex {:>7} {:>7} {:>6} | fit",
+        "C", "K", "bytes/vtx", "error", "K", "error", "ratio", "error", "CPCA", "global", "ratio"
+    );
+    for r in &rows {
+        println!(
+            "  {:>4} {:>4} {:>10.1} {:>8.3}% | {:>27} {:>8.3}% {:>6.2}x | {:>25.3}% | {:>25.1} {:>7.1} {:>5.2}x | {:.2} s",
+            r.clusters,
+            r.components,
+            r.bytes_per_vertex,
+            100.0 * r.error,
+            r.global_components,
+            100.0 * r.global_error,
+            r.global_error / r.error.max(f64::MIN_POSITIVE),
+            100.0 * global_levels[r.components.min(global_max) - 1].relative_rms_error,
+            r.shade_ns,
+            r.global_shade_ns,
+            r.shade_ns / r.global_shade_ns,
+            r.fit_seconds
+        );
+    }
+    if let Some(worst) = rows
+        .iter()
+        .min_by(|a, b| (a.global_error / a.error).total_cmp(&(b.global_error / b.error)))
+    {
+        println!(
+            "  worst row: C = {}, K = {}: {:.2}x less error than global PCA at equal bytes (goal 3x); shading {:.2}x global's at the same K (goal at most 1.5x)",
+            worst.clusters,
+            worst.components,
+            worst.global_error / worst.error.max(f64::MIN_POSITIVE),
+            worst.shade_ns / worst.global_shade_ns
         );
     }
     Ok(())

@@ -175,10 +175,15 @@ fn run_relight(args: &RenderArgs, bake: &std::path::Path) -> Result<()> {
         TransferKind::GlossySh => format!("glossy SH transfer, Phong exponent {}", args.exponent),
         TransferKind::Mrt => match set.pca() {
             Some(pca) => format!(
-                "MRT {0}×{0} from PCA, {1} of {2} components",
+                "MRT {0}×{0} from PCA, {1} of {2} components{3}",
                 set.grid(),
                 args.components.unwrap_or(usize::MAX).min(pca.components()),
-                pca.components()
+                pca.components(),
+                if pca.clusters() > 1 {
+                    format!(" in each of {} clusters", pca.clusters())
+                } else {
+                    String::new()
+                }
             ),
             None => format!("MRT {0}×{0}", set.grid()),
         },

@@ -1,9 +1,9 @@
-//! The bake file format, version 1: a transfer set as little-endian bytes.
+//! The bake file format, versions 1 and 2: a transfer set as little-endian bytes.
 //!
 //! ```text
 //! offset size  field
 //!      0    8  magic            b"ANTXFER\0"
-//!      8    4  version          u32 = 1
+//!      8    4  version          u32: 1, or 2 for a clustered PCA
 //!     12    4  kind             u32: 1 diffuse, 2 glossy SH, 3 MRT
 //!     16    4  bands            u32 in 1..=8
 //!     20    4  grid             u32: 2..=64 for MRT, 0 otherwise
@@ -15,16 +15,29 @@
 //!     44    4  brdf_kind        u32 ≤ 2 (BrdfInfo::kind; MRT only, else 0)
 //!     48    8  brdf_params      2 × f32, finite
 //!     56    8  payload_len      u64, must equal the length implied by the fields above
+//! version 1:
 //!     64    4  payload_crc32    CRC-32 (IEEE 802.3, reflected, as zlib) of the payload
 //!     68    4  header_crc32     CRC-32 of bytes 0..68
 //!     72       payload
+//! version 2:
+//!     64    4  clusters         u32 C in 2..=V (K ≥ 1: a clustered PCA)
+//!     68    4  payload_crc32
+//!     72    4  header_crc32     CRC-32 of bytes 0..72
+//!     76       payload
 //! ```
 //!
-//! Payload (all `f32`, finite): positions `V × 3`, unit normals `V × 3` (within
-//! 1e-3), then either the dense blocks `V × D` (`D` = [`TransferKind::block_len`],
-//! layouts in the [transfer module docs](super)) or, when `K > 0`, the PCA mean `D`,
-//! components `K × D` and weights `V × K`. The file ends with the payload: trailing
-//! bytes are an error.
+//! Payload (`f32`, finite, except the cluster indices): positions `V × 3`, unit
+//! normals `V × 3` (within 1e-3), then either the dense blocks `V × D` (`D` =
+//! [`TransferKind::block_len`], layouts in the [transfer module docs](super)) or,
+//! when `K > 0`, the PCA: means `C × D`, components `C × K × D` (cluster-major),
+//! weights `V × K`, and in version 2 each vertex's cluster, `V × u32` below `C`
+//! (version 1 has one cluster). The file ends with the payload: trailing bytes
+//! are an error.
+//!
+//! A set that version 1 can hold (dense, or one cluster) is always written as
+//! version 1, so readers that predate clustering still load it; version 2 is
+//! written only for two or more clusters, and a version-2 file of fewer is
+//! refused, so every file that loads writes back to the same bytes.
 //!
 //! Loading ([`TransferSet::from_bytes`]) checks, in order: length of the header,
 //! magic, version, the header checksum, every header field's range, the payload
@@ -36,8 +49,8 @@
 //! Tested by truncating a small file of each kind at every byte and flipping every
 //! single bit (all rejected), by hostile header values, and by libFuzzer
 //! (`cd core/fuzz && cargo +nightly fuzz run transfer_from_bytes`; each input is
-//! also tried with both checksums recomputed so mutations reach the field checks):
-//! 300 s, 12.6 million inputs, no failure.
+//! also tried with both checksums recomputed, [`reseal`], so mutations reach the
+//! field checks).
 
 use alloc::vec::Vec;
 use core::fmt;
@@ -49,10 +62,38 @@ use super::{BakeInfo, BrdfInfo, MAX_BOUNCES, MAX_GRID, Payload, TransferKind, Tr
 
 /// The first eight bytes of a bake file.
 pub const MAGIC: [u8; 8] = *b"ANTXFER\0";
-/// The version written, and the only one read.
-pub const VERSION: u32 = 1;
-/// Bytes before the payload.
+/// The newest version, written for clustered PCA sets.
+pub const VERSION: u32 = 2;
+/// Bytes before the payload in version 1.
 pub const HEADER_LEN: usize = 72;
+/// Bytes before the payload in version 2.
+pub const HEADER_LEN_V2: usize = 76;
+
+/// Header length of `version` (1 or 2).
+fn header_len(version: u32) -> usize {
+    if version == 2 {
+        HEADER_LEN_V2
+    } else {
+        HEADER_LEN
+    }
+}
+
+/// Recomputes both checksums of a bake file of version 1 or 2 in place (for
+/// tools and tests that edit a field); does nothing to bytes too short for the
+/// header their version field names.
+pub fn reseal(bytes: &mut [u8]) {
+    if bytes.len() < 12 {
+        return;
+    }
+    let len = header_len(u32_at(bytes, 8));
+    if bytes.len() < len {
+        return;
+    }
+    let payload_crc = crc32(&bytes[len..]);
+    bytes[len - 8..len - 4].copy_from_slice(&payload_crc.to_le_bytes());
+    let header_crc = crc32(&bytes[..len - 4]);
+    bytes[len - 4..len].copy_from_slice(&header_crc.to_le_bytes());
+}
 
 /// Why bytes are not a valid bake file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,7 +128,8 @@ pub enum FormatError {
     },
     /// A payload value is not finite (or a normal not unit length).
     Value {
-        /// `"positions"`, `"normals"`, `"data"`, `"mean"`, `"components"` or `"weights"`.
+        /// `"positions"`, `"normals"`, `"data"`, `"mean"`, `"components"`,
+        /// `"weights"` or `"clusters"` (an index not below the cluster count).
         field: &'static str,
         /// Index of the offending `f32` (or vector, for normals) in that array.
         index: u64,
@@ -109,7 +151,9 @@ impl fmt::Display for FormatError {
                 write!(f, "truncated: {needed} bytes needed, {found} present")
             }
             FormatError::Magic => f.write_str("bad magic: not an Antumbra transfer file"),
-            FormatError::Version(v) => write!(f, "version {v} is not supported (only {VERSION})"),
+            FormatError::Version(v) => {
+                write!(f, "version {v} is not supported (only 1 to {VERSION})")
+            }
             FormatError::Field { field, value } => {
                 write!(f, "header field {field} has an invalid value {value}")
             }
@@ -118,7 +162,10 @@ impl fmt::Display for FormatError {
                 write!(f, "{count} bytes after the payload")
             }
             FormatError::Value { field, index } => {
-                write!(f, "{field}[{index}] is not finite (or not a unit normal)")
+                write!(
+                    f,
+                    "{field}[{index}] is not finite (or not a unit normal, or not a cluster)"
+                )
             }
             FormatError::OutOfMemory { field, bytes } => {
                 write!(f, "no memory for {field} ({bytes} bytes)")
@@ -171,20 +218,25 @@ struct Layout {
     vertices: usize,
     block: usize,
     components: usize,
+    clusters: usize,
 }
 
 impl Layout {
-    /// Number of `f32` in the payload, overflow-checked in `u64`.
+    /// Number of 4-byte values in the payload, overflow-checked in `u64`.
     fn values(&self) -> Option<u64> {
         let v = self.vertices as u64;
         let d = self.block as u64;
         let k = self.components as u64;
+        let c = self.clusters as u64;
         let frames = v.checked_mul(6)?;
         let data = if k == 0 {
             v.checked_mul(d)?
         } else {
-            d.checked_mul(k.checked_add(1)?)?
+            let indices = if c > 1 { v } else { 0 };
+            c.checked_mul(d)?
+                .checked_mul(k.checked_add(1)?)?
                 .checked_add(v.checked_mul(k)?)?
+                .checked_add(indices)?
         };
         frames.checked_add(data)
     }
@@ -198,10 +250,19 @@ impl TransferSet {
                 Payload::Dense(d) => d.len(),
                 Payload::Pca(p) => p.value_count(),
             };
-        HEADER_LEN + 4 * values
+        header_len(self.file_version()) + 4 * values
     }
 
-    /// The set as a version-1 bake file (format in the [module docs](self)).
+    /// The version [`to_bytes`](Self::to_bytes) writes: 2 for a clustered PCA,
+    /// 1 for everything version 1 holds.
+    pub fn file_version(&self) -> u32 {
+        match self.pca() {
+            Some(p) if p.clusters > 1 => 2,
+            _ => 1,
+        }
+    }
+
+    /// The set as a bake file (format in the [module docs](self)).
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut out = alloc::vec![0u8; self.byte_len()];
         self.write_to(&mut out);
@@ -216,7 +277,9 @@ impl TransferSet {
     pub fn write_to(&self, out: &mut [u8]) {
         assert_eq!(out.len(), self.byte_len(), "a bake file's length");
         let components = self.pca().map_or(0, |p| p.components);
-        let mut at = HEADER_LEN;
+        let version = self.file_version();
+        let header = header_len(version);
+        let mut at = header;
         let mut put = |values: &[f32]| {
             for x in values {
                 out[at..at + 4].copy_from_slice(&x.to_le_bytes());
@@ -231,15 +294,18 @@ impl TransferSet {
                 put(&p.mean);
                 put(&p.basis);
                 put(&p.weights);
+                for c in &p.cluster_of {
+                    out[at..at + 4].copy_from_slice(&c.to_le_bytes());
+                    at += 4;
+                }
             }
         }
-        let payload_len = (out.len() - HEADER_LEN) as u64;
-        let payload_crc = crc32(&out[HEADER_LEN..]);
-        let h = &mut out[..HEADER_LEN];
+        let payload_len = (out.len() - header) as u64;
+        let h = &mut out[..header];
         h.fill(0);
         h[0..8].copy_from_slice(&MAGIC);
         let fields = [
-            VERSION,
+            version,
             self.kind as u32,
             self.bands,
             self.grid,
@@ -256,9 +322,10 @@ impl TransferSet {
             h[8 + 4 * i..12 + 4 * i].copy_from_slice(&f.to_le_bytes());
         }
         h[56..64].copy_from_slice(&payload_len.to_le_bytes());
-        h[64..68].copy_from_slice(&payload_crc.to_le_bytes());
-        let header_crc = crc32(&h[..68]);
-        h[68..72].copy_from_slice(&header_crc.to_le_bytes());
+        if let Some(p) = self.pca().filter(|_| version == 2) {
+            h[64..68].copy_from_slice(&(p.clusters as u32).to_le_bytes());
+        }
+        reseal(out);
     }
 
     /// Reads and validates a bake file (format in the [module docs](self)).
@@ -280,17 +347,18 @@ impl TransferSet {
             });
         }
         let version = u32_at(bytes, 8);
-        if version != VERSION {
+        if !(1..=VERSION).contains(&version) {
             return Err(FormatError::Version(version));
         }
-        if bytes.len() < HEADER_LEN {
+        let header = header_len(version);
+        if bytes.len() < header {
             return Err(FormatError::Truncated {
-                needed: HEADER_LEN as u64,
+                needed: header as u64,
                 found,
             });
         }
-        let h = &bytes[..HEADER_LEN];
-        if crc32(&h[..68]) != u32_at(h, 68) {
+        let h = &bytes[..header];
+        if crc32(&h[..header - 4]) != u32_at(h, header - 4) {
             return Err(FormatError::Checksum {
                 field: "header_crc32",
             });
@@ -346,10 +414,20 @@ impl TransferSet {
                 return Err(field("brdf_params", p.to_bits()));
             }
         }
+        let clusters = if version == 2 {
+            let clusters = u32_at(h, 64);
+            if components == 0 || !(2..=vertices).contains(&clusters) {
+                return Err(field("clusters", clusters));
+            }
+            clusters
+        } else {
+            u32::from(components != 0)
+        };
         let layout = Layout {
             vertices: vertices as usize,
             block,
             components: components as usize,
+            clusters: clusters as usize,
         };
         let payload_len = u64::from_le_bytes(h[56..64].try_into().unwrap_or([0xFF; 8]));
         let expected = layout.values().and_then(|v| v.checked_mul(4));
@@ -359,7 +437,7 @@ impl TransferSet {
                 value: payload_len,
             });
         }
-        let needed = (HEADER_LEN as u64).saturating_add(payload_len);
+        let needed = (header as u64).saturating_add(payload_len);
         if found < needed {
             return Err(FormatError::Truncated { needed, found });
         }
@@ -369,8 +447,8 @@ impl TransferSet {
             });
         }
         // From here on every size is bounded by the input's length.
-        let payload = &bytes[HEADER_LEN..];
-        if crc32(payload) != u32_at(h, 64) {
+        let payload = &bytes[header..];
+        if crc32(payload) != u32_at(h, header - 8) {
             return Err(FormatError::Checksum {
                 field: "payload_crc32",
             });
@@ -425,17 +503,25 @@ impl TransferSet {
             Payload::Dense(take(v * block, "data")?)
         } else {
             let k = components as usize;
-            let mean = take(block, "mean")?;
-            let basis = take(k * block, "components")?;
+            let c = clusters as usize;
+            let mean = take(c * block, "mean")?;
+            let basis = take(c * k * block, "components")?;
             let weights = take(v * k, "weights")?;
+            let cluster_of = if c > 1 {
+                read_clusters(&payload[cursor..], clusters)?
+            } else {
+                Vec::new()
+            };
             Payload::Pca(Pca {
                 rows: (grid * grid) as usize,
                 coeffs: (bands * bands) as usize,
                 components: k,
                 vertices: v,
+                clusters: c,
                 mean,
                 basis,
                 weights,
+                cluster_of,
             })
         };
         Ok(TransferSet {
@@ -460,6 +546,28 @@ impl TransferSet {
             payload,
         })
     }
+}
+
+/// The vertices' cluster indices at the end of a version-2 payload (`bytes`
+/// holds exactly them), each checked below `clusters`.
+fn read_clusters(bytes: &[u8], clusters: u32) -> Result<Vec<u32>, FormatError> {
+    let count = bytes.len() / 4;
+    let mut out: Vec<u32> =
+        fallible::with_capacity(count).map_err(|_| FormatError::OutOfMemory {
+            field: "clusters",
+            bytes: bytes.len() as u64,
+        })?;
+    for (index, b) in bytes.chunks_exact(4).enumerate() {
+        let c = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        if c >= clusters {
+            return Err(FormatError::Value {
+                field: "clusters",
+                index: index as u64,
+            });
+        }
+        out.push(c);
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

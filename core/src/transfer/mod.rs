@@ -31,9 +31,10 @@
 //! - MRT (P2 §3): view → vertex frame → hemi-octahedral cell ([`mrt_tap`]) → four
 //!   rows blended bilinearly, dotted with the lighting: `7n` multiply-adds
 //!   ([`shade_mrt`]);
-//! - MRT from PCA (P2 §4): per frame `r_k = U_k · l` for the mean and `K` components
-//!   ([`Pca::frame_terms`]), then per vertex `4 (K + 1)` RGB multiply-adds
-//!   ([`shade_mrt_pca`]). `K` can be lowered at run time.
+//! - MRT from PCA (P2 §4): per frame `r_ck = U_ck · l` for each cluster's mean
+//!   and `K` components ([`Pca::frame_terms`]), then per vertex `4 (K + 1)` RGB
+//!   multiply-adds of its cluster's terms ([`shade_mrt_pca`]). `K` can be lowered
+//!   at run time; clustering ([`cpca`]) costs only the per-frame products.
 //!
 //! MRT and glossy SH share the incident-radiance projection, so at node view
 //! directions MRT with [`PhongBrdf`] equals the glossy SH result to quadrature
@@ -119,6 +120,7 @@
 //! `antumbra bench transfer` (the bake against obvhs and Embree casting the same
 //! rays, [`bake_rays`]).
 
+pub mod cpca;
 mod engine;
 pub mod format;
 mod mrt;

@@ -1,7 +1,8 @@
 //! PCA of per-vertex MRT matrices (P2 §4; Sloan et al., "Clustered Principal
-//! Components for PRT", 2003, without the clustering): every vertex's `G² × n`
-//! matrix, flattened to `D` values, is approximated by the mean plus `K` orthonormal
-//! components, `M_p ≈ μ + Σ_k c_pk U_k`.
+//! Components for PRT", 2003): every vertex's `G² × n` matrix, flattened to `D`
+//! values, is approximated by its cluster's mean plus `K` orthonormal components,
+//! `M_p ≈ μ_c + Σ_k w_pk U_ck` with `c` the vertex's cluster. A global PCA is the
+//! case of one cluster; how vertices are clustered is in [`cpca`](super::cpca).
 //!
 //! The components are the top `K` eigenvectors of the centred data's covariance,
 //! found by subspace iteration (`Q ← orth(Xᵀ X Q)`, fixed iteration count, start
@@ -13,9 +14,9 @@
 //! with `K ≥` the data's rank the reconstruction is exact to float rounding.
 //!
 //! Rendering from the compressed form never rebuilds matrices: per frame
-//! [`Pca::frame_terms`] multiplies the mean and each component (as a `G² × n`
-//! matrix) by the lighting, then [`shade_mrt_pca`](super::shade_mrt_pca) blends
-//! `4 (K + 1)` terms per vertex.
+//! [`Pca::frame_terms`] multiplies every cluster's mean and components (as
+//! `G² × n` matrices) by the lighting, then [`shade_mrt_pca`](super::shade_mrt_pca)
+//! blends `4 (K + 1)` terms of the vertex's cluster per vertex.
 
 use alloc::vec;
 use alloc::vec::Vec;
@@ -28,20 +29,24 @@ use super::{Payload, TransferKind, TransferSet};
 /// Subspace iterations of [`TransferSet::compress`].
 pub const PCA_ITERATIONS: usize = 32;
 
-/// A mean and `K` components over per-vertex blocks of `rows × coeffs` values,
-/// with `K` weights per vertex.
+/// Per cluster a mean and `K` components over per-vertex blocks of
+/// `rows × coeffs` values; per vertex its cluster and `K` weights.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Pca {
     pub(crate) rows: usize,
     pub(crate) coeffs: usize,
     pub(crate) components: usize,
     pub(crate) vertices: usize,
-    /// `D = rows · coeffs` values.
+    /// `C ≥ 1`.
+    pub(crate) clusters: usize,
+    /// `C × D`, `D = rows · coeffs` values per cluster.
     pub(crate) mean: Vec<f32>,
-    /// `K × D`, component-major.
+    /// `C × K × D`, cluster-major, then component-major.
     pub(crate) basis: Vec<f32>,
     /// `vertices × K`.
     pub(crate) weights: Vec<f32>,
+    /// Each vertex's cluster (`< C`); empty when `C = 1`.
+    pub(crate) cluster_of: Vec<u32>,
 }
 
 /// Why a set could not be compressed.
@@ -56,6 +61,13 @@ pub enum PcaError {
         /// The most allowed.
         max: usize,
     },
+    /// `clusters` is 0 or above the vertex count.
+    Clusters {
+        /// Requested.
+        requested: usize,
+        /// The most allowed.
+        max: usize,
+    },
 }
 
 impl fmt::Display for PcaError {
@@ -64,6 +76,9 @@ impl fmt::Display for PcaError {
             PcaError::NotDenseMrt => f.write_str("only an uncompressed MRT set can be compressed"),
             PcaError::Components { requested, max } => {
                 write!(f, "components = {requested} is outside 1..={max}")
+            }
+            PcaError::Clusters { requested, max } => {
+                write!(f, "clusters = {requested} is outside 1..={max}")
             }
         }
     }
@@ -78,16 +93,22 @@ pub struct PcaLevel {
     pub components: usize,
     /// `sqrt(Σ_p ‖M_p − M̂_p‖² / Σ_p ‖M_p‖²)` over all vertices' matrices.
     pub relative_rms_error: f64,
-    /// Bytes of mean + components + weights at this `K` (`f32`).
+    /// Bytes of means + components + weights at this `K` (`f32`), and the
+    /// vertices' cluster indices (`u32`) when there is more than one cluster.
     pub bytes: usize,
     /// `bytes / vertices`.
     pub bytes_per_vertex: f64,
 }
 
 impl Pca {
-    /// The baked component count `K`.
+    /// The baked component count `K` (per cluster).
     pub fn components(&self) -> usize {
         self.components
+    }
+
+    /// The cluster count `C` (1 for a global PCA).
+    pub fn clusters(&self) -> usize {
+        self.clusters
     }
 
     /// Values per vertex block, `D`.
@@ -95,15 +116,21 @@ impl Pca {
         self.rows * self.coeffs
     }
 
-    /// The mean block.
-    pub fn mean(&self) -> &[f32] {
-        &self.mean
+    /// The mean block of `cluster`; `None` for `cluster ≥ C`.
+    pub fn mean(&self, cluster: usize) -> Option<&[f32]> {
+        let d = self.block_len();
+        self.mean.get(cluster * d..(cluster + 1) * d)
     }
 
-    /// Component `k` (a block of `D` values); `None` for `k ≥ K`.
-    pub fn component(&self, k: usize) -> Option<&[f32]> {
+    /// Component `k` of `cluster` (a block of `D` values); `None` for `k ≥ K` or
+    /// `cluster ≥ C`.
+    pub fn component(&self, cluster: usize, k: usize) -> Option<&[f32]> {
         let d = self.block_len();
-        self.basis.get(k * d..(k + 1) * d)
+        if k >= self.components {
+            return None;
+        }
+        let start = (cluster * self.components + k) * d;
+        self.basis.get(start..start + d)
     }
 
     /// All weights, `K` per vertex.
@@ -111,25 +138,43 @@ impl Pca {
         &self.weights
     }
 
-    /// Stored values: mean, components and weights.
+    /// The cluster of `vertex` (0 for a global PCA or a vertex out of range).
+    #[inline]
+    pub fn cluster_of(&self, vertex: usize) -> usize {
+        self.cluster_of.get(vertex).map_or(0, |&c| c as usize)
+    }
+
+    /// Stored values: means, components, weights and (when `C > 1`) the
+    /// vertices' clusters, 4 bytes each.
     pub fn value_count(&self) -> usize {
-        self.mean.len() + self.basis.len() + self.weights.len()
+        self.mean.len() + self.basis.len() + self.weights.len() + self.cluster_of.len()
     }
 
-    /// Bytes of mean + `k` components + `k` weights per vertex.
+    /// Bytes of the means + `k` components per cluster + `k` weights per vertex,
+    /// and the vertices' clusters when `C > 1`.
     pub fn bytes_at(&self, k: usize) -> usize {
-        4 * (self.block_len() * (k + 1) + self.vertices * k)
+        let indices = if self.clusters > 1 { self.vertices } else { 0 };
+        4 * (self.clusters * self.block_len() * (k + 1) + self.vertices * k + indices)
     }
 
-    /// Length of the [`frame_terms`](Self::frame_terms) buffer for `k` components.
+    /// Length of the [`frame_terms`](Self::frame_terms) buffer for `k` components:
+    /// [`cluster_terms_len`](Self::cluster_terms_len) per cluster.
     pub fn frame_terms_len(&self, k: usize) -> usize {
+        self.clusters * self.cluster_terms_len(k)
+    }
+
+    /// Length of one cluster's part of the [`frame_terms`](Self::frame_terms)
+    /// buffer, `rows · (k + 1)` (`k` clamped to the baked count).
+    pub fn cluster_terms_len(&self, k: usize) -> usize {
         self.rows * (k.min(self.components) + 1)
     }
 
-    /// The per-frame products `r_k = U_k · l` for the mean (`k = 0`) and the first
-    /// `k` components, node-major: `out[g (k + 1) + c]` is node `g` of term `c`.
-    /// `k` is clamped to the baked count; does nothing unless `lighting` has
-    /// `coeffs` entries and `out` at least [`frame_terms_len`](Self::frame_terms_len).
+    /// The per-frame products `r_ck = U_ck · l` for each cluster's mean (`k = 0`)
+    /// and first `k` components, cluster-major then node-major: cluster `c`'s part
+    /// starts at `c · cluster_terms_len(k)`, and within it `[g (k + 1) + j]` is node
+    /// `g` of term `j`. `k` is clamped to the baked count; does nothing unless
+    /// `lighting` has `coeffs` entries and `out` at least
+    /// [`frame_terms_len`](Self::frame_terms_len).
     pub fn frame_terms(&self, lighting: &[[f32; 3]], k: usize, out: &mut [[f32; 3]]) {
         let k = k.min(self.components);
         let n = self.coeffs;
@@ -141,31 +186,41 @@ impl Pca {
             return;
         };
         let stride = k + 1;
-        for c in 0..stride {
-            let block = if c == 0 {
-                &self.mean[..]
-            } else {
-                &self.basis[(c - 1) * self.block_len()..c * self.block_len()]
-            };
-            for g in 0..self.rows {
-                let row = &block[g * n..(g + 1) * n];
-                out[g * stride + c] = row_dot(row, &planar).to_array();
+        let d = self.block_len();
+        for (cluster, part) in out
+            .chunks_exact_mut(self.cluster_terms_len(k))
+            .take(self.clusters)
+            .enumerate()
+        {
+            for c in 0..stride {
+                let block = if c == 0 {
+                    &self.mean[cluster * d..(cluster + 1) * d]
+                } else {
+                    let start = (cluster * self.components + c - 1) * d;
+                    &self.basis[start..start + d]
+                };
+                for g in 0..self.rows {
+                    let row = &block[g * n..(g + 1) * n];
+                    part[g * stride + c] = row_dot(row, &planar).to_array();
+                }
             }
         }
     }
 
-    /// Vertex `v`'s block rebuilt from the first `k` components into `out`
-    /// (`D` values).
+    /// Vertex `v`'s block rebuilt from its cluster's mean and first `k`
+    /// components into `out` (`D` values).
     pub fn reconstruct(&self, v: usize, k: usize, out: &mut [f32]) {
         let d = self.block_len();
         let k = k.min(self.components);
         if v >= self.vertices || out.len() != d {
             return;
         }
-        out.copy_from_slice(&self.mean);
+        let cluster = self.cluster_of(v);
+        out.copy_from_slice(&self.mean[cluster * d..(cluster + 1) * d]);
         for c in 0..k {
             let w = self.weights[v * self.components + c];
-            for (o, u) in out.iter_mut().zip(&self.basis[c * d..(c + 1) * d]) {
+            let start = (cluster * self.components + c) * d;
+            for (o, u) in out.iter_mut().zip(&self.basis[start..start + d]) {
                 *o += w * u;
             }
         }
@@ -257,12 +312,17 @@ fn jacobi_eigen(mut a: Vec<f64>, k: usize) -> (Vec<f64>, Vec<f64>) {
     ((0..k).map(|i| a[i * k + i]).collect(), v)
 }
 
-/// PCA of `vertices` blocks of `d` values.
+/// PCA of `vertices` blocks of `d` values: the mean, `k` components and
+/// `vertices × k` weights. The subspace iteration starts from `start` (`k × d`,
+/// e.g. the previous round's components of a clustered PCA) where given, its zero
+/// rows and every row otherwise from a fixed seed, and runs `iterations` times.
 pub(crate) fn compute(
     data: &[f32],
     vertices: usize,
     d: usize,
     k: usize,
+    start: Option<&[f32]>,
+    iterations: usize,
 ) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     // Mean and centred data.
     let mut mean = vec![0.0f64; d];
@@ -294,8 +354,17 @@ pub(crate) fn compute(
     let mut q: Vec<f64> = (0..k * d)
         .map(|_| f64::from(rng.next_f32()) * 2.0 - 1.0)
         .collect();
+    if let Some(start) = start.filter(|s| s.len() == k * d) {
+        for (row, from) in q.chunks_exact_mut(d).zip(start.chunks_exact(d)) {
+            if from.iter().any(|&x| x != 0.0) {
+                row.iter_mut()
+                    .zip(from)
+                    .for_each(|(q, &x)| *q = f64::from(x));
+            }
+        }
+    }
     orthonormalize(&mut q, d);
-    for _ in 0..PCA_ITERATIONS {
+    for _ in 0..iterations {
         let y = project(&q);
         // Z = Xᵀ Y, as k rows of d.
         let mut z = vec![0.0f64; k * d];
@@ -350,9 +419,25 @@ pub(crate) fn compute(
 
 impl TransferSet {
     /// PCA-compresses a dense MRT set to `components` components (1 ..= min(block
-    /// length, vertex count)). Deterministic. Cost about
-    /// `2 · PCA_ITERATIONS · vertices · D · K` multiply-adds.
+    /// length, vertex count)): one global mean and basis. Deterministic. Cost
+    /// about `2 · PCA_ITERATIONS · vertices · D · K` multiply-adds.
     pub fn compress(&self, components: usize) -> Result<TransferSet, PcaError> {
+        self.compress_clustered(1, components, 0)
+    }
+
+    /// Clustered-PCA-compresses a dense MRT set ([`cpca`](super::cpca)):
+    /// `clusters` (1 ..= vertex count) clusters of `components` (1 ..= min(block
+    /// length, vertex count)) components each, the clustering seeded from `seed`.
+    /// Deterministic for a seed; one cluster is [`compress`](Self::compress)
+    /// whatever the seed. Cost about `CPCA_ROUNDS` global PCAs plus
+    /// `CPCA_ROUNDS · vertices · clusters · (K + 1) · D` multiply-adds to
+    /// reclassify.
+    pub fn compress_clustered(
+        &self,
+        clusters: usize,
+        components: usize,
+        seed: u64,
+    ) -> Result<TransferSet, PcaError> {
         let (Payload::Dense(data), TransferKind::Mrt) = (&self.payload, self.kind) else {
             return Err(PcaError::NotDenseMrt);
         };
@@ -365,16 +450,24 @@ impl TransferSet {
                 max,
             });
         }
-        let (mean, basis, weights) = compute(data, vertices, d, components);
+        if clusters == 0 || clusters > vertices {
+            return Err(PcaError::Clusters {
+                requested: clusters,
+                max: vertices,
+            });
+        }
+        let fit = super::cpca::fit(data, vertices, d, clusters, components, seed);
         Ok(TransferSet {
             payload: Payload::Pca(Pca {
                 rows: (self.grid * self.grid) as usize,
                 coeffs: self.coeff_count(),
                 components,
                 vertices,
-                mean,
-                basis,
-                weights,
+                clusters,
+                mean: fit.mean,
+                basis: fit.basis,
+                weights: fit.weights,
+                cluster_of: fit.cluster_of,
             }),
             ..self.clone_header()
         })

@@ -437,7 +437,8 @@ pub fn shade_mrt_reference(
 }
 
 /// MRT from its PCA (P2 §4): `frame_terms` are the per-frame products
-/// ([`Pca::frame_terms`](super::Pca::frame_terms)) for `components` components,
+/// ([`Pca::frame_terms`](super::Pca::frame_terms)) of the vertex's cluster (its
+/// part of the buffer) for `components` components,
 /// laid out node-major (`grid² × (components + 1)` RGB triples, the mean's first);
 /// `weights` the vertex's first `components` PCA weights; `to_eye` of any length.
 /// Per vertex `4 (components + 1)` RGB multiply-adds. Zero for a viewer behind the
@@ -772,6 +773,7 @@ impl TransferSet {
                     .map_err(|_| ShadeError::OutOfMemory { bytes: 12 * len })?;
                 pca.frame_terms(lighting, k, &mut terms);
                 let baked = pca.components();
+                let part = pca.cluster_terms_len(k);
                 let grid = self.grid;
                 for_each_block(out, |first, block| {
                     let taps = block_taps(grid, first, block.len(), |v| {
@@ -780,8 +782,10 @@ impl TransferSet {
                     for (i, (o, tap)) in block.iter_mut().zip(taps).enumerate() {
                         let v = first + i;
                         let w = &pca.weights()[v * baked..v * baked + k];
+                        let cluster = pca.cluster_of(v) * part;
+                        let terms = &terms[cluster..cluster + part];
                         let c = match tap {
-                            Some(tap) => specular * pca_at_tap(w, &terms, k + 1, tap),
+                            Some(tap) => specular * pca_at_tap(w, terms, k + 1, tap),
                             None => Vec3::ZERO,
                         };
                         *o = c.to_array();

@@ -759,6 +759,170 @@ fn pca_with_all_components_reproduces_the_uncompressed_shading() {
     );
 }
 
+/// Relative RMS error of `compressed` against the dense `set` at its full `K`.
+fn compression_error(set: &TransferSet, compressed: &TransferSet) -> f64 {
+    let k = compressed.pca().unwrap().components();
+    set.pca_levels(compressed, &[k]).unwrap()[0].relative_rms_error
+}
+
+#[test]
+fn one_cluster_is_the_global_pca_whatever_the_seed() {
+    let set = small_mrt_set(4, 3);
+    let global = set.compress(3).unwrap();
+    for seed in [0, 1, u64::MAX] {
+        assert_eq!(set.compress_clustered(1, 3, seed).unwrap(), global);
+    }
+}
+
+#[test]
+fn clustered_pca_with_every_component_reproduces_the_uncompressed_shading() {
+    let set = small_mrt_set(6, 3);
+    let v = set.vertex_count();
+    let lighting = test_lighting(9);
+    let material = Material::default();
+    let eye = View::Eye([0.3, -2.0, 3.0]);
+    let mut dense = vec![[0.0f32; 3]; v];
+    set.shade(&lighting, eye, &material, None, &mut dense)
+        .unwrap();
+    let scale = dense.iter().flatten().fold(0.0f32, |m, x| m.max(x.abs()));
+    for clusters in [2, 5, v] {
+        // K = V is at least every cluster's rank.
+        let compressed = set.compress_clustered(clusters, v, 3).unwrap();
+        let pca = compressed.pca().unwrap();
+        assert_eq!(pca.clusters(), clusters);
+        // Every cluster is used.
+        let mut used = vec![false; clusters];
+        (0..v).for_each(|p| used[pca.cluster_of(p)] = true);
+        assert!(used.iter().all(|&u| u), "{clusters} clusters: {used:?}");
+        assert!(compression_error(&set, &compressed) < 1e-5);
+        let mut out = vec![[0.0f32; 3]; v];
+        compressed
+            .shade(&lighting, eye, &material, None, &mut out)
+            .unwrap();
+        for (a, b) in dense.iter().zip(&out) {
+            for c in 0..3 {
+                assert!((a[c] - b[c]).abs() <= 2e-5 * scale, "{a:?} {b:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn clustered_pca_shading_equals_shading_its_reconstruction() {
+    let set = small_mrt_set(6, 3);
+    let compressed = set.compress_clustered(4, 2, 11).unwrap();
+    let pca = compressed.pca().unwrap();
+    let lighting = test_lighting(9);
+    let eye = Vec3::new(0.3, -2.0, 3.0);
+    let mut out = vec![[0.0f32; 3]; set.vertex_count()];
+    for k in [0, 1, 2] {
+        compressed
+            .shade(
+                &lighting,
+                View::Eye(eye.to_array()),
+                &Material::default(),
+                Some(k),
+                &mut out,
+            )
+            .unwrap();
+        let mut block = vec![0.0f32; set.block_len()];
+        let mut lit = 0;
+        for (v, got) in out.iter().enumerate() {
+            let normal = Vec3::from_array(set.normals()[v]);
+            let to_eye = (eye - Vec3::from_array(set.positions()[v])).normalize();
+            pca.reconstruct(v, k, &mut block);
+            let want =
+                shade_mrt_reference(&block, 6, &lighting, &Frame::from_normal(normal), to_eye);
+            let got = Vec3::from_array(*got);
+            assert!(
+                (got - want).length() <= 1e-5 * want.length().max(1.0),
+                "K = {k}, vertex {v}: {got} vs {want}"
+            );
+            lit += usize::from(want != Vec3::ZERO);
+        }
+        assert!(lit * 2 > out.len(), "{lit} lit");
+    }
+}
+
+#[test]
+fn clustered_pca_is_deterministic_for_a_seed_and_beats_one_cluster() {
+    let set = small_mrt_set(6, 3);
+    let a = set.compress_clustered(4, 2, 5).unwrap();
+    assert_eq!(set.compress_clustered(4, 2, 5).unwrap(), a);
+    let global = compression_error(&set, &set.compress(2).unwrap());
+    let clustered = compression_error(&set, &a);
+    println!(
+        "K = 2: one cluster {:.2} %, four {:.2} %",
+        100.0 * global,
+        100.0 * clustered
+    );
+    assert!(clustered < global, "{clustered} vs {global}");
+    assert_eq!(
+        set.compress_clustered(0, 2, 0),
+        Err(PcaError::Clusters {
+            requested: 0,
+            max: set.vertex_count()
+        })
+    );
+    assert_eq!(
+        set.compress_clustered(set.vertex_count() + 1, 2, 0),
+        Err(PcaError::Clusters {
+            requested: set.vertex_count() + 1,
+            max: set.vertex_count()
+        })
+    );
+    assert_eq!(a.compress_clustered(2, 1, 0), Err(PcaError::NotDenseMrt));
+}
+
+#[test]
+fn clustered_pca_finds_planted_subspaces() {
+    // Blocks from three affine subspaces of dimension two (each its own mean and
+    // plane, in 24 dimensions), shuffled: three clusters of two components
+    // reconstruct them exactly, which one cluster of two cannot.
+    let d = 24;
+    let per = 40;
+    let mut rng = crate::rng::SplitMix64::new(99);
+    let mut draw = || rng.next_f32() * 2.0 - 1.0;
+    let planted: Vec<Vec<f32>> = (0..3)
+        .map(|_| (0..3 * d).map(|_| draw()).collect())
+        .collect();
+    let mut data = Vec::new();
+    for i in 0..3 * per {
+        let p = &planted[(i * 7) % 3];
+        let (a, b) = (draw(), draw());
+        data.extend((0..d).map(|j| 4.0 * p[j] + a * p[d + j] + b * p[2 * d + j]));
+    }
+    let error = |fit: &super::cpca::Fit, clusters: usize| {
+        let mut err = 0.0f64;
+        for (v, x) in data.chunks_exact(d).enumerate() {
+            let c = fit.cluster_of.get(v).map_or(0, |&c| c as usize);
+            for (j, x) in x.iter().enumerate() {
+                let mut y = fit.mean[c * d + j];
+                for k in 0..2 {
+                    y += fit.weights[v * 2 + k] * fit.basis[(c * 2 + k) * d + j];
+                }
+                err += f64::from(x - y).powi(2);
+            }
+        }
+        let total: f64 = data.iter().map(|&x| f64::from(x).powi(2)).sum();
+        assert!(fit.mean.len() == clusters * d);
+        (err / total).sqrt()
+    };
+    let one = super::cpca::fit(&data, 3 * per, d, 1, 2, 0);
+    let three = super::cpca::fit(&data, 3 * per, d, 3, 2, 0);
+    let (e1, e3) = (error(&one, 1), error(&three, 3));
+    println!("planted subspaces: one cluster {e1:.3e}, three {e3:.3e}");
+    assert!(e3 < 1e-5, "{e3}");
+    assert!(e1 > 0.1, "{e1}");
+    // The clusters are the planted groups (vertex v drew from group v mod 3).
+    for v in 0..3 * per {
+        let same = (v + 3) % (3 * per);
+        let other = (v + 1) % (3 * per);
+        assert_eq!(three.cluster_of[v], three.cluster_of[same], "{v}");
+        assert_ne!(three.cluster_of[v], three.cluster_of[other], "{v}");
+    }
+}
+
 #[test]
 fn bakes_are_deterministic_for_a_seed() {
     let scene = ground_and_box();
@@ -1000,10 +1164,13 @@ fn small_files() -> Vec<(&'static str, Vec<u8>)> {
     )
     .unwrap();
     let pca = mrt.compress(2).unwrap();
+    let clustered = mrt.compress_clustered(2, 1, 7).unwrap();
+    assert_eq!(clustered.file_version(), 2);
     vec![
         ("diffuse", diffuse.to_bytes()),
         ("mrt", mrt.to_bytes()),
         ("mrt-pca", pca.to_bytes()),
+        ("mrt-cpca", clustered.to_bytes()),
     ]
 }
 
@@ -1019,6 +1186,13 @@ fn files_round_trip_exactly() {
     assert_eq!(back, set);
     let pca = set.compress(3).unwrap();
     assert_eq!(TransferSet::from_bytes(&pca.to_bytes()).unwrap(), pca);
+    // One cluster is written as version 1, so older readers load it.
+    assert_eq!(pca.file_version(), 1);
+    let clustered = set.compress_clustered(4, 3, 1).unwrap();
+    assert_eq!(
+        TransferSet::from_bytes(&clustered.to_bytes()).unwrap(),
+        clustered
+    );
 }
 
 #[test]
@@ -1059,10 +1233,7 @@ fn every_single_bit_flip_is_an_error() {
 fn patch(bytes: &[u8], at: usize, value: &[u8]) -> Vec<u8> {
     let mut b = bytes.to_vec();
     b[at..at + value.len()].copy_from_slice(value);
-    let payload_crc = format::crc32(&b[format::HEADER_LEN..]);
-    b[64..68].copy_from_slice(&payload_crc.to_le_bytes());
-    let header_crc = format::crc32(&b[..68]);
-    b[68..72].copy_from_slice(&header_crc.to_le_bytes());
+    format::reseal(&mut b);
     b
 }
 
@@ -1079,10 +1250,12 @@ fn hostile_headers_are_rejected_by_name() {
         TransferSet::from_bytes(&magic).unwrap_err(),
         FormatError::Magic
     );
-    assert_eq!(
-        TransferSet::from_bytes(&patch(&bytes, 8, &2u32.to_le_bytes())).unwrap_err(),
-        FormatError::Version(2)
-    );
+    for version in [0u32, 3] {
+        assert_eq!(
+            TransferSet::from_bytes(&patch(&bytes, 8, &version.to_le_bytes())).unwrap_err(),
+            FormatError::Version(version)
+        );
+    }
     assert_eq!(field(patch(&bytes, 12, &7u32.to_le_bytes())), "kind");
     assert_eq!(field(patch(&bytes, 16, &9u32.to_le_bytes())), "bands");
     assert_eq!(field(patch(&bytes, 16, &0u32.to_le_bytes())), "bands");
@@ -1129,6 +1302,44 @@ fn hostile_headers_are_rejected_by_name() {
         TransferSet::from_bytes(&corrupt).unwrap_err(),
         FormatError::Checksum {
             field: "header_crc32"
+        }
+    );
+}
+
+#[test]
+fn hostile_cluster_fields_are_rejected_by_name() {
+    let files = small_files();
+    let field = |b: Vec<u8>| match TransferSet::from_bytes(&b) {
+        Err(FormatError::Field { field, .. }) => field,
+        other => panic!("{other:?}"),
+    };
+    let (_, clustered) = &files[3];
+    // Three vertices: two or three clusters are allowed, fewer or more are not.
+    for bad in [0u32, 1, 4, u32::MAX] {
+        assert_eq!(field(patch(clustered, 64, &bad.to_le_bytes())), "clusters");
+    }
+    // Three clusters where two were written: the payload length disagrees.
+    assert_eq!(
+        field(patch(clustered, 64, &3u32.to_le_bytes())),
+        "payload_len"
+    );
+    // A version-2 header on a set version 1 holds (dense, or one cluster).
+    for (_, v1) in &files[..3] {
+        let mut b = v1[..72].to_vec();
+        b.extend_from_slice(&[0; 4]);
+        b.extend_from_slice(&v1[72..]);
+        b[8..12].copy_from_slice(&2u32.to_le_bytes());
+        b[64..68].copy_from_slice(&1u32.to_le_bytes());
+        assert_eq!(field(patch(&b, 64, &1u32.to_le_bytes())), "clusters");
+    }
+    // A vertex's cluster index not below the cluster count (the last value of
+    // the payload is the last vertex's).
+    let at = clustered.len() - 4;
+    assert_eq!(
+        TransferSet::from_bytes(&patch(clustered, at, &2u32.to_le_bytes())).unwrap_err(),
+        FormatError::Value {
+            field: "clusters",
+            index: 2
         }
     );
 }
