@@ -104,29 +104,59 @@ pub(crate) fn fit(
     }
 }
 
+/// Blocks reclassified together: each model vector is read once per tile and
+/// dotted with the tile's residuals while they sit in cache (a 1024-value block
+/// makes the tile's residuals 64 KiB), instead of once per block.
+const TILE: usize = 16;
+
 /// For every block of `data`, the model that reconstructs it best (the lowest
 /// index among equals) and its squared error. Spread over rayon's pool with the
 /// `parallel` feature; each block's answer is the same either way.
 fn best_clusters(models: &[Model], data: &[f32], d: usize, k: usize) -> Vec<(u32, f64)> {
-    let best = |x: &[f32], residual: &mut Vec<f32>| -> (u32, f64) {
-        models
-            .iter()
-            .enumerate()
-            .map(|(c, m)| (c as u32, m.error(x, k, residual)))
-            .fold((0, f64::INFINITY), |a, b| if b.1 < a.1 { b } else { a })
+    let tile = |blocks: &[f32], residuals: &mut Vec<f32>| -> Vec<(u32, f64)> {
+        let count = blocks.len() / d;
+        residuals.resize(count * d, 0.0);
+        let mut best = vec![(0u32, f64::INFINITY); count];
+        let mut errors = [0.0f64; TILE];
+        for (c, model) in models.iter().enumerate() {
+            for ((r, x), e) in residuals
+                .chunks_exact_mut(d)
+                .zip(blocks.chunks_exact(d))
+                .zip(&mut errors)
+            {
+                for ((r, a), m) in r.iter_mut().zip(x).zip(&model.mean) {
+                    *r = a - m;
+                }
+                *e = dot(r, r);
+            }
+            for u in model.basis.chunks_exact(d).take(k) {
+                for (r, e) in residuals.chunks_exact(d).zip(&mut errors) {
+                    let w = dot(r, u);
+                    *e -= w * w;
+                }
+            }
+            for (b, &e) in best.iter_mut().zip(&errors) {
+                let e = e.max(0.0);
+                if e < b.1 {
+                    *b = (c as u32, e);
+                }
+            }
+        }
+        best
     };
     #[cfg(feature = "parallel")]
     {
         use rayon::prelude::*;
-        data.par_chunks_exact(d)
-            .map_init(|| vec![0.0f32; d], |residual, x| best(x, residual))
+        data.par_chunks(TILE * d)
+            .map_init(Vec::new, |residuals, blocks| tile(blocks, residuals))
+            .flatten_iter()
             .collect()
     }
     #[cfg(not(feature = "parallel"))]
     {
-        let mut residual = vec![0.0f32; d];
-        data.chunks_exact(d)
-            .map(|x| best(x, &mut residual))
+        let mut residuals = Vec::new();
+        data.chunks(TILE * d)
+            .flat_map(|blocks| tile(blocks, &mut residuals))
             .collect()
     }
 }
@@ -185,22 +215,6 @@ impl Model {
         };
         members
     }
-
-    /// The squared error of reconstructing `x` from this model,
-    /// `‖x − μ‖² − Σ_k (U_k · (x − μ))²` (the components are orthonormal or
-    /// zero), using `residual` (`d` values) as scratch.
-    fn error(&self, x: &[f32], k: usize, residual: &mut [f32]) -> f64 {
-        for ((r, a), m) in residual.iter_mut().zip(x).zip(&self.mean) {
-            *r = a - m;
-        }
-        let d = residual.len();
-        let mut error = dot(residual, residual);
-        for u in self.basis.chunks_exact(d).take(k) {
-            let w = dot(residual, u);
-            error -= w * w;
-        }
-        error.max(0.0)
-    }
 }
 
 /// `a · b` with eight partial sums (so it vectorises), summed in `f64`.
@@ -218,15 +232,19 @@ fn dot(a: &[f32], b: &[f32]) -> f64 {
     lanes.iter().map(|&l| f64::from(l)).sum::<f64>() + f64::from(tail)
 }
 
-/// Squared distance of two blocks.
+/// Squared distance of two blocks, in eight partial sums (so it vectorises).
 fn distance2(a: &[f32], b: &[f32]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| {
-            let e = f64::from(*x) - f64::from(*y);
-            e * e
-        })
-        .sum()
+    let mut lanes = [0.0f32; 8];
+    let (ca, ra) = a.as_chunks::<8>();
+    let (cb, rb) = b.as_chunks::<8>();
+    for (x, y) in ca.iter().zip(cb) {
+        for i in 0..8 {
+            let e = x[i] - y[i];
+            lanes[i] += e * e;
+        }
+    }
+    let tail: f32 = ra.iter().zip(rb).map(|(x, y)| (x - y) * (x - y)).sum();
+    lanes.iter().map(|&l| f64::from(l)).sum::<f64>() + f64::from(tail)
 }
 
 /// The `K = 0` clustering: k-means++ seeds from `seed`, then Lloyd rounds.
@@ -266,14 +284,19 @@ fn kmeans(data: &[f32], vertices: usize, d: usize, clusters: usize, seed: u64) -
     let mut cluster_of = vec![0u32; vertices];
     let mut errors = vec![0.0f64; vertices];
     for _ in 0..KMEANS_ROUNDS {
-        for v in 0..vertices {
-            let (best, error) = centres
-                .chunks_exact(d)
-                .map(|c| distance2(block(v), c))
-                .enumerate()
-                .fold((0, f64::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
-            cluster_of[v] = best as u32;
-            errors[v] = error;
+        // The K = 0 models: a mean each, so the error is the squared distance.
+        let models: Vec<Model> = centres
+            .chunks_exact(d)
+            .map(|centre| Model {
+                mean: centre.to_vec(),
+                basis: Vec::new(),
+                weights: Vec::new(),
+            })
+            .collect();
+        let best = best_clusters(&models, data, d, 0);
+        for ((c, e), (best, error)) in cluster_of.iter_mut().zip(&mut errors).zip(best) {
+            *c = best;
+            *e = error;
         }
         fill_empty(&mut cluster_of, &errors, clusters);
         let mut sums = vec![0.0f64; clusters * d];
