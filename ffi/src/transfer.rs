@@ -792,9 +792,10 @@ pub unsafe extern "C" fn antumbra_transfer_geometry(
     })
 }
 
-/// Writes a transfer set as a bake file (core's version-1 format: a 72-byte
-/// header with magic, version, kind, bands, grid, K, counts and CRC-32 checksums,
-/// then little-endian floats) into a caller buffer.
+/// Writes a transfer set as a bake file (docs/bake-format.md: a 72-byte header
+/// with magic, version, kind, bands, grid, K, counts and CRC-32 checksums, then
+/// little-endian floats; version 2, with a 76-byte header, for a clustered PCA
+/// only) into a caller buffer.
 ///
 /// @param transfer the set.
 /// @param buffer destination of `capacity` bytes; may be NULL when `capacity` is 0

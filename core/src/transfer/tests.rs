@@ -924,6 +924,45 @@ fn clustered_pca_finds_planted_subspaces() {
 }
 
 #[test]
+fn clustered_pca_of_identical_or_few_blocks_uses_every_cluster_and_stays_finite() {
+    // Identical blocks: k-means++ has no distance to go by, so every cluster is
+    // filled by moving vertices; each reconstructs exactly from its mean.
+    let d = 12;
+    let same: Vec<f32> = (0..20)
+        .flat_map(|_| (0..d).map(|j| j as f32 * 0.5))
+        .collect();
+    // As many clusters as blocks: each block is its own cluster's mean.
+    let few: Vec<f32> = (0..5 * d).map(|i| ((i * 37) % 11) as f32 - 5.0).collect();
+    for (data, clusters) in [(&same, 4), (&few, 5)] {
+        let vertices = data.len() / d;
+        let fit = super::cpca::fit(data, vertices, d, clusters, 2, 9);
+        let mut used = vec![0usize; clusters];
+        fit.cluster_of.iter().for_each(|&c| used[c as usize] += 1);
+        assert!(used.iter().all(|&n| n > 0), "{used:?}");
+        assert!(
+            fit.mean
+                .iter()
+                .chain(&fit.basis)
+                .chain(&fit.weights)
+                .all(|x| x.is_finite())
+        );
+        for (v, x) in data.chunks_exact(d).enumerate() {
+            let c = fit.cluster_of[v] as usize;
+            let mut y = fit.mean[c * d..(c + 1) * d].to_vec();
+            for k in 0..2 {
+                let u = &fit.basis[(c * 2 + k) * d..(c * 2 + k + 1) * d];
+                y.iter_mut()
+                    .zip(u)
+                    .for_each(|(y, u)| *y += fit.weights[v * 2 + k] * u);
+            }
+            for (a, b) in x.iter().zip(&y) {
+                assert!((a - b).abs() <= 1e-5, "vertex {v}: {x:?} against {y:?}");
+            }
+        }
+    }
+}
+
+#[test]
 fn bakes_are_deterministic_for_a_seed() {
     let scene = ground_and_box();
     let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
