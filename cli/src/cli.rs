@@ -237,7 +237,8 @@ pub struct BakeArgs {
     #[arg(long, value_name = "A", default_value_t = 0.5)]
     pub albedo: f32,
 
-    /// PCA-compress an MRT bake to K components (mean + K).
+    /// PCA-compress an MRT bake to K components (a mean and K components; per
+    /// cluster with --clusters).
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
     pub pca: Option<u32>,
 

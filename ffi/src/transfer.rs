@@ -163,7 +163,8 @@ pub struct antumbra_transfer_info {
     pub coeff_count: u32,
     /// MRT grid side (0 for the other kinds).
     pub grid: u32,
-    /// PCA components baked into a compressed MRT set; 0 when uncompressed.
+    /// PCA components (per cluster) of a compressed MRT set; 0 when
+    /// uncompressed.
     pub components: u32,
     /// Number of vertices (the length of every per-vertex array of shading).
     pub vertex_count: u32,
@@ -242,8 +243,9 @@ pub type antumbra_transfer_progress_fn =
 
 /// A baked transfer set: kind, bands, grid, per-vertex positions and normals and
 /// the per-vertex transfer data (dense, or PCA-compressed for MRT). Immutable and
-/// opaque; created by `antumbra_transfer_bake`, `antumbra_transfer_load` or
-/// `antumbra_transfer_compress`, freed with `antumbra_transfer_destroy`.
+/// opaque; created by `antumbra_transfer_bake`, `antumbra_transfer_load`,
+/// `antumbra_transfer_compress` or `antumbra_transfer_compress_clustered`, freed
+/// with `antumbra_transfer_destroy`.
 pub struct antumbra_transfer {
     set: TransferSet,
     poisoned: AtomicBool,
@@ -871,7 +873,8 @@ fn format_error(error: FormatError) -> Error {
 /// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (bytes with len > 0, out);
 ///         INVALID_ARGUMENT (misaligned out); INVALID_DATA (truncated, bad magic,
 ///         unsupported version, a field out of range, checksum mismatch, trailing
-///         bytes, a non-finite value; the message names the field); OUT_OF_MEMORY
+///         bytes, a non-finite value, a vertex's cluster out of range; the
+///         message names the field); OUT_OF_MEMORY
 ///         (nothing is kept); PANIC.
 ///
 /// Cost: allocates the set: about the file's size plus 36 bytes per vertex (the
@@ -957,8 +960,9 @@ pub unsafe extern "C" fn antumbra_transfer_compress(
 ///         (not an uncompressed MRT set, clusters or components out of range,
 ///         misaligned out); POISONED; PANIC.
 ///
-/// Cost: about 9 global PCAs (`antumbra_transfer_compress`) plus 8 · vertices ·
-/// C · (K + 1) · grid² bands² multiply-adds to reclassify; deterministic (the
+/// Cost: about three global PCAs (`antumbra_transfer_compress`), plus at most
+/// 4 k-means rounds of vertices · C · grid² bands² and 8 reclassifications of
+/// vertices · C · (K + 1) · grid² bands² multiply-adds; deterministic (the
 /// clustering's seed is fixed).
 /// Ownership: the caller owns `*out`.
 /// Thread safety: any number of threads may use the same source set at once.
@@ -1090,9 +1094,10 @@ unsafe fn read_material<'a>(
 ///         eye, view directions, naming the index); POISONED; PANIC.
 ///
 /// Cost per vertex: 3 bands² multiply-adds (diffuse), about bands⁴ + 3 bands²
-/// (glossy SH), 7 bands² (MRT), 4 (K + 1) RGB multiply-adds after K + 1 per-frame
-/// products (MRT from PCA). A compressed set allocates one per-frame buffer of
-/// grid² (K + 1) RGB values; the others allocate nothing.
+/// (glossy SH), 7 bands² (MRT), 4 (K + 1) RGB multiply-adds after C (K + 1)
+/// per-frame products per grid node (MRT from PCA, C clusters). A compressed set
+/// allocates one per-frame buffer of C grid² (K + 1) RGB values; the others
+/// allocate nothing.
 /// Thread safety: any number of threads may shade the same set at once.
 ///
 /// # Safety

@@ -42,8 +42,12 @@ def block_len(kind, bands, grid):
 
 def read(path):
     data = open(path, "rb").read()
-    if len(data) < 12 or data[:8] != MAGIC:
+    if len(data) < 8:
+        raise BadFile("truncated")
+    if data[:8] != MAGIC:
         raise BadFile("magic")
+    if len(data) < 12:
+        raise BadFile("truncated")
     (version,) = struct.unpack_from("<I", data, 8)
     if version not in (1, 2):
         raise BadFile(f"version {version}")
@@ -64,13 +68,22 @@ def read(path):
             raise BadFile("clusters")
     else:
         clusters = 1 if components > 0 else 0
+    if components > 0 and kind != KIND_MRT:
+        raise BadFile("components")
+    d = block_len(kind, bands, grid)
+    k = components
+    if k == 0:
+        values = 6 * vertices + vertices * d
+    else:
+        values = 6 * vertices + clusters * d * (k + 1) + vertices * k + (vertices if version == 2 else 0)
+    if payload_len != 4 * values:
+        raise BadFile("payload_len")
     (payload_crc,) = struct.unpack_from("<I", data, header_len - 8)
     payload = data[header_len:]
     if len(payload) != payload_len:
-        raise BadFile("payload length")
+        raise BadFile("truncated" if len(payload) < payload_len else "trailing bytes")
     if zlib.crc32(payload) != payload_crc:
         raise BadFile("payload_crc32")
-    d = block_len(kind, bands, grid)
     floats = np.frombuffer(payload, dtype="<f4")
     at = 0
 
@@ -96,7 +109,9 @@ def read(path):
     }
     positions = take(3 * vertices).reshape(vertices, 3)
     normals = take(3 * vertices).reshape(vertices, 3)
-    if np.any(np.abs(np.linalg.norm(normals.astype(np.float64), axis=1) - 1.0) >= 1e-3):
+    # The length in single precision, as the document says.
+    length = np.sqrt(np.sum(normals * normals, axis=1, dtype=np.float32), dtype=np.float32)
+    if np.any(np.abs(length - np.float32(1.0)) >= np.float32(1e-3)):
         raise BadFile("normals")
     if components == 0:
         blocks = take(vertices * d).reshape(vertices, d)
@@ -114,11 +129,18 @@ def read(path):
                 raise BadFile("clusters section")
         else:
             cluster_of = np.zeros(vertices, dtype=np.uint32)
+        for name, section in (("mean", mean), ("components", basis), ("weights", weights)):
+            if not np.all(np.isfinite(section)):
+                raise BadFile(name)
         m = mean[cluster_of].astype(np.float64)
         b = basis[cluster_of].astype(np.float64)
         blocks = m + np.einsum("vk,vkd->vd", weights.astype(np.float64), b)
     if at != len(floats):
         raise BadFile("trailing values")
+    if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(normals))):
+        raise BadFile("positions or normals")
+    if components == 0 and not np.all(np.isfinite(blocks)):
+        raise BadFile("data")
     out["positions"] = positions
     out["blocks"] = np.asarray(blocks, dtype=np.float64)
     return out

@@ -6,9 +6,10 @@
 //! of vertices whose blocks are alike each get their own mean and `K`
 //! components, so the same `K` reconstructs far better.
 //!
-//! The fit minimises the total squared reconstruction error
-//! `Σ_p ‖M_p − μ_c − Σ_k w_pk U_ck‖²` by alternating two steps that each can only
-//! lower it, as in the paper's iterative PCA (its section 3.2):
+//! The fit aims at the least total squared reconstruction error
+//! `Σ_p ‖M_p − μ_c − Σ_k w_pk U_ck‖²` by alternating two steps that each lower
+//! it (up to the few subspace iterations of a warm-started fit), as in the
+//! paper's iterative PCA (its section 3.2):
 //! 1. **Seed**: k-means++ over the blocks (the first block chosen by `seed`, each
 //!    next one with probability proportional to its squared distance to the
 //!    nearest chosen), then [`KMEANS_ROUNDS`] Lloyd rounds. This is the `K = 0`
@@ -217,19 +218,25 @@ impl Model {
     }
 }
 
-/// `a · b` with eight partial sums (so it vectorises), summed in `f64`.
+/// `a · b` in `f64`, in eight partial sums (so it vectorises): the error
+/// `‖r‖² − Σ (U·r)²` subtracts nearly equal numbers when a model fits a block
+/// well, so its terms need more than `f32`'s digits.
 #[inline]
 fn dot(a: &[f32], b: &[f32]) -> f64 {
-    let mut lanes = [0.0f32; 8];
+    let mut lanes = [0.0f64; 8];
     let (ca, ra) = a.as_chunks::<8>();
     let (cb, rb) = b.as_chunks::<8>();
     for (x, y) in ca.iter().zip(cb) {
         for i in 0..8 {
-            lanes[i] += x[i] * y[i];
+            lanes[i] += f64::from(x[i]) * f64::from(y[i]);
         }
     }
-    let tail: f32 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
-    lanes.iter().map(|&l| f64::from(l)).sum::<f64>() + f64::from(tail)
+    let tail: f64 = ra
+        .iter()
+        .zip(rb)
+        .map(|(x, y)| f64::from(*x) * f64::from(*y))
+        .sum();
+    lanes.iter().sum::<f64>() + tail
 }
 
 /// Squared distance of two blocks, in eight partial sums (so it vectorises).

@@ -39,8 +39,8 @@
 //! written only for two or more clusters, and a version-2 file of fewer is
 //! refused, so every file that loads writes back to the same bytes.
 //!
-//! Loading ([`TransferSet::from_bytes`]) checks, in order: length of the header,
-//! magic, version, the header checksum, every header field's range, the payload
+//! Loading ([`TransferSet::from_bytes`]) checks, in order: the magic, the
+//! version, the length of that version's header, the header checksum, every header field's range, the payload
 //! length against the fields (with overflow-checked arithmetic) and against the
 //! bytes actually present — before allocating anything — then the payload checksum,
 //! then every value. Any failure is a [`FormatError`] naming the field; nothing

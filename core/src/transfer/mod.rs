@@ -113,8 +113,8 @@
 //! and four rows read at view-dependent places (14 KB per vertex at 12×12 and 25
 //! coefficients, so streamed from memory). The batch ([`TransferSet::shade`])
 //! computes the taps of 32 vertices before reading rows, to overlap those
-//! chains; the single-vertex kernel cannot. Per frame, PCA adds `K + 1` products
-//! of a `G² × n` matrix with the lighting. A bake's time is mostly its rays, cast
+//! chains; the single-vertex kernel cannot. Per frame, PCA adds `C (K + 1)`
+//! products of a `G² × n` matrix with the lighting (`C` clusters). A bake's time is mostly its rays, cast
 //! through the caster it is given. Figures: `cargo bench -p antumbra-core
 //! --features bvh --bench transfer` (kernels and batch shading, bake) and
 //! `antumbra bench transfer` (the bake against obvhs and Embree casting the same

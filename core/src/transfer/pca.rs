@@ -118,6 +118,9 @@ impl Pca {
 
     /// The mean block of `cluster`; `None` for `cluster ≥ C`.
     pub fn mean(&self, cluster: usize) -> Option<&[f32]> {
+        if cluster >= self.clusters {
+            return None;
+        }
         let d = self.block_len();
         self.mean.get(cluster * d..(cluster + 1) * d)
     }
@@ -126,7 +129,7 @@ impl Pca {
     /// `cluster ≥ C`.
     pub fn component(&self, cluster: usize, k: usize) -> Option<&[f32]> {
         let d = self.block_len();
-        if k >= self.components {
+        if k >= self.components || cluster >= self.clusters {
             return None;
         }
         let start = (cluster * self.components + k) * d;
@@ -440,10 +443,14 @@ impl TransferSet {
     /// Clustered-PCA-compresses a dense MRT set ([`cpca`](super::cpca)):
     /// `clusters` (1 ..= vertex count) clusters of `components` (1 ..= min(block
     /// length, vertex count)) components each, the clustering seeded from `seed`.
-    /// Deterministic for a seed; one cluster is [`compress`](Self::compress)
-    /// whatever the seed. Cost about `CPCA_ROUNDS` global PCAs plus
-    /// `CPCA_ROUNDS · vertices · clusters · (K + 1) · D` multiply-adds to
-    /// reclassify.
+    /// Deterministic for a seed (and the same on rayon's pool, with the
+    /// `parallel` feature, as off it); one cluster is
+    /// [`compress`](Self::compress) whatever the seed. Cost: about three
+    /// global PCAs (the rounds' warm-started fits and the final one), plus
+    /// `vertices · clusters · D` per k-means round and
+    /// `vertices · clusters · (K + 1) · D` multiply-adds per reclassification,
+    /// for at most [`KMEANS_ROUNDS`](super::cpca::KMEANS_ROUNDS) and
+    /// [`CPCA_ROUNDS`](super::cpca::CPCA_ROUNDS) rounds.
     pub fn compress_clustered(
         &self,
         clusters: usize,

@@ -522,7 +522,7 @@ pub enum ShadeError {
         /// Which argument.
         argument: &'static str,
     },
-    /// The per-frame products of a PCA set (`grid² × (K + 1)` RGB values) could
+    /// The per-frame products of a PCA set (`C × grid² × (K + 1)` RGB values) could
     /// not be allocated (only allocators that can run out get here).
     OutOfMemory {
         /// Bytes asked for.
