@@ -339,11 +339,18 @@ fn bench_transfer_prints_every_figure() {
         "1",
         "--max-components",
         "4",
+        "--clusters",
+        "3",
+        "--cluster-components",
+        "2",
         "--no-embree",
     ]);
     assert_success(&output);
     let text = stdout(&output);
     for needle in [
+        "clustered PCA (Sloan et al. 2003)",
+        "global at equal bytes",
+        "worst row: C = 3, K = 2",
         "bake, one thread",
         "obvhs occluded alone",
         "glossy SH, view-first",

@@ -621,15 +621,18 @@ fn clustered_table(
     if fits.is_empty() {
         return Ok(());
     }
-    // One global PCA with enough components to match the largest row's bytes.
-    let level_of = |set: &TransferSet, k: usize| {
-        mrt.pca_levels(set, &[k]).expect("compressed from this set")[0]
-    };
-    let largest = fits
+    // Each row's error and bytes, then one global PCA with enough components
+    // to match the largest row's bytes.
+    let levels = fits
         .iter()
-        .map(|(_, k, set, _)| level_of(set, *k).bytes)
-        .max()
-        .unwrap_or(0);
+        .map(|(_, k, set, _)| {
+            let level = mrt
+                .pca_levels(set, &[*k])
+                .expect("compressed from this set")[0];
+            (level, *k)
+        })
+        .collect::<Vec<_>>();
+    let largest = levels.iter().map(|(l, _)| l.bytes).max().unwrap_or(0);
     let d = mrt.block_len();
     // Global bytes at K: 4 (D (K + 1) + V K).
     let global_k_for = |bytes: usize| -> usize {
@@ -644,13 +647,27 @@ fn clustered_table(
         .compress(global_max)
         .map_err(|e| Error::msg(format!("cannot compress: {e}")))?;
     let global_seconds = started.elapsed().as_secs_f64();
-    let all_k: Vec<usize> = (1..=global_max).collect();
+    // The global errors the rows compare with: at each row's K and at the K of
+    // its bytes (only those, since each level rebuilds every block).
+    let mut needed: Vec<usize> = levels
+        .iter()
+        .flat_map(|(level, k)| [*k, global_k_for(level.bytes)])
+        .map(|k| k.min(global_max))
+        .collect();
+    needed.sort_unstable();
+    needed.dedup();
     let global_levels = mrt
-        .pca_levels(&global, &all_k)
+        .pca_levels(&global, &needed)
         .expect("compressed from this set");
+    let global_error = |k: usize| {
+        let k = k.min(global_max);
+        global_levels
+            .iter()
+            .find(|l| l.components == k)
+            .map_or(f64::NAN, |l| l.relative_rms_error)
+    };
     let mut rows = Vec::new();
-    for (c, k, set, fit_seconds) in &fits {
-        let level = level_of(set, *k);
+    for ((c, k, set, fit_seconds), (level, _)) in fits.iter().zip(&levels) {
         let equal = global_k_for(level.bytes).min(global_max);
         rows.push(ClusteredRow {
             clusters: *c,
@@ -658,7 +675,7 @@ fn clustered_table(
             bytes_per_vertex: level.bytes_per_vertex,
             error: level.relative_rms_error,
             global_components: equal,
-            global_error: global_levels[equal - 1].relative_rms_error,
+            global_error: global_error(equal),
             shade_ns: time_shade(set, lighting, eye, Some(*k), min_time)?,
             global_shade_ns: time_shade(&global, lighting, eye, Some(*k), min_time)?,
             fit_seconds: *fit_seconds,
@@ -681,7 +698,7 @@ fn clustered_table(
             r.global_components,
             100.0 * r.global_error,
             r.global_error / r.error.max(f64::MIN_POSITIVE),
-            100.0 * global_levels[r.components.min(global_max) - 1].relative_rms_error,
+            100.0 * global_error(r.components),
             r.shade_ns,
             r.global_shade_ns,
             r.shade_ns / r.global_shade_ns,
