@@ -930,15 +930,7 @@ pub unsafe extern "C" fn antumbra_transfer_compress(
     components: u32,
     out: *mut *mut antumbra_transfer,
 ) -> antumbra_result {
-    with_handle("antumbra_transfer_compress", transfer, |t| {
-        let out = check_out(out)?;
-        let set = t
-            .set
-            .compress(components as usize)
-            .map_err(|e| pca_error(&t.set, e))?;
-        boxed(set, out)?;
-        Ok(())
-    })
+    compress_into("antumbra_transfer_compress", transfer, 1, components, out)
 }
 
 #[cfg(feature = "std")]
@@ -977,7 +969,26 @@ pub unsafe extern "C" fn antumbra_transfer_compress_clustered(
     components: u32,
     out: *mut *mut antumbra_transfer,
 ) -> antumbra_result {
-    with_handle("antumbra_transfer_compress_clustered", transfer, |t| {
+    compress_into(
+        "antumbra_transfer_compress_clustered",
+        transfer,
+        clusters,
+        components,
+        out,
+    )
+}
+
+#[cfg(feature = "std")]
+/// Both compressions (one cluster is the global PCA, as in core), reported
+/// under `function`'s name.
+fn compress_into(
+    function: &'static str,
+    transfer: *const antumbra_transfer,
+    clusters: u32,
+    components: u32,
+    out: *mut *mut antumbra_transfer,
+) -> antumbra_result {
+    with_handle(function, transfer, |t| {
         let out = check_out(out)?;
         let set = t
             .set

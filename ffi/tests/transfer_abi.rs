@@ -352,15 +352,21 @@ fn save_load_round_trips_and_describe_reports_the_set() {
     }
 }
 
-#[test]
-fn pca_with_every_component_reproduces_the_dense_set() {
+/// A 2-band, 3 × 3 MRT bake of the test scene, its vertex count and the most
+/// components it can be compressed to.
+fn small_mrt() -> (*mut antumbra_transfer, usize, u32) {
     let scene = scene();
     let vertices = scene.positions.len() / 3;
     let mut o = options(ANTUMBRA_TRANSFER_KIND_MRT);
     o.bands = 2;
     o.grid = 3;
     let set = bake(&scene, true, &o);
-    let all = (vertices as u32).min(3 * 3 * 4);
+    (set, vertices, (vertices as u32).min(3 * 3 * 4))
+}
+
+#[test]
+fn pca_with_every_component_reproduces_the_dense_set() {
+    let (set, vertices, all) = small_mrt();
     let mut pca = ptr::null_mut();
     // SAFETY: live set, valid out pointer.
     let r = unsafe { antumbra_transfer_compress(set, all, &mut pca) };
@@ -397,13 +403,7 @@ fn pca_with_every_component_reproduces_the_dense_set() {
 
 #[test]
 fn clustered_pca_is_cores_and_reproduces_the_dense_set_with_every_component() {
-    let scene = scene();
-    let vertices = scene.positions.len() / 3;
-    let mut o = options(ANTUMBRA_TRANSFER_KIND_MRT);
-    o.bands = 2;
-    o.grid = 3;
-    let set = bake(&scene, true, &o);
-    let all = (vertices as u32).min(3 * 3 * 4);
+    let (set, vertices, all) = small_mrt();
     let mut cpca = ptr::null_mut();
     // SAFETY: live set, valid out pointer.
     let r = unsafe { antumbra_transfer_compress_clustered(set, 3, all, &mut cpca) };
