@@ -1395,9 +1395,9 @@ static void test_transfer_shade(void)
     expect_shade_fails("shade, lighting NaN", set, bad_lighting, 12, &m, 4, ANTUMBRA_RESULT_NON_FINITE, "lighting[6]");
     expect_shade_fails("shade, vertex_count 3", set, lighting, 12, &m, 3, ANTUMBRA_RESULT_INVALID_ARGUMENT,
                        "vertex_count");
-    m.diffuse[1] = -1.0f;
-    expect_shade_fails("shade, negative diffuse", set, lighting, 12, &m, 4, ANTUMBRA_RESULT_INVALID_ARGUMENT,
-                       "material->diffuse[1]");
+    m.albedo[1] = -1.0f;
+    expect_shade_fails("shade, negative albedo", set, lighting, 12, &m, 4, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                       "material->albedo[1]");
     antumbra_transfer_material_init(&m);
     m.phong_exponent = NAN;
     expect_shade_fails("shade, exponent NaN", set, lighting, 12, &m, 4, ANTUMBRA_RESULT_NON_FINITE,

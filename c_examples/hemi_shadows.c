@@ -977,12 +977,12 @@ int main(int argc, char **argv)
     shading_options.bands = SH_BANDS;
     antumbra_hemi_material_init(&material);
     if (antumbra_last_error_message()[0] != '\0' || material.albedo[0] != 1.0f || material.specular[0] != 0.0f ||
-        material.exponent != 16.0f || material.vertex_albedo != NULL || material.view_directions != NULL) {
+        material.phong_exponent != 16.0f || material.vertex_albedo != NULL || material.view_directions != NULL) {
         fail("antumbra_hemi_material_init did not write the documented defaults");
     }
     store3(material.albedo, ALBEDO);
     store3(material.specular, SPECULAR);
-    material.exponent = GLOSSY_EXPONENT;
+    material.phong_exponent = GLOSSY_EXPONENT;
     store3(material.eye, CAMERA_EYE);
     deform(m, 0.0f);
     check(antumbra_hemi_shader_create(&view, NULL, &shading_options, &full_shader), "antumbra_hemi_shader_create");

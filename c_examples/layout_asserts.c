@@ -102,14 +102,14 @@ _Static_assert(sizeof(((antumbra_hemi_material *)0)->albedo) == 3 * sizeof(float
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, albedo[0], float), "albedo element type");
 _Static_assert(sizeof(((antumbra_hemi_material *)0)->specular) == 3 * sizeof(float), "material.specular is float[3]");
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, specular[0], float), "specular element type");
-_Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, exponent, float), "exponent type");
+_Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, phong_exponent, float), "phong_exponent type");
 _Static_assert(sizeof(((antumbra_hemi_material *)0)->eye) == 3 * sizeof(float), "material.eye is float[3]");
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, eye[0], float), "eye element type");
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, vertex_albedo, const float *), "vertex_albedo type");
 _Static_assert(FIELD_TYPE_IS(antumbra_hemi_material, view_directions, const float *), "view_directions type");
 _Static_assert(offsetof(antumbra_hemi_material, albedo) == 0, "material.albedo offset");
 _Static_assert(offsetof(antumbra_hemi_material, specular) == 12, "material.specular offset");
-_Static_assert(offsetof(antumbra_hemi_material, exponent) == 24, "material.exponent offset");
+_Static_assert(offsetof(antumbra_hemi_material, phong_exponent) == 24, "material.phong_exponent offset");
 _Static_assert(offsetof(antumbra_hemi_material, eye) == 28, "material.eye offset");
 _Static_assert(offsetof(antumbra_hemi_material, vertex_albedo) == 40, "material.vertex_albedo offset");
 _Static_assert(offsetof(antumbra_hemi_material, view_directions) == 40 + sizeof(void *),
@@ -241,15 +241,15 @@ _Static_assert(offsetof(antumbra_transfer_info, file_bytes) == 56 + sizeof(size_
 _Static_assert(sizeof(antumbra_transfer_info) == 56 + 2 * sizeof(size_t), "transfer_info size");
 
 /* ---- antumbra_transfer_material: ten floats, then a pointer ---- */
-_Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, diffuse[0], float), "transfer_material.diffuse type");
-_Static_assert(sizeof(((antumbra_transfer_material *)0)->diffuse) == 3 * sizeof(float),
-               "transfer_material.diffuse is float[3]");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, albedo[0], float), "transfer_material.albedo type");
+_Static_assert(sizeof(((antumbra_transfer_material *)0)->albedo) == 3 * sizeof(float),
+               "transfer_material.albedo is float[3]");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, specular[0], float), "transfer_material.specular type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, phong_exponent, float), "transfer_material.phong_exponent type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, eye[0], float), "transfer_material.eye type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, view_directions, const float *),
                "transfer_material.view_directions type");
-_Static_assert(offsetof(antumbra_transfer_material, diffuse) == 0, "transfer_material.diffuse offset");
+_Static_assert(offsetof(antumbra_transfer_material, albedo) == 0, "transfer_material.albedo offset");
 _Static_assert(offsetof(antumbra_transfer_material, specular) == 12, "transfer_material.specular offset");
 _Static_assert(offsetof(antumbra_transfer_material, phong_exponent) == 24, "transfer_material.phong_exponent offset");
 _Static_assert(offsetof(antumbra_transfer_material, eye) == 28, "transfer_material.eye offset");

@@ -461,9 +461,11 @@ static void prepare(relit *r, antumbra_transfer *set)
         r->view_directions[3 * v + 2] = CAMERA_DIR.z;
     }
     antumbra_transfer_material_init(&r->material);
-    r->material.diffuse[0] = 0.8f;
-    r->material.diffuse[1] = 0.7f;
-    r->material.diffuse[2] = 0.6f;
+    r->material.albedo[0] = 0.8f;
+    r->material.albedo[1] = 0.7f;
+    r->material.albedo[2] = 0.6f;
+    /* Glossy SH and MRT sets hold only the glossy term: their baked lobe as it is. */
+    r->material.specular[0] = r->material.specular[1] = r->material.specular[2] = 1.0f;
     r->material.view_directions = r->view_directions;
 }
 

@@ -516,7 +516,7 @@ typedef struct antumbra_hemi_shading_options {
  *
  * - diffuse: `albedo/π ∫ L V max(0, n·ω) dω = albedo/π Σ_k T_k l_k`;
  * - glossy: `∫ L V f_r max(0, n·ω) dω` with
- *   `f_r(ω) = specular (s + 2)/(2π) max(0, ω·r)^s` and `s = exponent`, so a
+ *   `f_r(ω) = specular (s + 2)/(2π) max(0, ω·r)^s` and `s = phong_exponent`, so a
  *   viewer along the normal of an unoccluded vertex under unit radiance sees
  *   exactly `specular`; 0 when the viewer is behind the surface or at the vertex.
  *
@@ -539,7 +539,7 @@ typedef struct antumbra_hemi_material {
    * sampled once per mask cell (cells about 3.6° wide): exponents up to about 64
    * are resolved well.
    */
-  float exponent;
+  float phong_exponent;
   /**
    * The viewer's world position, used when `view_directions` is NULL. Finite,
    * within ±1e12. Default (0, 0, 0).
@@ -802,9 +802,11 @@ typedef struct antumbra_transfer_options {
 /**
  * The surface and viewer of `antumbra_transfer_shade`. Fill with
  * `antumbra_transfer_material_init`, then change fields (fields may be added at
- * the end in later versions).
+ * the end in later versions). Its fields mean and default what those of
+ * `antumbra_hemi_material` of the same names do: a white Lambertian surface
+ * unless `specular` is set.
  *
- * Outgoing radiance toward the viewer, per kind: diffuse: `diffuse/π · Σ_j t_j
+ * Outgoing radiance toward the viewer, per kind: diffuse: `albedo/π · Σ_j t_j
  * l_j` (t the transfer vector, l the lighting); glossy SH: `specular ·` the
  * transferred radiance convolved with a Phong lobe of `phong_exponent` about the
  * mirror direction (the 2002 baseline); MRT: `specular ·` the bilinear blend of
@@ -817,10 +819,12 @@ typedef struct antumbra_transfer_material {
   /**
    * Diffuse albedo (linear RGB, finite, >= 0), diffuse kind. Default (1, 1, 1).
    */
-  float diffuse[3];
+  float albedo[3];
   /**
-   * Specular colour (finite, >= 0) multiplying the glossy SH and MRT results.
-   * Default (1, 1, 1).
+   * Specular reflectance `ρ_s` (linear RGB, finite, >= 0) multiplying the
+   * glossy SH and MRT results. (0, 0, 0), the default, turns the glossy term
+   * off, so glossy SH and MRT sets (which hold only a glossy term) shade to
+   * black until it is set; (1, 1, 1) shows the baked lobe as it is.
    */
   float specular[3];
   /**
@@ -1282,7 +1286,7 @@ void antumbra_hemi_shading_options_init(struct antumbra_hemi_shading_options *op
 
 /**
  * Writes the default material: albedo (1, 1, 1), no glossy term (specular 0),
- * exponent 16, eye at the origin, no per-vertex albedo or view directions.
+ * Phong exponent 16, eye at the origin, no per-vertex albedo or view directions.
  *
  * @param material the material to fill; every field is written.
  *
@@ -2092,8 +2096,9 @@ void antumbra_transfer_options_init(struct antumbra_transfer_options *options);
 #endif
 
 /**
- * Writes the default material: diffuse and specular (1, 1, 1), Phong exponent
- * 16, eye at the origin, no per-vertex view directions.
+ * Writes the default material, that of `antumbra_hemi_material_init`: albedo
+ * (1, 1, 1), no glossy term (specular 0), Phong exponent 16, eye at the origin,
+ * no per-vertex view directions. Set `specular` to shade glossy SH and MRT sets.
  *
  * @param material the material to fill; every field is written.
  *

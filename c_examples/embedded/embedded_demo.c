@@ -399,7 +399,7 @@ static antumbra_result attempt_hemi_shade(void)
     struct antumbra_hemi_material material;
     antumbra_hemi_material_init(&material);
     material.specular[0] = material.specular[1] = material.specular[2] = 0.3f;
-    material.exponent = 12.0f;
+    material.phong_exponent = 12.0f;
     material.eye[0] = 3.0f, material.eye[1] = 4.0f, material.eye[2] = 5.0f;
     return antumbra_hemi_shade(&mesh, scene_normals, NULL, &options, sky, &material, rgb, NULL, NULL);
 }

@@ -332,7 +332,7 @@ mod shade_batch {
         let n = set.coeff_count();
         let lighting: Vec<[f32; 3]> = (0..n).map(|i| [0.5, 0.4, 0.3 / (i + 1) as f32]).collect();
         let mut out = vec![[0.0f32; 3]; set.vertex_count()];
-        let material = Material::default();
+        let material = Material::glossy(1.0);
         bencher
             .counter(divan::counter::ItemsCount::new(set.vertex_count()))
             .bench_local(|| {

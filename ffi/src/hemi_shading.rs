@@ -182,7 +182,7 @@ pub const ANTUMBRA_HEMI_NEAR_CELLS: f32 = 3.0;
 ///
 /// - diffuse: `albedo/π ∫ L V max(0, n·ω) dω = albedo/π Σ_k T_k l_k`;
 /// - glossy: `∫ L V f_r max(0, n·ω) dω` with
-///   `f_r(ω) = specular (s + 2)/(2π) max(0, ω·r)^s` and `s = exponent`, so a
+///   `f_r(ω) = specular (s + 2)/(2π) max(0, ω·r)^s` and `s = phong_exponent`, so a
 ///   viewer along the normal of an unoccluded vertex under unit radiance sees
 ///   exactly `specular`; 0 when the viewer is behind the surface or at the vertex.
 ///
@@ -200,7 +200,7 @@ pub struct antumbra_hemi_material {
     /// Phong exponent `s` of the glossy lobe (finite, >= 0). Default 16. The lobe is
     /// sampled once per mask cell (cells about 3.6° wide): exponents up to about 64
     /// are resolved well.
-    pub exponent: f32,
+    pub phong_exponent: f32,
     /// The viewer's world position, used when `view_directions` is NULL. Finite,
     /// within ±1e12. Default (0, 0, 0).
     pub eye: [f32; 3],
@@ -229,7 +229,7 @@ const DEFAULT_EXPONENT: f32 = 16.0;
 const DEFAULT_MATERIAL: antumbra_hemi_material = antumbra_hemi_material {
     albedo: [1.0; 3],
     specular: [0.0; 3],
-    exponent: DEFAULT_EXPONENT,
+    phong_exponent: DEFAULT_EXPONENT,
     eye: [0.0; 3],
     vertex_albedo: core::ptr::null(),
     view_directions: core::ptr::null(),
@@ -259,7 +259,7 @@ pub unsafe extern "C" fn antumbra_hemi_shading_options_init(
 }
 
 /// Writes the default material: albedo (1, 1, 1), no glossy term (specular 0),
-/// exponent 16, eye at the origin, no per-vertex albedo or view directions.
+/// Phong exponent 16, eye at the origin, no per-vertex albedo or view directions.
 ///
 /// @param material the material to fill; every field is written.
 ///
@@ -769,16 +769,16 @@ unsafe fn read_material<'a>(
     let m = *unsafe { raw::reference(material, "material") }?;
     let albedo = check_reflectance(m.albedo, "material->albedo")?;
     let specular = check_reflectance(m.specular, "material->specular")?;
-    let exponent = m.exponent;
+    let exponent = m.phong_exponent;
     if !exponent.is_finite() {
         return Err(Error::new(
             ANTUMBRA_RESULT_NON_FINITE,
-            message!("material->exponent is {exponent}; it must be finite"),
+            message!("material->phong_exponent is {exponent}; it must be finite"),
         ));
     }
     if exponent < 0.0 {
         return Err(Error::invalid(message!(
-            "material->exponent is {exponent}; it must be >= 0"
+            "material->phong_exponent is {exponent}; it must be >= 0"
         )));
     }
     let eye = Vec3::from(m.eye);

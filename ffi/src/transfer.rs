@@ -195,9 +195,11 @@ pub struct antumbra_transfer_info {
 
 /// The surface and viewer of `antumbra_transfer_shade`. Fill with
 /// `antumbra_transfer_material_init`, then change fields (fields may be added at
-/// the end in later versions).
+/// the end in later versions). Its fields mean and default what those of
+/// `antumbra_hemi_material` of the same names do: a white Lambertian surface
+/// unless `specular` is set.
 ///
-/// Outgoing radiance toward the viewer, per kind: diffuse: `diffuse/π · Σ_j t_j
+/// Outgoing radiance toward the viewer, per kind: diffuse: `albedo/π · Σ_j t_j
 /// l_j` (t the transfer vector, l the lighting); glossy SH: `specular ·` the
 /// transferred radiance convolved with a Phong lobe of `phong_exponent` about the
 /// mirror direction (the 2002 baseline); MRT: `specular ·` the bilinear blend of
@@ -209,9 +211,11 @@ pub struct antumbra_transfer_info {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct antumbra_transfer_material {
     /// Diffuse albedo (linear RGB, finite, >= 0), diffuse kind. Default (1, 1, 1).
-    pub diffuse: [f32; 3],
-    /// Specular colour (finite, >= 0) multiplying the glossy SH and MRT results.
-    /// Default (1, 1, 1).
+    pub albedo: [f32; 3],
+    /// Specular reflectance `ρ_s` (linear RGB, finite, >= 0) multiplying the
+    /// glossy SH and MRT results. (0, 0, 0), the default, turns the glossy term
+    /// off, so glossy SH and MRT sets (which hold only a glossy term) shade to
+    /// black until it is set; (1, 1, 1) shows the baked lobe as it is.
     pub specular: [f32; 3],
     /// Phong exponent of the glossy SH run time (finite, >= 0); MRT bakes its
     /// BRDF and ignores it. Default 16.
@@ -226,8 +230,8 @@ pub struct antumbra_transfer_material {
 }
 
 const DEFAULT_MATERIAL: antumbra_transfer_material = antumbra_transfer_material {
-    diffuse: [1.0; 3],
-    specular: [1.0; 3],
+    albedo: [1.0; 3],
+    specular: [0.0; 3],
     phong_exponent: 16.0,
     eye: [0.0; 3],
     view_directions: core::ptr::null(),
@@ -289,8 +293,9 @@ pub unsafe extern "C" fn antumbra_transfer_options_init(options: *mut antumbra_t
     });
 }
 
-/// Writes the default material: diffuse and specular (1, 1, 1), Phong exponent
-/// 16, eye at the origin, no per-vertex view directions.
+/// Writes the default material, that of `antumbra_hemi_material_init`: albedo
+/// (1, 1, 1), no glossy term (specular 0), Phong exponent 16, eye at the origin,
+/// no per-vertex view directions. Set `specular` to shade glossy SH and MRT sets.
 ///
 /// @param material the material to fill; every field is written.
 ///
@@ -1026,7 +1031,7 @@ unsafe fn read_material<'a>(
     vertices: usize,
 ) -> Result<(Material, View<'a>), Error> {
     for (name, rgb) in [
-        ("material->diffuse", m.diffuse),
+        ("material->albedo", m.albedo),
         ("material->specular", m.specular),
     ] {
         for (i, c) in rgb.into_iter().enumerate() {
@@ -1073,7 +1078,7 @@ unsafe fn read_material<'a>(
         View::Directions(d)
     };
     let material = Material {
-        diffuse: m.diffuse,
+        albedo: m.albedo,
         specular: m.specular,
         phong_exponent: m.phong_exponent,
     };

@@ -151,7 +151,7 @@ fn glossy_material() -> antumbra_hemi_material {
     antumbra_hemi_material {
         albedo: [0.8, 0.6, 0.4],
         specular: [0.3, 0.25, 0.2],
-        exponent: 12.0,
+        phong_exponent: 12.0,
         eye: [0.5, -4.0, 2.0],
         ..default_material()
     }
@@ -297,7 +297,7 @@ impl<'a> Reference<'a> {
             _ => TransferMethod::Downsampled(&table),
         };
         let light = sh_rgb::<N>(lighting);
-        let lobe = PhongLobe::new(material.exponent).unwrap();
+        let lobe = PhongLobe::new(material.phong_exponent).unwrap();
         let core_material = Material {
             albedo: Vec3::from(material.albedo),
             specular: Vec3::from(material.specular),
@@ -685,7 +685,7 @@ fn per_vertex_albedo_and_view_directions_match_core_per_vertex() {
     );
     assert_eq!(result, ANTUMBRA_RESULT_OK, "{}", last_error());
     let table = TransferTable::<9>::new();
-    let lobe = PhongLobe::new(base.exponent).unwrap();
+    let lobe = PhongLobe::new(base.phong_exponent).unwrap();
     let scene = HemiScene::new(ClusteredMesh::unclustered(core_mesh));
     let batch = BatchOptions {
         normal_offset: 0.01,
@@ -843,7 +843,7 @@ fn a_lone_triangle_gets_the_unoccluded_closed_forms() {
     let material = antumbra_hemi_material {
         albedo: [0.5, 0.25, 1.0],
         specular: [0.2, 0.4, 0.0],
-        exponent: 8.0,
+        phong_exponent: 8.0,
         view_directions: [0.0f32, 0.0, 1.0].repeat(3).leak().as_ptr(),
         ..default_material()
     };
@@ -928,7 +928,7 @@ fn init_functions_write_the_documented_defaults() {
     let mut material = antumbra_hemi_material {
         albedo: [f32::NAN; 3],
         specular: [f32::NAN; 3],
-        exponent: -1.0,
+        phong_exponent: -1.0,
         eye: [f32::NAN; 3],
         vertex_albedo: 0x40 as *const f32,
         view_directions: 0x40 as *const f32,
@@ -937,7 +937,7 @@ fn init_functions_write_the_documented_defaults() {
     unsafe { antumbra_hemi_material_init(&mut material) };
     assert_eq!(material.albedo, [1.0; 3]);
     assert_eq!(material.specular, [0.0; 3]);
-    assert_eq!(material.exponent, 16.0);
+    assert_eq!(material.phong_exponent, 16.0);
     assert_eq!(material.eye, [0.0; 3]);
     assert!(material.vertex_albedo.is_null() && material.view_directions.is_null());
     // Layout (no padding): the raster options first.
@@ -970,7 +970,7 @@ fn init_functions_write_the_documented_defaults() {
     );
     assert_eq!(size_of::<antumbra_hemi_shading_options>(), raster_size + 24);
     assert_eq!(offset_of!(antumbra_hemi_material, specular), 12);
-    assert_eq!(offset_of!(antumbra_hemi_material, exponent), 24);
+    assert_eq!(offset_of!(antumbra_hemi_material, phong_exponent), 24);
     assert_eq!(offset_of!(antumbra_hemi_material, eye), 28);
     assert_eq!(offset_of!(antumbra_hemi_material, vertex_albedo), 40);
     assert_eq!(
@@ -1013,7 +1013,7 @@ fn a_shader_follows_a_deforming_mesh_frame_after_frame() {
     for (frame, twist) in [0.0f32, 0.5, 1.2, 2.0].into_iter().enumerate() {
         let (mesh, far) = (blob(9, 12, twist), blob(5, 6, twist));
         let (view, far_view) = (mesh.view(), far.view());
-        material.exponent = [12.0, 12.0, 40.0, 3.0][frame];
+        material.phong_exponent = [12.0, 12.0, 40.0, 3.0][frame];
         let what = format!("frame {frame}");
         let mut with_and_without = Vec::new();
         for far_arg in [Some(&far_view), None] {
@@ -1372,7 +1372,7 @@ fn a_frame_through_a_shader_allocates_nothing() {
         let probe = std::hint::black_box(vec![1u8; 16]);
         assert!(allocations() > before && probe.len() == 16);
         for (frame, exponent) in [10.0f32, 10.0, 30.0].into_iter().enumerate() {
-            material.exponent = exponent;
+            material.phong_exponent = exponent;
             let before = allocations();
             // SAFETY: a live shader and arrays of the right sizes.
             let results = unsafe {
@@ -1718,17 +1718,23 @@ fn every_bad_input_has_its_code_a_message_naming_it_and_leaves_outputs_untouched
         ),
         (
             antumbra_hemi_material {
-                exponent: -2.0,
+                phong_exponent: -2.0,
                 ..good
             },
-            expect(ANTUMBRA_RESULT_INVALID_ARGUMENT, "material->exponent is -2"),
+            expect(
+                ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                "material->phong_exponent is -2",
+            ),
         ),
         (
             antumbra_hemi_material {
-                exponent: f32::INFINITY,
+                phong_exponent: f32::INFINITY,
                 ..good
             },
-            expect(ANTUMBRA_RESULT_NON_FINITE, "material->exponent is inf"),
+            expect(
+                ANTUMBRA_RESULT_NON_FINITE,
+                "material->phong_exponent is inf",
+            ),
         ),
         (
             antumbra_hemi_material {

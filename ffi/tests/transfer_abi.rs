@@ -199,7 +199,7 @@ fn material(eye: [f32; 3]) -> antumbra_transfer_material {
     // SAFETY: fully written by init.
     let mut m = unsafe { m.assume_init() };
     m.eye = eye;
-    m.diffuse = [0.9, 0.7, 0.5];
+    m.albedo = [0.9, 0.7, 0.5];
     m.specular = [0.5, 0.6, 0.7];
     m.phong_exponent = 12.0;
     m
@@ -207,7 +207,7 @@ fn material(eye: [f32; 3]) -> antumbra_transfer_material {
 
 fn core_material(m: &antumbra_transfer_material) -> Material {
     Material {
-        diffuse: m.diffuse,
+        albedo: m.albedo,
         specular: m.specular,
         phong_exponent: m.phong_exponent,
     }
@@ -499,4 +499,33 @@ fn one_set_shades_identically_from_many_threads() {
     });
     // SAFETY: from bake, destroyed once.
     unsafe { antumbra_transfer_destroy(set) };
+}
+
+/// The two materials of the C API speak one vocabulary: the fields of the same
+/// name start from the same defaults (a white Lambertian surface, no glossy
+/// term, Phong exponent 16, eye at the origin).
+#[test]
+fn hemi_and_transfer_materials_default_alike() {
+    let mut transfer = std::mem::MaybeUninit::<antumbra_transfer_material>::uninit();
+    let mut hemi = std::mem::MaybeUninit::<antumbra_hemi_material>::uninit();
+    // SAFETY: valid pointers to write; each init writes every field.
+    let (transfer, hemi) = unsafe {
+        antumbra_transfer_material_init(transfer.as_mut_ptr());
+        antumbra_hemi_material_init(hemi.as_mut_ptr());
+        (transfer.assume_init(), hemi.assume_init())
+    };
+    assert_eq!(transfer.albedo, hemi.albedo);
+    assert_eq!(transfer.specular, hemi.specular);
+    assert_eq!(transfer.phong_exponent, hemi.phong_exponent);
+    assert_eq!(transfer.eye, hemi.eye);
+    assert_eq!(
+        (transfer.albedo, transfer.specular, transfer.phong_exponent),
+        ([1.0; 3], [0.0; 3], 16.0)
+    );
+    // Core's Rust material has the same defaults.
+    let core = Material::default();
+    assert_eq!(
+        (core.albedo, core.specular, core.phong_exponent),
+        (transfer.albedo, transfer.specular, transfer.phong_exponent)
+    );
 }

@@ -55,7 +55,7 @@ class TransferOptions(C.Structure):
 
 class TransferMaterial(C.Structure):
     _fields_ = [
-        ("diffuse", C.c_float * 3), ("specular", C.c_float * 3), ("phong_exponent", C.c_float),
+        ("albedo", C.c_float * 3), ("specular", C.c_float * 3), ("phong_exponent", C.c_float),
         ("eye", C.c_float * 3), ("view_directions", C.POINTER(C.c_float)),
     ]
 
@@ -128,7 +128,7 @@ def bake_diffuse(lib, checks, view, options, n):
         return None, None
     material = TransferMaterial()
     lib.antumbra_transfer_material_init(C.byref(material))
-    material.diffuse[0] = np.pi
+    material.albedo[0] = np.pi
     vectors = np.zeros((n, 9))
     rgb = np.zeros((n, 3), np.float32)
     for j in range(9):

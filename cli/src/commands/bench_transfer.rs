@@ -276,7 +276,7 @@ fn time_shade(
 ) -> Result<f64> {
     let material = Material {
         phong_exponent: EXPONENT,
-        ..Material::default()
+        ..Material::glossy(1.0)
     };
     let mut out = vec![[0.0f32; 3]; set.vertex_count()];
     set.shade(lighting, View::Eye(eye), &material, components, &mut out)

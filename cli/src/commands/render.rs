@@ -145,10 +145,11 @@ fn run_relight(args: &RenderArgs, bake: &std::path::Path) -> Result<()> {
     let loaded = started.elapsed();
 
     let shading = Instant::now();
+    // Glossy SH and MRT sets hold only the glossy term: the baked lobe as it is.
     let material = Material {
-        diffuse: RELIGHT_ALBEDO,
+        albedo: RELIGHT_ALBEDO,
         phong_exponent: args.exponent,
-        ..Material::default()
+        ..Material::glossy(1.0)
     };
     let mut radiance = vec![[0.0f32; 3]; set.vertex_count()];
     set.shade(

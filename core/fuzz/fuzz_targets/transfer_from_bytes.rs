@@ -20,9 +20,9 @@ fn check(data: &[u8]) {
     assert_eq!(set.to_bytes(), data, "a loaded file must round-trip");
     let lighting = vec![[0.5f32, 0.25, 0.125]; set.coeff_count()];
     let mut out = vec![[0.0f32; 3]; set.vertex_count()];
-    set.shade(&lighting, View::Eye([0.3, 2.0, 1.0]), &Material::default(), None, &mut out)
+    set.shade(&lighting, View::Eye([0.3, 2.0, 1.0]), &Material::glossy(1.0), None, &mut out)
         .expect("valid arguments");
-    set.shade(&lighting, View::Eye([0.3, 2.0, 1.0]), &Material::default(), Some(1), &mut out)
+    set.shade(&lighting, View::Eye([0.3, 2.0, 1.0]), &Material::glossy(1.0), Some(1), &mut out)
         .expect("valid arguments");
 }
 

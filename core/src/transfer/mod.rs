@@ -69,7 +69,7 @@
 //! let mut lighting = [[0.0f32; 3]; 9];
 //! lighting[0] = [2.0 * core::f32::consts::PI.sqrt(); 3];
 //! let mut rgb = vec![[0.0f32; 3]; loaded.vertex_count()];
-//! loaded.shade(&lighting, View::Eye([0.0, 0.5, 3.0]), &Material::default(), None, &mut rgb)?;
+//! loaded.shade(&lighting, View::Eye([0.0, 0.5, 3.0]), &Material::glossy(1.0), None, &mut rgb)?;
 //! // A normalised Phong lobe under unit radiance reflects 1; with 3 bands the SH
 //! // projection of radiance that stops at the horizon overshoots near the normal
 //! // (1.25 at the pole for the band-limited step), so expect 1.0 to 1.25.

@@ -462,22 +462,42 @@ pub fn shade_mrt_pca(
     pca_at_tap(&weights[..components], frame_terms, stride, tap)
 }
 
-/// Surface parameters applied at run time.
+/// Surface parameters applied at run time, in the vocabulary of the
+/// hemispherical material (`antumbra_hemi_material` in the C API): `albedo`,
+/// `specular`, `phong_exponent`, with the same defaults, a white Lambertian
+/// surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
-    /// Diffuse albedo (diffuse kind: outgoing = albedo/π · irradiance).
-    pub diffuse: [f32; 3],
-    /// Specular colour multiplying the glossy SH and MRT results.
+    /// Diffuse albedo per channel (diffuse kind: outgoing = albedo/π ·
+    /// irradiance). Default (1, 1, 1).
+    pub albedo: [f32; 3],
+    /// Specular reflectance `ρ_s` per channel, multiplying the glossy SH and MRT
+    /// results. (0, 0, 0), the default, turns the glossy term off as in the
+    /// hemispherical material, so glossy SH and MRT sets (which hold only a
+    /// glossy term) shade to black until it is set; (1, 1, 1) shows the baked
+    /// lobe as it is.
     pub specular: [f32; 3],
-    /// Phong exponent of the glossy SH run time (MRT bakes its BRDF).
+    /// Phong exponent of the glossy SH run time (MRT bakes its BRDF). Default 16.
     pub phong_exponent: f32,
+}
+
+impl Material {
+    /// The default material with specular reflectance `specular` in every
+    /// channel: `Material::glossy(1.0)` shows a glossy SH or MRT set's baked lobe
+    /// as it is.
+    pub fn glossy(specular: f32) -> Self {
+        Material {
+            specular: [specular; 3],
+            ..Material::default()
+        }
+    }
 }
 
 impl Default for Material {
     fn default() -> Self {
         Material {
-            diffuse: [1.0; 3],
-            specular: [1.0; 3],
+            albedo: [1.0; 3],
+            specular: [0.0; 3],
             phong_exponent: 16.0,
         }
     }
@@ -733,7 +753,7 @@ impl TransferSet {
         let specular = Vec3::from_array(material.specular);
         match (&self.payload, self.kind) {
             (Payload::Dense(data), TransferKind::Diffuse) => {
-                let albedo = Vec3::from_array(material.diffuse) / core::f32::consts::PI;
+                let albedo = Vec3::from_array(material.albedo) / core::f32::consts::PI;
                 for_each_vertex(out, |v| {
                     albedo * shade_diffuse(&data[v * n..(v + 1) * n], lighting)
                 });

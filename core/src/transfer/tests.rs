@@ -713,7 +713,7 @@ fn pca_with_all_components_reproduces_the_uncompressed_shading() {
     let v = set.vertex_count();
     let compressed = set.compress(v).unwrap();
     let lighting = test_lighting(9);
-    let material = Material::default();
+    let material = Material::glossy(1.0);
     let eye = View::Eye([0.3, -2.0, 3.0]);
     let mut dense = vec![[0.0f32; 3]; v];
     let mut pca = vec![[0.0f32; 3]; v];
@@ -779,7 +779,7 @@ fn clustered_pca_with_every_component_reproduces_the_uncompressed_shading() {
     let set = small_mrt_set(6, 3);
     let v = set.vertex_count();
     let lighting = test_lighting(9);
-    let material = Material::default();
+    let material = Material::glossy(1.0);
     let eye = View::Eye([0.3, -2.0, 3.0]);
     let mut dense = vec![[0.0f32; 3]; v];
     set.shade(&lighting, eye, &material, None, &mut dense)
@@ -820,7 +820,7 @@ fn clustered_pca_shading_equals_shading_its_reconstruction() {
             .shade(
                 &lighting,
                 View::Eye(eye.to_array()),
-                &Material::default(),
+                &Material::glossy(1.0),
                 Some(k),
                 &mut out,
             )
@@ -1417,7 +1417,7 @@ fn shading_validates_its_arguments() {
     let set = small_mrt_set(4, 2);
     let lighting = test_lighting(4);
     let mut out = vec![[7.0f32; 3]; set.vertex_count()];
-    let m = Material::default();
+    let m = Material::glossy(1.0);
     assert!(matches!(
         set.shade(&lighting[..3], View::Eye([0.0; 3]), &m, None, &mut out),
         Err(ShadeError::LightingLength { .. })
@@ -1533,7 +1533,7 @@ fn pca_with_every_component_keeps_a_direction_of_tiny_variance() {
     let lighting = [[1.0f32; 3]];
     let dirs = [[0.0f32, 0.0, 1.0]; 3];
     let (mut dense, mut comp) = ([[0.0f32; 3]; 3], [[0.0f32; 3]; 3]);
-    let material = Material::default();
+    let material = Material::glossy(1.0);
     set.shade(
         &lighting,
         View::Directions(&dirs),
@@ -1577,7 +1577,7 @@ fn shading_does_not_depend_on_the_view_vectors_length() {
     // zero (|x| + |y| + z overflowed f32) where (1, 0, 1) did not.
     let set = TransferSet::from_bytes(&mrt_file(&[[1.0, 2.0, 3.0, 4.0]])).unwrap();
     let lighting = [[1.0f32; 3]];
-    let material = Material::default();
+    let material = Material::glossy(1.0);
     let shade = |d: [f32; 3]| {
         let mut out = [[0.0f32; 3]; 1];
         set.shade(&lighting, View::Directions(&[d]), &material, None, &mut out)

@@ -70,7 +70,7 @@ fn render(context: &DemoContext) -> Result<(image::RgbImage, String)> {
     let camera = context.bunny_camera_for(&bunny.bounds());
     let eye = View::Eye(camera.position().to_array());
     let base = Material {
-        diffuse: BASE_ALBEDO,
+        albedo: BASE_ALBEDO,
         ..Material::default()
     };
     let glaze = Material {
