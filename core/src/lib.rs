@@ -15,6 +15,9 @@
 //!   built with obvhs).
 //! - [`hemi`]: hemispherical rasterization of whole meshes per receiver, and the
 //!   spherical-harmonic transfer and shading built on it ([`sh`]).
+//! - [`lightmap`]: per-texel receivers from a mesh's UV atlas (covered and
+//!   touched texels, a gutter for bilinear filtering, and a lift out of
+//!   geometry against leaks), for bakes stored in textures.
 //! - [`ssv`]: exact soft shadows from planar area lights (soft shadow volumes with
 //!   the lazily built 3D wedge hierarchy): per receiver, the visibility bits of `N`
 //!   light samples, exactly the answers of `N` shadow rays, from silhouette edges,
@@ -69,6 +72,7 @@ extern crate std;
 pub mod fallible;
 pub mod geom;
 pub mod hemi;
+pub mod lightmap;
 mod prefetch;
 pub mod raycast;
 pub mod rng;
