@@ -528,6 +528,8 @@ fn bake_error(error: BakeError) -> Error {
             "mesh->vertex_count"
         }
         BakeError::BrdfNotFinite => "options->brdf_params",
+        // The C API bakes vertices only.
+        BakeError::Point { .. } => "points",
         BakeError::TooLarge { .. } => {
             return Error::new(
                 ANTUMBRA_RESULT_OUT_OF_MEMORY,

@@ -170,7 +170,7 @@ pub fn bake_rays(
         normal,
         options.ray_offset,
         options.seed,
-        vertex,
+        vertex as u64,
         pass,
         options.rays,
         sampling_of(&options.measurement),
@@ -193,7 +193,7 @@ fn for_each_ray(
     normal: Vec3,
     ray_offset: f32,
     seed: u64,
-    vertex: usize,
+    stream: u64,
     pass: u32,
     rays: u32,
     sampling: Sampling,
@@ -201,7 +201,7 @@ fn for_each_ray(
 ) {
     let frame = Frame::from_normal(normal);
     let origin = position + normal * ray_offset;
-    let mut rng = SplitMix64::for_vertex(seed, vertex as u64, u64::from(pass));
+    let mut rng = SplitMix64::for_vertex(seed, stream, u64::from(pass));
     let mut strata = Stratified::new(rays);
     while let Some((u, v)) = strata.next(&mut rng) {
         let local = hemisphere_direction(sampling, u, v);
@@ -231,7 +231,7 @@ pub fn bake<C: RayCaster + Sync + ?Sized>(
         normals,
         caster,
         options,
-        all,
+        Targets::Vertices(all),
         cfg!(feature = "parallel"),
     )
 }
@@ -262,7 +262,7 @@ pub fn bake_vertices<C: RayCaster + Sync + ?Sized>(
         normals,
         caster,
         options,
-        vertices,
+        Targets::Vertices(vertices),
         cfg!(feature = "parallel"),
     )
 }
@@ -279,8 +279,53 @@ pub fn bake_serial<C: RayCaster + Sync + ?Sized>(
         normals,
         caster,
         options,
-        0..mesh.vertex_count(),
+        Targets::Vertices(0..mesh.vertex_count()),
         false,
+    )
+}
+
+/// Bakes the transfer of `points` (lightmap texels, probes) against `mesh`
+/// instead of its vertices: the set holds one entry per point, in order, with
+/// the point's position and normal. Each point draws its rays from its own
+/// random streams, so a point's result does not depend on the others, and the
+/// set is identical serial or parallel (`parallel` runs on rayon's pool with
+/// the `parallel` feature).
+///
+/// With bounces, pass `k` at a point reads the mesh's pass `k - 1` at the hit,
+/// interpolated from the hit triangle's vertices: every pass but the last also
+/// runs over the mesh's vertices (as [`bake`]'s passes do), so the cost is the
+/// points' `bounces + 1` passes plus the vertices' `bounces`.
+///
+/// Errors: those of [`bake`], [`BakeError::NoVertices`] for no points, and
+/// [`BakeError::Point`] for a point whose position is not finite or whose normal
+/// is not unit length.
+pub fn bake_points<C: RayCaster + Sync + ?Sized>(
+    mesh: &MeshView<'_>,
+    normals: &[Vec3],
+    caster: &C,
+    points: &[BakePoint],
+    options: &BakeOptions<'_>,
+    parallel: bool,
+) -> Result<TransferSet, BakeError> {
+    if points.is_empty() {
+        return Err(BakeError::NoVertices);
+    }
+    if points.len() > u32::MAX as usize {
+        return Err(BakeError::TooManyVertices(points.len()));
+    }
+    if let Some(index) = points
+        .iter()
+        .position(|p| !p.position.is_finite() || !unit_normal(p.normal))
+    {
+        return Err(BakeError::Point { index });
+    }
+    bake_impl(
+        mesh,
+        normals,
+        caster,
+        options,
+        Targets::Points(points),
+        parallel,
     )
 }
 
@@ -289,12 +334,15 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
     normals: &[Vec3],
     caster: &C,
     options: &BakeOptions<'_>,
-    range: core::ops::Range<usize>,
+    targets: Targets<'_>,
     parallel: bool,
 ) -> Result<TransferSet, BakeError> {
     let coeffs = validate(mesh, normals, options)?;
     let vertices = mesh.vertex_count();
-    let kept = range.len();
+    let kept = match &targets {
+        Targets::Vertices(range) => range.len(),
+        Targets::Points(points) => points.len(),
+    };
     let (kind, projection, grid) = match options.measurement {
         Measurement::Diffuse => (TransferKind::Diffuse, Projection::None, 0),
         Measurement::GlossySh => (TransferKind::GlossySh, Projection::World, 0),
@@ -326,12 +374,25 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
         Measurement::Mrt { .. } => zeros(kept.checked_mul(rows * coeffs))?,
         _ => Vec::new(),
     };
-    let mut measured = zeros(vertices.checked_mul(gathered))?;
+    let sites = match &targets {
+        Targets::Vertices(_) => vertices,
+        Targets::Points(points) => points.len(),
+    };
+    let mut measured = zeros(sites.checked_mul(gathered))?;
     let mut previous = Vec::new();
     let done = AtomicUsize::new(0);
-    let total = vertices * options.bounces as usize + kept;
+    let total = match &targets {
+        Targets::Vertices(_) => vertices * options.bounces as usize + kept,
+        Targets::Points(_) => (vertices + kept) * options.bounces as usize + kept,
+    };
+    let report = options.progress;
+    let progress = |count: usize| {
+        let d = done.fetch_add(count, Ordering::Relaxed) + count;
+        if let Some(report) = report {
+            report(d, total);
+        }
+    };
     for pass in 0..=options.bounces {
-        let mut irradiance = zeros(vertices.checked_mul(coeffs))?;
         let ctx = PassContext {
             mesh,
             normals,
@@ -346,38 +407,85 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
             pass,
             previous: &previous,
         };
-        let progress = options.progress;
-        // The last pass only for the vertices kept; earlier ones for all, which
-        // the next pass reads.
+        // The last pass only for the sites kept; earlier ones for every vertex,
+        // which the next pass reads.
         let last = pass == options.bounces;
-        let work = |vertex: usize, irr: &mut [f32], meas: &mut [f32]| {
-            if last && !range.contains(&vertex) {
-                return;
+        let next_previous = match &targets {
+            Targets::Vertices(range) => {
+                let mut irradiance = zeros(vertices.checked_mul(coeffs))?;
+                let work = |vertex: usize, irr: &mut [f32], meas: &mut [f32]| {
+                    if last && !range.contains(&vertex) {
+                        return;
+                    }
+                    gather(&ctx, Site::vertex(mesh, normals, vertex), irr, meas);
+                    progress(1);
+                };
+                run_vertices(
+                    parallel,
+                    &mut irradiance,
+                    coeffs,
+                    &mut measured,
+                    gathered,
+                    &work,
+                );
+                if projection == Projection::None {
+                    for (m, e) in measured.iter_mut().zip(&irradiance) {
+                        *m += *e;
+                    }
+                }
+                irradiance
             }
-            gather(&ctx, vertex, irr, meas);
-            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-            if let Some(progress) = progress {
-                progress(d, total);
+            Targets::Points(points) => {
+                let mut irradiance = zeros(points.len().checked_mul(coeffs))?;
+                let work = |index: usize, irr: &mut [f32], meas: &mut [f32]| {
+                    let point = points[index];
+                    let site = Site {
+                        position: point.position,
+                        normal: point.normal,
+                        stream: POINT_STREAMS | index as u64,
+                    };
+                    gather(&ctx, site, irr, meas);
+                    progress(1);
+                };
+                run_vertices(
+                    parallel,
+                    &mut irradiance,
+                    coeffs,
+                    &mut measured,
+                    gathered,
+                    &work,
+                );
+                if projection == Projection::None {
+                    for (m, e) in measured.iter_mut().zip(&irradiance) {
+                        *m += *e;
+                    }
+                }
+                if last {
+                    Vec::new()
+                } else {
+                    // The mesh's own pass, which the points' next pass reads at
+                    // its hits: irradiance only.
+                    let mut irradiance = zeros(vertices.checked_mul(coeffs))?;
+                    let mut unused = zeros(Some(vertices))?;
+                    let ctx = PassContext {
+                        projection: Projection::None,
+                        ..ctx
+                    };
+                    let work = |vertex: usize, irr: &mut [f32], meas: &mut [f32]| {
+                        gather(&ctx, Site::vertex(mesh, normals, vertex), irr, meas);
+                        progress(1);
+                    };
+                    run_vertices(parallel, &mut irradiance, coeffs, &mut unused, 1, &work);
+                    irradiance
+                }
             }
         };
-        run_vertices(
-            parallel,
-            &mut irradiance,
-            coeffs,
-            &mut measured,
-            gathered,
-            coeffs,
-            &work,
-        );
-        if projection == Projection::None {
-            for (m, e) in measured.iter_mut().zip(&irradiance) {
-                *m += *e;
-            }
-        }
-        previous = irradiance;
+        previous = next_previous;
     }
-    measured.truncate(range.end * gathered);
-    measured.drain(..range.start * gathered);
+    if let Targets::Vertices(range) = &targets {
+        measured.truncate(range.end * gathered);
+        measured.drain(..range.start * gathered);
+    }
     let data = if let Measurement::Mrt { .. } = options.measurement {
         let b = &brdf_nodes;
         let apply = |v: usize, dst: &mut [f32]| {
@@ -396,10 +504,19 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
     } else {
         measured
     };
-    let normals: Vec<[f32; 3]> = normals[range.clone()]
-        .iter()
-        .map(|n| n.to_array())
-        .collect();
+    let (positions, normals): (Vec<[f32; 3]>, Vec<[f32; 3]>) = match &targets {
+        Targets::Vertices(range) => (
+            range.clone().map(|v| mesh.position(v).to_array()).collect(),
+            normals[range.clone()]
+                .iter()
+                .map(|n| n.to_array())
+                .collect(),
+        ),
+        Targets::Points(points) => (
+            points.iter().map(|p| p.position.to_array()).collect(),
+            points.iter().map(|p| p.normal.to_array()).collect(),
+        ),
+    };
     Ok(TransferSet {
         kind,
         bands: options.bands,
@@ -413,7 +530,7 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
                 _ => super::BrdfInfo::CUSTOM,
             },
         },
-        positions: range.map(|v| mesh.position(v).to_array()).collect(),
+        positions,
         frames: super::frames_of(&normals),
         normals,
         payload: Payload::Dense(data),
@@ -442,7 +559,6 @@ fn run_vertices(
     irr_len: usize,
     measured: &mut [f32],
     meas_len: usize,
-    _coeffs: usize,
     work: &VertexWork<'_>,
 ) {
     #[cfg(feature = "parallel")]
@@ -486,25 +602,67 @@ fn map_vertices(
     }
 }
 
+/// Where one gather happens: a mesh vertex, or a point of [`bake_points`].
+#[derive(Clone, Copy)]
+struct Site {
+    position: Vec3,
+    normal: Vec3,
+    /// The random stream: the vertex index, or [`POINT_STREAMS`] plus the
+    /// point's index.
+    stream: u64,
+}
+
+/// The first random stream of [`bake_points`]'s points, above every vertex's,
+/// so a point never repeats a vertex's rays.
+const POINT_STREAMS: u64 = 1 << 63;
+
+impl Site {
+    fn vertex(mesh: &MeshView<'_>, normals: &[Vec3], vertex: usize) -> Self {
+        Site {
+            position: mesh.position(vertex),
+            normal: normals[vertex],
+            stream: vertex as u64,
+        }
+    }
+}
+
+/// A point [`bake_points`] gathers at instead of a mesh vertex, such as a
+/// lightmap texel's receiver ([`crate::lightmap::TexelReceiver`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BakePoint {
+    /// Where its rays start (moved `ray_offset` along the normal first).
+    pub position: Vec3,
+    /// Its unit normal: the hemisphere and frame of its rays.
+    pub normal: Vec3,
+}
+
+/// What the last pass of a bake covers, and so what its set holds.
+enum Targets<'a> {
+    /// These vertices of the mesh.
+    Vertices(core::ops::Range<usize>),
+    /// These points.
+    Points(&'a [BakePoint]),
+}
+
 /// One pass over one vertex: writes its irradiance transfer `E_pass` and adds the
 /// pass's projection to `measured`. Dispatches to [`gather_n`] compiled for the
 /// coefficient count, so the SH basis per ray is the fixed-band evaluation and the
 /// accumulations are fixed-size loops.
 fn gather<C: RayCaster + ?Sized>(
     ctx: &PassContext<'_, C>,
-    vertex: usize,
+    site: Site,
     irradiance: &mut [f32],
     measured: &mut [f32],
 ) {
     match ctx.coeffs {
-        1 => gather_n::<C, 1>(ctx, vertex, irradiance, measured),
-        4 => gather_n::<C, 4>(ctx, vertex, irradiance, measured),
-        9 => gather_n::<C, 9>(ctx, vertex, irradiance, measured),
-        16 => gather_n::<C, 16>(ctx, vertex, irradiance, measured),
-        25 => gather_n::<C, 25>(ctx, vertex, irradiance, measured),
-        36 => gather_n::<C, 36>(ctx, vertex, irradiance, measured),
-        49 => gather_n::<C, 49>(ctx, vertex, irradiance, measured),
-        64 => gather_n::<C, 64>(ctx, vertex, irradiance, measured),
+        1 => gather_n::<C, 1>(ctx, site, irradiance, measured),
+        4 => gather_n::<C, 4>(ctx, site, irradiance, measured),
+        9 => gather_n::<C, 9>(ctx, site, irradiance, measured),
+        16 => gather_n::<C, 16>(ctx, site, irradiance, measured),
+        25 => gather_n::<C, 25>(ctx, site, irradiance, measured),
+        36 => gather_n::<C, 36>(ctx, site, irradiance, measured),
+        49 => gather_n::<C, 49>(ctx, site, irradiance, measured),
+        64 => gather_n::<C, 64>(ctx, site, irradiance, measured),
         // `validate` admits only 1..=MAX_BANDS bands.
         n => unreachable!("{n} coefficients"),
     }
@@ -512,7 +670,7 @@ fn gather<C: RayCaster + ?Sized>(
 
 fn gather_n<C: RayCaster + ?Sized, const N: usize>(
     ctx: &PassContext<'_, C>,
-    vertex: usize,
+    site: Site,
     irradiance: &mut [f32],
     measured: &mut [f32],
 ) {
@@ -524,11 +682,11 @@ fn gather_n<C: RayCaster + ?Sized, const N: usize>(
     // Projection of incident radiance on Y_i (uniform sampling, 2π/N).
     let w = 2.0 * PI / count;
     for_each_ray(
-        ctx.mesh.position(vertex),
-        ctx.normals[vertex],
+        site.position,
+        site.normal,
         ctx.ray_offset,
         ctx.seed,
-        vertex,
+        site.stream,
         ctx.pass,
         ctx.rays,
         ctx.sampling,

@@ -135,7 +135,8 @@ use alloc::vec::Vec;
 use core::fmt;
 
 pub use engine::{
-    BakeRay, MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_rays, bake_serial, bake_vertices,
+    BakePoint, BakeRay, MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_points, bake_rays, bake_serial,
+    bake_vertices,
 };
 pub use format::FormatError;
 pub use mrt::{
@@ -303,7 +304,8 @@ pub enum BakeError {
     },
     /// More vertices than a file can address.
     TooManyVertices(usize),
-    /// The mesh has no vertex (nothing to bake; a bake file holds at least one).
+    /// The mesh has no vertex, or [`bake_points`] was given no point (nothing to
+    /// bake; a bake file holds at least one).
     NoVertices,
     /// The MRT BRDF's kernel gave a non-finite value, so its node matrix is not
     /// finite.
@@ -312,6 +314,12 @@ pub enum BakeError {
     TooLarge {
         /// Bytes of one of its buffers (`u64::MAX`: the size overflowed).
         bytes: u64,
+    },
+    /// A point of [`bake_points`] has a position that is not finite or a normal
+    /// that is not unit length (within 1e-3).
+    Point {
+        /// The point.
+        index: usize,
     },
     /// The vertex range of [`bake_vertices`] is empty or reaches past the mesh.
     VertexRange {
@@ -340,7 +348,13 @@ impl fmt::Display for BakeError {
                 write!(f, "normals[{index}] is not a finite unit vector")
             }
             BakeError::TooManyVertices(n) => write!(f, "{n} vertices is more than 2^32 - 1"),
-            BakeError::NoVertices => f.write_str("the mesh has no vertices"),
+            BakeError::NoVertices => {
+                f.write_str("the mesh has no vertices (or no points were given)")
+            }
+            BakeError::Point { index } => write!(
+                f,
+                "points[{index}] has a position that is not finite or a normal that is not a unit vector"
+            ),
             BakeError::BrdfNotFinite => f.write_str("brdf.kernel returned a non-finite value"),
             BakeError::TooLarge { bytes } => write!(
                 f,

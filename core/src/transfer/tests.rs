@@ -1590,3 +1590,156 @@ fn shading_does_not_depend_on_the_view_vectors_length() {
         assert!((shade(d) - unit).length() <= 1e-5 * unit.length(), "{d:?}");
     }
 }
+
+/// Points on the ground between the vertices, under and around the box: their
+/// diffuse transfer converges to the brute-force reference as the vertices'
+/// does, and is the same serial or parallel.
+#[test]
+fn point_bakes_converge_to_the_brute_force_reference() {
+    let scene = ground_and_box();
+    let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
+    let caster = BruteForceCaster::new(mesh);
+    let n = 16;
+    let offset = BakeOptions::new(Measurement::Diffuse).ray_offset;
+    let points: Vec<BakePoint> = (0..12)
+        .map(|k| BakePoint {
+            position: Vec3::new(-1.7 + 0.29 * k as f32, 0.37 - 0.11 * k as f32, 0.0),
+            normal: Vec3::Z,
+        })
+        .collect();
+    let reference: Vec<f64> = points
+        .iter()
+        .flat_map(|p| reference_diffuse(&caster, p.position + p.normal * offset, p.normal, n))
+        .collect();
+    let mut errors = Vec::new();
+    for rays in [64u32, 256, 1024, 4096] {
+        let options = options(Measurement::Diffuse, 4, rays);
+        let set = bake_points(&mesh, &scene.normals, &caster, &points, &options, false).unwrap();
+        assert_eq!(set.vertex_count(), points.len());
+        assert_eq!(set.positions()[3], points[3].position.to_array());
+        let got: Vec<f32> = (0..points.len())
+            .flat_map(|p| set.vertex_block(p).unwrap().iter().copied())
+            .collect();
+        errors.push(relative_rms(&got, &reference));
+        let parallel =
+            bake_points(&mesh, &scene.normals, &caster, &points, &options, true).unwrap();
+        assert_eq!(parallel, set);
+    }
+    println!("point bakes against the reference: {errors:?}");
+    for w in errors.windows(2) {
+        assert!(w[1] < w[0] / 1.6, "{errors:?}");
+    }
+    assert!(*errors.last().unwrap() < 0.01, "{errors:?}");
+}
+
+/// A point's result depends on that point alone (its own random streams), and
+/// with a bounce a point at a vertex agrees with the vertex's bake within the
+/// Monte Carlo noise of both (the same passes at independent rays).
+#[test]
+fn point_bakes_are_per_point_and_bounce_like_vertex_bakes() {
+    let scene = ground_and_box();
+    let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
+    let caster = BruteForceCaster::new(mesh);
+    let options = BakeOptions {
+        bounces: 1,
+        albedo: 0.8,
+        ..options(Measurement::Diffuse, 3, 1024)
+    };
+    let vertices: Vec<usize> = (0..GROUND).step_by(3).collect();
+    let points: Vec<BakePoint> = vertices
+        .iter()
+        .map(|&v| BakePoint {
+            position: Vec3::from_array(scene.positions[v]),
+            normal: scene.normals[v],
+        })
+        .collect();
+    let set = bake_points(&mesh, &scene.normals, &caster, &points, &options, false).unwrap();
+    let mut moved = points.clone();
+    moved[0].position += Vec3::new(0.1, 0.0, 0.0);
+    let other = bake_points(&mesh, &scene.normals, &caster, &moved, &options, false).unwrap();
+    assert_ne!(set.vertex_block(0), other.vertex_block(0));
+    for p in 1..points.len() {
+        assert_eq!(set.vertex_block(p), other.vertex_block(p), "point {p}");
+    }
+    let by_vertex = bake(&mesh, &scene.normals, &caster, &options).unwrap();
+    let got: Vec<f32> = (0..points.len())
+        .flat_map(|p| set.vertex_block(p).unwrap().iter().copied())
+        .collect();
+    let want: Vec<f64> = vertices
+        .iter()
+        .flat_map(|&v| {
+            by_vertex
+                .vertex_block(v)
+                .unwrap()
+                .iter()
+                .map(|&x| f64::from(x))
+        })
+        .collect();
+    // Two independent 1,024-ray estimates: each within about 1 % (the
+    // convergence test above), so their difference within a few percent.
+    let difference = relative_rms(&got, &want);
+    println!(
+        "point against vertex bake, 1 bounce: {:.3} %",
+        difference * 100.0
+    );
+    assert!(difference > 0.0 && difference < 0.03, "{difference}");
+    // And the bounce is really there: more light than the direct pass alone.
+    let direct = bake_points(
+        &mesh,
+        &scene.normals,
+        &caster,
+        &points,
+        &BakeOptions {
+            bounces: 0,
+            ..options
+        },
+        false,
+    )
+    .unwrap();
+    let sum = |s: &TransferSet| {
+        (0..points.len())
+            .map(|p| s.vertex_block(p).unwrap()[0])
+            .sum::<f32>()
+    };
+    assert!(
+        sum(&set) > sum(&direct) * 1.01,
+        "{} vs {}",
+        sum(&set),
+        sum(&direct)
+    );
+}
+
+#[test]
+fn point_bakes_refuse_bad_points() {
+    let scene = ground_and_box();
+    let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
+    let caster = BruteForceCaster::new(mesh);
+    let options = options(Measurement::Diffuse, 2, 16);
+    let bake =
+        |points: &[BakePoint]| bake_points(&mesh, &scene.normals, &caster, points, &options, false);
+    assert_eq!(bake(&[]).unwrap_err(), BakeError::NoVertices);
+    let good = BakePoint {
+        position: Vec3::ZERO,
+        normal: Vec3::Z,
+    };
+    for bad in [
+        BakePoint {
+            normal: Vec3::new(0.0, 0.0, 2.0),
+            ..good
+        },
+        BakePoint {
+            normal: Vec3::ZERO,
+            ..good
+        },
+        BakePoint {
+            position: Vec3::new(f32::NAN, 0.0, 0.0),
+            ..good
+        },
+    ] {
+        assert_eq!(
+            bake(&[good, bad]).unwrap_err(),
+            BakeError::Point { index: 1 }
+        );
+    }
+    assert!(bake(&[good]).is_ok());
+}
