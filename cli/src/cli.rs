@@ -273,6 +273,15 @@ pub struct BakeArgs {
     /// every vertex.
     #[arg(long, value_name = "I/N", value_parser = crate::shard::Shard::parse)]
     pub shard: Option<crate::shard::Shard>,
+
+    /// Bake a lightmap instead of the vertices: every texel of a W×H atlas (W
+    /// alone for a square) that the mesh's UV charts (OBJ vt, non-overlapping,
+    /// in [0, 1]) cover or touch, lifted out of geometry, with a 2-texel gutter;
+    /// written as an OpenEXR image with one 32-bit channel per coefficient
+    /// (`T.j` diffuse, `M.i.j` glossy SH, `R.g.j` MRT), row 0 at v = 1. Transfer
+    /// kinds, without --shard or --pca.
+    #[arg(long, value_name = "W[xH]", value_parser = parse_texels)]
+    pub texels: Option<(u32, u32)>,
 }
 
 /// Arguments of `antumbra merge`.
@@ -603,6 +612,26 @@ pub struct VerifyRaycastArgs {
     /// Seed of the random rays.
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub seed: u64,
+}
+
+/// `--texels`: `W` or `WxH`, each side 1..=16384.
+fn parse_texels(text: &str) -> Result<(u32, u32), String> {
+    let side = |s: &str| {
+        s.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|n| (1..=antumbra_core::lightmap::MAX_ATLAS_SIDE).contains(n))
+            .ok_or_else(|| {
+                format!(
+                    "{s:?} is not an atlas side in 1..={}",
+                    antumbra_core::lightmap::MAX_ATLAS_SIDE
+                )
+            })
+    };
+    match text.split_once(['x', 'X']) {
+        Some((w, h)) => Ok((side(w)?, side(h)?)),
+        None => side(text).map(|w| (w, w)),
+    }
 }
 
 /// `--ray-offset`: a finite distance of 0 or more, as the C API's `ray_offset`.

@@ -13,6 +13,7 @@ mod commands;
 mod envmap;
 mod error;
 mod hemi_shading;
+mod lightmap;
 mod mesh;
 mod picture;
 mod progress;

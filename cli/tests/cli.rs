@@ -850,3 +850,174 @@ fn sharded_bakes_merge_into_the_single_bake_byte_for_byte() {
     assert!(!output.status.success());
     assert!(stderr(&output).contains("antumbra merge --pca K"));
 }
+
+/// A floor with a box standing on it as OBJ with texture coordinates: the
+/// floor on the left half of the atlas, each box face its own chart on the
+/// right half. `overlap` puts two box faces on one chart.
+fn floor_and_box_obj(overlap: bool) -> String {
+    let mut text = String::new();
+    let (mut v, mut vt) = (0, 0);
+    let mut quad = |text: &mut String, corners: [[f32; 3]; 4], lo: [f32; 2], hi: [f32; 2]| {
+        let uvs = [lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]];
+        for (p, t) in corners.iter().zip(uvs) {
+            text.push_str(&format!(
+                "v {} {} {}\nvt {} {}\n",
+                p[0], p[1], p[2], t[0], t[1]
+            ));
+        }
+        let i = |k: usize| format!("{}/{}", v + k + 1, vt + k + 1);
+        text.push_str(&format!("f {} {} {} {}\n", i(0), i(1), i(2), i(3)));
+        v += 4;
+        vt += 4;
+    };
+    quad(
+        &mut text,
+        [
+            [-1.0, -1.0, 0.0],
+            [1.0, -1.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 1.0, 0.0],
+        ],
+        [0.0, 0.0],
+        [0.5, 1.0],
+    );
+    let (s, h) = (0.3, 0.4);
+    let faces = [
+        [[-s, -s, h], [s, -s, h], [s, s, h], [-s, s, h]],
+        [[-s, s, 0.0], [s, s, 0.0], [s, -s, 0.0], [-s, -s, 0.0]],
+        [[-s, -s, 0.0], [s, -s, 0.0], [s, -s, h], [-s, -s, h]],
+        [[s, s, 0.0], [-s, s, 0.0], [-s, s, h], [s, s, h]],
+        [[s, -s, 0.0], [s, s, 0.0], [s, s, h], [s, -s, h]],
+        [[-s, s, 0.0], [-s, -s, 0.0], [-s, -s, h], [-s, s, h]],
+    ];
+    for (k, face) in faces.into_iter().enumerate() {
+        let k = if overlap && k == 1 { 0 } else { k };
+        let lo = [0.55 + 0.22 * (k % 2) as f32, 0.05 + 0.3 * (k / 2) as f32];
+        quad(&mut text, face, lo, [lo[0] + 0.15, lo[1] + 0.15]);
+    }
+    text
+}
+
+/// `bake --texels`: the lightmap of a box on a floor, read back from its
+/// OpenEXR image: one channel per coefficient, open floor near the unoccluded
+/// value, the floor by the box darker, nothing outside the charts and gutter;
+/// meshes without UVs, overlapping charts and bad sizes are clear errors.
+#[test]
+fn bake_texels_writes_a_lightmap_of_the_uv_atlas() {
+    let dir = scratch("bake-texels");
+    let obj = dir.join("floor-box.obj");
+    std::fs::write(&obj, floor_and_box_obj(false)).unwrap();
+    let exr_path = dir.join("floor-box.exr");
+    let output = antumbra(&[
+        "bake",
+        "--kind",
+        "diffuse",
+        "--bands",
+        "4",
+        "--rays",
+        "1024",
+        "--texels",
+        "64x32",
+        "--mesh",
+        obj.to_str().unwrap(),
+        "-o",
+        exr_path.to_str().unwrap(),
+    ]);
+    assert_success(&output);
+    assert!(
+        stdout(&output).contains("lifted out of geometry"),
+        "{}",
+        stdout(&output)
+    );
+    use exr::prelude::*;
+    let image = read_all_flat_layers_from_file(&exr_path).unwrap();
+    let layer = &image.layer_data[0];
+    assert_eq!((layer.size.0, layer.size.1), (64, 32));
+    let names: Vec<String> = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    let expected: Vec<String> = (0..16).map(|j| format!("T.{j:02}")).collect();
+    assert_eq!(names, expected);
+    // Texel (x, y) is at image row 31 - y.
+    let dc = |x: usize, y: usize| match &layer.channel_data.list[0].sample_data {
+        FlatSamples::F32(samples) => samples[(31 - y) * 64 + x],
+        other => panic!("{other:?}"),
+    };
+    // The floor's corner sees nearly the whole sky: Y00 π = 0.886 unoccluded.
+    let corner = dc(0, 0);
+    assert!(corner > 0.82 && corner < 0.9, "{corner}");
+    // Beside the box's wall (floor x = 0.31..0.38, the texel after the wall's).
+    let beside = dc(21, 16);
+    println!("lightmap DC: open floor {corner}, beside the box {beside}");
+    assert!(
+        beside < corner - 0.1,
+        "{beside} by the box, {corner} in the open"
+    );
+    // Above and right of the box's charts, beyond the gutter: nothing baked.
+    assert_eq!(dc(62, 30), 0.0);
+    // Every value finite.
+    for channel in &layer.channel_data.list {
+        let FlatSamples::F32(samples) = &channel.sample_data else {
+            panic!()
+        };
+        assert!(samples.iter().all(|v| v.is_finite()));
+    }
+
+    let bare = dir.join("no-uv.obj");
+    std::fs::write(&bare, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let output = antumbra(&[
+        "bake",
+        "--kind",
+        "diffuse",
+        "--texels",
+        "16",
+        "--mesh",
+        bare.to_str().unwrap(),
+        "-o",
+        dir.join("x.exr").to_str().unwrap(),
+    ]);
+    assert!(!output.status.success());
+    assert!(
+        stderr(&output).contains("texture coordinates"),
+        "{}",
+        stderr(&output)
+    );
+    let overlapping = dir.join("overlap.obj");
+    std::fs::write(&overlapping, floor_and_box_obj(true)).unwrap();
+    let output = antumbra(&[
+        "bake",
+        "--kind",
+        "diffuse",
+        "--texels",
+        "64x32",
+        "--mesh",
+        overlapping.to_str().unwrap(),
+        "-o",
+        dir.join("y.exr").to_str().unwrap(),
+    ]);
+    assert!(!output.status.success());
+    assert!(stderr(&output).contains("overlap"), "{}", stderr(&output));
+    assert!(!dir.join("y.exr").exists());
+    for bad in ["0", "16x0", "20000", "axb"] {
+        let output = antumbra(&[
+            "bake",
+            "--kind",
+            "diffuse",
+            "--texels",
+            bad,
+            "--mesh",
+            obj.to_str().unwrap(),
+            "-o",
+            dir.join("z.exr").to_str().unwrap(),
+        ]);
+        assert!(!output.status.success(), "--texels {bad}");
+        assert!(
+            stderr(&output).contains("atlas side"),
+            "{}",
+            stderr(&output)
+        );
+    }
+}

@@ -13,6 +13,7 @@ use antumbra_core::transfer::{TransferKind, TransferSet};
 
 use crate::cli::{BakeArgs, BakeKind, MergeArgs};
 use crate::error::{Context, Error, Result};
+use crate::lightmap;
 use crate::mesh::TriangleMesh;
 use crate::progress;
 use crate::prt;
@@ -77,6 +78,48 @@ pub fn run(args: &BakeArgs) -> Result<()> {
     Ok(())
 }
 
+/// `bake --texels`: the lightmap of the mesh's UV atlas, written as OpenEXR.
+fn run_texels(
+    args: &BakeArgs,
+    config: &prt::BakeConfig,
+    brdf: &prt::BrdfChoice,
+    width: u32,
+    height: u32,
+) -> Result<()> {
+    if args.shard.is_some() || args.pca.is_some() {
+        return Err(Error::msg(
+            "--texels bakes the whole atlas into an OpenEXR image: without --shard or --pca",
+        ));
+    }
+    let started = Instant::now();
+    let textured = lightmap::TexturedMesh::load_obj(&args.mesh)?;
+    let options = prt::bake_options(config);
+    let bake = lightmap::bake_texels(&textured, width, height, &options)?;
+    lightmap::write_exr(&bake, &args.out)?;
+    let receivers = bake.atlas.receivers().len();
+    let what = match config.kind {
+        prt::Kind::Diffuse => "diffuse transfer".to_string(),
+        prt::Kind::GlossySh => "glossy SH transfer".to_string(),
+        prt::Kind::Mrt => format!("matrix radiance transfer ({})", brdf.describe()),
+    };
+    println!(
+        "baked the {width}x{height} lightmap ({what}) of {}: {receivers} texels, {} lifted out of \
+         geometry, {} rays each, {} bounce{}, in {}",
+        textured.mesh.name(),
+        bake.lifted,
+        args.rays,
+        args.bounces,
+        if args.bounces == 1 { "" } else { "s" },
+        format_duration(started.elapsed())
+    );
+    println!(
+        "  wrote {} ({} channels per texel)",
+        absolute(&args.out).display(),
+        bake.set.vertex_block(0).map_or(0, <[f32]>::len)
+    );
+    Ok(())
+}
+
 /// Component counts of the PCA error table, up to the baked one.
 fn pca_table_counts(k: usize) -> Vec<usize> {
     let mut counts: Vec<usize> = std::iter::successors(Some(1usize), |c| Some(c * 2))
@@ -125,6 +168,9 @@ fn run_transfer(args: &BakeArgs) -> Result<()> {
         seed: args.seed,
         ray_offset: args.ray_offset,
     };
+    if let Some((width, height)) = args.texels {
+        return run_texels(args, &config, &brdf, width, height);
+    }
     let mesh = TriangleMesh::load_obj(&args.mesh)?;
     let vertices = match args.shard {
         Some(shard) => {
