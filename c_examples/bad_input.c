@@ -1363,6 +1363,138 @@ static void test_transfer_compress_clustered(void)
     antumbra_transfer_destroy(diffuse);
 }
 
+/* lightmap_create with bad input: the exact code, the message, and *out untouched. */
+static void expect_lightmap_fails(const char *what, const antumbra_mesh_view *mesh, const float *uvs,
+                                  const antumbra_lightmap_options *options, antumbra_result want,
+                                  const char *fragment)
+{
+    antumbra_lightmap *out;
+    antumbra_result r;
+    memset(&out, SENTINEL, sizeof out);
+    r = antumbra_lightmap_create(mesh, uvs, NULL, options, &out);
+    expect_failure(what, r, want, "antumbra_lightmap_create", fragment, NULL);
+    expect_untouched(what, &out, sizeof out);
+    if (r == ANTUMBRA_RESULT_OK) {
+        antumbra_lightmap_destroy(out);
+    }
+}
+
+static void test_lightmap(void)
+{
+    antumbra_mesh_view mesh = square_mesh();
+    antumbra_mesh_view one_triangle = square_mesh();
+    float uvs[8] = {0.1f, 0.1f, 0.9f, 0.1f, 0.9f, 0.9f, 0.1f, 0.9f};
+    float bad_uvs[8];
+    uint32_t doubled[6] = {0, 1, 2, 1, 2, 3}; /* two halves that overlap on the right */
+    antumbra_mesh_view overlapping = square_mesh();
+    antumbra_lightmap_options o;
+    antumbra_lightmap *lightmap = NULL;
+    antumbra_lightmap_info info;
+    antumbra_transfer_options t = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    antumbra_transfer *set = NULL;
+    antumbra_transfer_info set_info;
+    float *values, *image;
+    uint32_t texels[2 * 1024];
+    size_t n, texel_count;
+    antumbra_result r;
+
+    antumbra_lightmap_options_init(NULL);
+    expect(strstr(antumbra_last_error_message(), "antumbra_lightmap_options_init: options") != NULL,
+           "lightmap options_init(NULL) message is \"%s\"", antumbra_last_error_message());
+    antumbra_lightmap_options_init(&o);
+    expect(o.width == 256 && o.height == 256 && o.gutter == 2 && o.lift_probes == 8,
+           "lightmap defaults %u x %u, gutter %u, probes %u", o.width, o.height, o.gutter, o.lift_probes);
+    o.width = 16;
+    o.height = 8;
+
+    expect_failure("lightmap, out NULL", antumbra_lightmap_create(&mesh, uvs, NULL, &o, NULL),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_lightmap_create", "out", NULL);
+    expect_lightmap_fails("lightmap, mesh NULL", NULL, uvs, &o, ANTUMBRA_RESULT_NULL_ARGUMENT, "mesh");
+    expect_lightmap_fails("lightmap, uvs NULL", &mesh, NULL, &o, ANTUMBRA_RESULT_NULL_ARGUMENT, "uvs");
+    expect_lightmap_fails("lightmap, options NULL", &mesh, uvs, NULL, ANTUMBRA_RESULT_NULL_ARGUMENT, "options");
+    o.width = 0;
+    expect_lightmap_fails("lightmap, width 0", &mesh, uvs, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->width");
+    o.width = ANTUMBRA_LIGHTMAP_MAX_SIDE + 1;
+    expect_lightmap_fails("lightmap, width too large", &mesh, uvs, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                          "options->width");
+    o.width = 16;
+    o.gutter = ANTUMBRA_LIGHTMAP_MAX_GUTTER + 1;
+    expect_lightmap_fails("lightmap, gutter", &mesh, uvs, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->gutter");
+    o.gutter = 2;
+    memcpy(bad_uvs, uvs, sizeof uvs);
+    bad_uvs[5] = NAN;
+    expect_lightmap_fails("lightmap, uv NaN", &mesh, bad_uvs, &o, ANTUMBRA_RESULT_NON_FINITE, "uvs[2]");
+    bad_uvs[5] = 1.5f;
+    expect_lightmap_fails("lightmap, uv outside", &mesh, bad_uvs, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "uvs[2]");
+    memcpy(bad_uvs, uvs, sizeof uvs);
+    bad_uvs[4] = 0.5f; /* vertex 2 on the line through vertices 0 and 1 */
+    bad_uvs[5] = 0.1f;
+    expect_lightmap_fails("lightmap, collinear uvs", &mesh, bad_uvs, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                          "collinear");
+    overlapping.indices = doubled;
+    expect_lightmap_fails("lightmap, overlapping charts", &overlapping, uvs, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                          "overlap");
+
+    expect_success("lightmap", antumbra_lightmap_create(&mesh, uvs, NULL, &o, &lightmap));
+    expect_failure("lightmap describe, info NULL", antumbra_lightmap_describe(lightmap, NULL),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_lightmap_describe", "info", NULL);
+    expect_failure("lightmap describe, lightmap NULL", antumbra_lightmap_describe(NULL, &info),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_lightmap_describe", "lightmap", NULL);
+    expect_success("lightmap describe", antumbra_lightmap_describe(lightmap, &info));
+    n = info.receiver_count;
+    expect(info.width == 16 && info.height == 8 && info.gutter == 2 && n > 40 && n <= 128,
+           "lightmap describe: %u x %u, gutter %u, %zu receivers", info.width, info.height, info.gutter, n);
+    memset(texels, SENTINEL, sizeof texels);
+    expect_failure("lightmap receivers, count", antumbra_lightmap_receivers(lightmap, NULL, NULL, texels, n + 1),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_lightmap_receivers", "receiver_count", NULL);
+    expect_failure("lightmap receivers, all NULL", antumbra_lightmap_receivers(lightmap, NULL, NULL, NULL, n),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_lightmap_receivers", "all NULL", NULL);
+    expect_untouched("lightmap receivers", texels, sizeof texels);
+    expect_success("lightmap receivers", antumbra_lightmap_receivers(lightmap, NULL, NULL, texels, n));
+    expect(texels[0] < 16 && texels[1] < 8, "lightmap receivers: first texel (%u, %u)", texels[0], texels[1]);
+
+    one_triangle.triangle_count = 1;
+    r = antumbra_lightmap_bake(lightmap, &one_triangle, NULL, &t, NULL, NULL, &set);
+    expect_failure("lightmap bake, another mesh", r, ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_lightmap_bake",
+                   "built from", NULL);
+    expect_failure("lightmap bake, out NULL", antumbra_lightmap_bake(lightmap, &mesh, NULL, &t, NULL, NULL, NULL),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_lightmap_bake", "out", NULL);
+    t.bands = 0;
+    expect_failure("lightmap bake, bands 0", antumbra_lightmap_bake(lightmap, &mesh, NULL, &t, NULL, NULL, &set),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_lightmap_bake", "options->bands", NULL);
+    expect(set == NULL, "lightmap bake: out written on failure");
+    t = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
+    expect_success("lightmap bake", antumbra_lightmap_bake(lightmap, &mesh, NULL, &t, NULL, NULL, &set));
+    expect_success("lightmap bake describe", antumbra_transfer_describe(set, &set_info));
+    expect(set_info.vertex_count == n, "lightmap bake: %u entries for %zu receivers", set_info.vertex_count, n);
+
+    texel_count = (size_t)info.width * info.height;
+    values = (float *)calloc(n, sizeof(float));
+    image = (float *)malloc(texel_count * sizeof(float));
+    if (values == NULL || image == NULL) {
+        fprintf(stderr, "bad_input: out of memory\n");
+        exit(EXIT_FAILURE);
+    }
+    memset(image, SENTINEL, texel_count * sizeof(float));
+    expect_failure("lightmap expand, value_count",
+                   antumbra_lightmap_expand(lightmap, values, n - 1, 1, image, texel_count),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_lightmap_expand", "value_count", NULL);
+    expect_failure("lightmap expand, image_count",
+                   antumbra_lightmap_expand(lightmap, values, n, 1, image, texel_count + 1),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_lightmap_expand", "image_count", NULL);
+    expect_failure("lightmap expand, channels 0", antumbra_lightmap_expand(lightmap, values, n, 0, image, texel_count),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_lightmap_expand", "channels", NULL);
+    expect_failure("lightmap expand, values NULL", antumbra_lightmap_expand(lightmap, NULL, n, 1, image, texel_count),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_lightmap_expand", "values", NULL);
+    expect_untouched("lightmap expand", image, texel_count * sizeof(float));
+    expect_success("lightmap expand", antumbra_lightmap_expand(lightmap, values, n, 1, image, texel_count));
+    free(values);
+    free(image);
+    antumbra_transfer_destroy(set);
+    antumbra_lightmap_destroy(lightmap);
+    antumbra_lightmap_destroy(NULL);
+}
+
 static void expect_shade_fails(const char *what, const antumbra_transfer *set, const float *lighting, size_t count,
                                const antumbra_transfer_material *material, size_t vertices, antumbra_result want,
                                const char *fragment)
@@ -1501,6 +1633,7 @@ int main(void)
     test_transfer_compress();
     test_transfer_compress_clustered();
     test_transfer_shade();
+    test_lightmap();
 #endif
     test_sh_rotate();
 

@@ -258,6 +258,23 @@ _Static_assert(sizeof(antumbra_transfer_material) == 40 + sizeof(void *), "trans
 _Static_assert(alignof(antumbra_transfer_material) == alignof(void *), "transfer_material alignment");
 _Static_assert(sizeof(antumbra_transfer_progress_fn) == sizeof(void (*)(void)), "progress is one function pointer");
 
+/* ---- antumbra_lightmap_options: four uint32_t ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_lightmap_options, width, uint32_t), "lightmap_options.width type");
+_Static_assert(FIELD_TYPE_IS(antumbra_lightmap_options, lift_probes, uint32_t), "lightmap_options.lift_probes type");
+_Static_assert(offsetof(antumbra_lightmap_options, width) == 0, "lightmap_options.width offset");
+_Static_assert(offsetof(antumbra_lightmap_options, height) == 4, "lightmap_options.height offset");
+_Static_assert(offsetof(antumbra_lightmap_options, gutter) == 8, "lightmap_options.gutter offset");
+_Static_assert(offsetof(antumbra_lightmap_options, lift_probes) == 12, "lightmap_options.lift_probes offset");
+_Static_assert(sizeof(antumbra_lightmap_options) == 16, "lightmap_options size");
+
+/* ---- antumbra_lightmap_info: four uint32_t, then a size_t ---- */
+_Static_assert(FIELD_TYPE_IS(antumbra_lightmap_info, lifted, uint32_t), "lightmap_info.lifted type");
+_Static_assert(FIELD_TYPE_IS(antumbra_lightmap_info, receiver_count, size_t), "lightmap_info.receiver_count type");
+_Static_assert(offsetof(antumbra_lightmap_info, gutter) == 8, "lightmap_info.gutter offset");
+_Static_assert(offsetof(antumbra_lightmap_info, lifted) == 12, "lightmap_info.lifted offset");
+_Static_assert(offsetof(antumbra_lightmap_info, receiver_count) == 16, "lightmap_info.receiver_count offset");
+_Static_assert(sizeof(antumbra_lightmap_info) == 16 + sizeof(size_t), "lightmap_info size");
+
 /* ---- Literal numbers for the ABI at hand ---- */
 #if UINTPTR_MAX == UINT64_MAX
 /* LP64 (and LLP64, where the layout of these structs is the same). */

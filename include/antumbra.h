@@ -146,6 +146,27 @@
 
 #if defined(ANTUMBRA_HAS_STD)
 /**
+ * The largest side of a lightmap, in texels.
+ */
+#define ANTUMBRA_LIGHTMAP_MAX_SIDE 16384
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * The most texels (`width × height`) of a lightmap.
+ */
+#define ANTUMBRA_LIGHTMAP_MAX_TEXELS (1 << 26)
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * The largest gutter, in texels.
+ */
+#define ANTUMBRA_LIGHTMAP_MAX_GUTTER 64
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
  * Triangle index reported by a ray that hits nothing.
  */
 #define ANTUMBRA_INVALID_INDEX UINT32_MAX
@@ -279,6 +300,14 @@ typedef struct antumbra_hemi_shader antumbra_hemi_shader;
  * create with `antumbra_hemi_table_create`, free with `antumbra_hemi_table_destroy`.
  */
 typedef struct antumbra_hemi_table antumbra_hemi_table;
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * The receivers of a lightmap over a mesh's UV atlas. Immutable and opaque;
+ * created by `antumbra_lightmap_create`, freed with `antumbra_lightmap_destroy`.
+ */
+typedef struct antumbra_lightmap antumbra_lightmap;
+#endif
 
 #if defined(ANTUMBRA_HAS_STD)
 /**
@@ -559,6 +588,158 @@ typedef struct antumbra_hemi_material {
   const float *view_directions;
 } antumbra_hemi_material;
 
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * How `antumbra_lightmap_create` lays out receivers. Fill with
+ * `antumbra_lightmap_options_init`, then change fields.
+ *
+ * Layout: four `uint32_t`, 16 bytes, no padding.
+ */
+typedef struct antumbra_lightmap_options {
+  /**
+   * Width in texels, 1 to `ANTUMBRA_LIGHTMAP_MAX_SIDE`. Default 256.
+   */
+  uint32_t width;
+  /**
+   * Height in texels, 1 to `ANTUMBRA_LIGHTMAP_MAX_SIDE`; `width × height` at
+   * most `ANTUMBRA_LIGHTMAP_MAX_TEXELS`. Default 256.
+   */
+  uint32_t height;
+  /**
+   * Texels of gutter around every chart, 0 to `ANTUMBRA_LIGHTMAP_MAX_GUTTER`:
+   * texels that copy the nearest receiver, so bilinear filtering inside a
+   * chart never reads an unbaked texel (1 suffices; each mip level needs one
+   * more). Default 2.
+   */
+  uint32_t gutter;
+  /**
+   * Probe rays per receiver of the lift out of geometry (0 turns it off).
+   * Default 8.
+   */
+  uint32_t lift_probes;
+} antumbra_lightmap_options;
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * What a lightmap holds, from `antumbra_lightmap_describe`.
+ *
+ * Layout: four `uint32_t`, then a `size_t`; 24 bytes on 64-bit targets, 20 on
+ * 32-bit, no padding.
+ */
+typedef struct antumbra_lightmap_info {
+  /**
+   * Width in texels.
+   */
+  uint32_t width;
+  /**
+   * Height in texels.
+   */
+  uint32_t height;
+  /**
+   * Gutter in texels.
+   */
+  uint32_t gutter;
+  /**
+   * Receivers the lift moved out of geometry.
+   */
+  uint32_t lifted;
+  /**
+   * Receivers: the texels the charts cover or touch (the length of the
+   * arrays of `antumbra_lightmap_receivers`, and the vertex count of the set
+   * `antumbra_lightmap_bake` makes).
+   */
+  size_t receiver_count;
+} antumbra_lightmap_info;
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * What `antumbra_transfer_bake` measures and how. Fill with
+ * `antumbra_transfer_options_init`, then change fields: fields may be added at
+ * the end in later versions, and `options_init` keeps old code correct.
+ *
+ * Layout: twelve 4-byte fields, then the 8-byte seed; 56 bytes, no padding.
+ */
+typedef struct antumbra_transfer_options {
+  /**
+   * `ANTUMBRA_TRANSFER_KIND_DIFFUSE` (the default), `_GLOSSY_SH` or `_MRT`.
+   */
+  uint32_t kind;
+  /**
+   * SH bands of the lighting, 1 to `ANTUMBRA_SH_MAX_BANDS` (8). Default 4.
+   */
+  uint32_t bands;
+  /**
+   * MRT nodes per side of the hemispherical grid, 2 to
+   * `ANTUMBRA_TRANSFER_MAX_GRID`; ignored by the other kinds. Default 8.
+   */
+  uint32_t grid;
+  /**
+   * Rays per vertex and pass, 1 to `ANTUMBRA_TRANSFER_MAX_RAYS`. Default 256.
+   * How they are spread over the vertex's hemisphere, so that the noise can be
+   * predicted: the unit square is stratified (a jittered s × s grid with
+   * s = floor(sqrt(rays)), the remaining rays − s² points uniformly random), then
+   * mapped **cosine-weighted** (concentric disk, lifted) for the diffuse kind and
+   * **uniformly** over the solid angle for glossy SH and MRT, whose projections
+   * weigh every direction alike. Each vertex, pass and seed has its own random
+   * stream. Monte Carlo error falls as 1/sqrt(rays) or faster: about 1/rays^0.8
+   * for diffuse transfer on a closed mesh, where stratification helps most; a
+   * square number of rays stratifies fully.
+   */
+  uint32_t rays;
+  /**
+   * Diffuse interreflection bounces, 0 (shadowed direct light only, the
+   * default) to `ANTUMBRA_TRANSFER_MAX_BOUNCES`.
+   */
+  uint32_t bounces;
+  /**
+   * 1 (the default): vertices are spread over the library's worker threads;
+   * 0: the calling thread only. Results are identical bit for bit.
+   */
+  uint32_t parallel;
+  /**
+   * The BRDF baked into an MRT set: `ANTUMBRA_TRANSFER_BRDF_PHONG` (the default)
+   * or `ANTUMBRA_TRANSFER_BRDF_WARD`; ignored by the other kinds.
+   */
+  uint32_t brdf;
+  /**
+   * The BRDF's parameters (see the `ANTUMBRA_TRANSFER_BRDF_*` values). Default
+   * (16, 0): a Phong exponent of 16.
+   */
+  float brdf_params[2];
+  /**
+   * Diffuse albedo of the scene for the bounces, in [0, 1). Default 0.5.
+   */
+  float albedo;
+  /**
+   * Ray origins are moved this far along the normal (mesh units, finite, >= 0)
+   * against self-intersection. Default 1e-4, meant for meshes about a unit in
+   * size: scale it with yours (about 1e-4 of the bounding-box diagonal). The
+   * CLI's `antumbra bake --ray-offset` is this same distance with this default.
+   */
+  float ray_offset;
+  /**
+   * Must be 0 (keeps the seed 8-byte aligned without hidden padding).
+   */
+  uint32_t reserved;
+  /**
+   * Seed of the random streams: a bake is deterministic for a seed. Default 0.
+   */
+  uint64_t seed;
+} antumbra_transfer_options;
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Progress of `antumbra_transfer_bake`: `done` of `total` vertex passes
+ * (vertices × (1 + bounces)). With `options->parallel` = 1 it is called from the
+ * library's worker threads, possibly at once and slightly out of order; it must
+ * be thread-safe, return normally and not call back into Antumbra.
+ */
+typedef void (*antumbra_transfer_progress_fn)(size_t done, size_t total, void *user_data);
+#endif
+
 #if !defined(ANTUMBRA_HAS_STD)
 /**
  * Called once when the library panics (an Antumbra bug; please report it), with a
@@ -722,83 +903,6 @@ typedef struct antumbra_ssv_statistics {
   double candidates_per_query;
 } antumbra_ssv_statistics;
 
-#if defined(ANTUMBRA_HAS_STD)
-/**
- * What `antumbra_transfer_bake` measures and how. Fill with
- * `antumbra_transfer_options_init`, then change fields: fields may be added at
- * the end in later versions, and `options_init` keeps old code correct.
- *
- * Layout: twelve 4-byte fields, then the 8-byte seed; 56 bytes, no padding.
- */
-typedef struct antumbra_transfer_options {
-  /**
-   * `ANTUMBRA_TRANSFER_KIND_DIFFUSE` (the default), `_GLOSSY_SH` or `_MRT`.
-   */
-  uint32_t kind;
-  /**
-   * SH bands of the lighting, 1 to `ANTUMBRA_SH_MAX_BANDS` (8). Default 4.
-   */
-  uint32_t bands;
-  /**
-   * MRT nodes per side of the hemispherical grid, 2 to
-   * `ANTUMBRA_TRANSFER_MAX_GRID`; ignored by the other kinds. Default 8.
-   */
-  uint32_t grid;
-  /**
-   * Rays per vertex and pass, 1 to `ANTUMBRA_TRANSFER_MAX_RAYS`. Default 256.
-   * How they are spread over the vertex's hemisphere, so that the noise can be
-   * predicted: the unit square is stratified (a jittered s × s grid with
-   * s = floor(sqrt(rays)), the remaining rays − s² points uniformly random), then
-   * mapped **cosine-weighted** (concentric disk, lifted) for the diffuse kind and
-   * **uniformly** over the solid angle for glossy SH and MRT, whose projections
-   * weigh every direction alike. Each vertex, pass and seed has its own random
-   * stream. Monte Carlo error falls as 1/sqrt(rays) or faster: about 1/rays^0.8
-   * for diffuse transfer on a closed mesh, where stratification helps most; a
-   * square number of rays stratifies fully.
-   */
-  uint32_t rays;
-  /**
-   * Diffuse interreflection bounces, 0 (shadowed direct light only, the
-   * default) to `ANTUMBRA_TRANSFER_MAX_BOUNCES`.
-   */
-  uint32_t bounces;
-  /**
-   * 1 (the default): vertices are spread over the library's worker threads;
-   * 0: the calling thread only. Results are identical bit for bit.
-   */
-  uint32_t parallel;
-  /**
-   * The BRDF baked into an MRT set: `ANTUMBRA_TRANSFER_BRDF_PHONG` (the default)
-   * or `ANTUMBRA_TRANSFER_BRDF_WARD`; ignored by the other kinds.
-   */
-  uint32_t brdf;
-  /**
-   * The BRDF's parameters (see the `ANTUMBRA_TRANSFER_BRDF_*` values). Default
-   * (16, 0): a Phong exponent of 16.
-   */
-  float brdf_params[2];
-  /**
-   * Diffuse albedo of the scene for the bounces, in [0, 1). Default 0.5.
-   */
-  float albedo;
-  /**
-   * Ray origins are moved this far along the normal (mesh units, finite, >= 0)
-   * against self-intersection. Default 1e-4, meant for meshes about a unit in
-   * size: scale it with yours (about 1e-4 of the bounding-box diagonal). The
-   * CLI's `antumbra bake --ray-offset` is this same distance with this default.
-   */
-  float ray_offset;
-  /**
-   * Must be 0 (keeps the seed 8-byte aligned without hidden padding).
-   */
-  uint32_t reserved;
-  /**
-   * Seed of the random streams: a bake is deterministic for a seed. Default 0.
-   */
-  uint64_t seed;
-} antumbra_transfer_options;
-#endif
-
 /**
  * The surface and viewer of `antumbra_transfer_shade`. Fill with
  * `antumbra_transfer_material_init`, then change fields (fields may be added at
@@ -844,16 +948,6 @@ typedef struct antumbra_transfer_material {
    */
   const float *view_directions;
 } antumbra_transfer_material;
-
-#if defined(ANTUMBRA_HAS_STD)
-/**
- * Progress of `antumbra_transfer_bake`: `done` of `total` vertex passes
- * (vertices × (1 + bounces)). With `options->parallel` = 1 it is called from the
- * library's worker threads, possibly at once and slightly out of order; it must
- * be thread-safe, return normally and not call back into Antumbra.
- */
-typedef void (*antumbra_transfer_progress_fn)(size_t done, size_t total, void *user_data);
-#endif
 
 /**
  * What a transfer set holds, from `antumbra_transfer_describe`.
@@ -1622,6 +1716,197 @@ antumbra_result antumbra_hemi_shade(const struct antumbra_mesh_view *mesh,
                                     float *rgb,
                                     float *diffuse,
                                     float *glossy);
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Writes the default options: a 256 × 256 atlas, a 2-texel gutter, 8 lift
+ * probes.
+ *
+ * @param options the options to fill; every field is written.
+ *
+ * On a NULL or misaligned pointer nothing is written, and the thread's last error
+ * message and the error callback report ANTUMBRA_RESULT_NULL_ARGUMENT or
+ * ANTUMBRA_RESULT_INVALID_ARGUMENT.
+ * Thread safety: safe from any thread.
+ *
+ * # Safety
+ * `options` must be NULL or valid for writing one `antumbra_lightmap_options`.
+ */
+void antumbra_lightmap_options_init(struct antumbra_lightmap_options *options);
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Builds the receivers of a lightmap over a mesh's UV atlas: every texel of a
+ * `width × height` atlas whose centre a triangle's UVs cover (exactly, with a
+ * fill rule on shared edges), or that a triangle's UVs overlap (the nearest
+ * point of the nearest triangle), each with a surface point and normal; then
+ * moves receivers that start inside geometry (a texel under a box on a floor)
+ * past the back faces their probes meet; and marks a gutter around the charts.
+ * Texel `(x, y)` covers `u` in `[x/W, (x+1)/W)`, `v` in `[y/H, (y+1)/H)`.
+ *
+ * @param mesh the triangles; every vertex used by a triangle. Same rules as
+ *        `antumbra_scene_create`.
+ * @param uvs 2 floats per vertex: each vertex's lightmap UV, in [0, 1]. The
+ *        charts (triangles in UV space) must not overlap, and no triangle may
+ *        have collinear UVs.
+ * @param normals NULL (area-weighted vertex normals are computed) or 3 floats
+ *        per vertex: unit normals, interpolated to each receiver.
+ * @param options the atlas (fill with `antumbra_lightmap_options_init`).
+ * @param out receives the new lightmap; untouched on failure.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, uvs, options, out);
+ *         INVALID_ARGUMENT (a size or gutter out of range, a UV outside [0, 1]
+ *         or not finite, collinear UVs, overlapping charts naming both
+ *         triangles and the texel, a normal not unit length, no triangles,
+ *         misaligned pointers); INDEX_OUT_OF_RANGE; NON_FINITE (positions,
+ *         normals); OUT_OF_MEMORY; PANIC.
+ *
+ * Cost: linear in the texels the triangles' UV boxes span, plus a BVH build and
+ * `lift_probes` short rays per receiver. Thread safety: safe from any thread.
+ *
+ * # Safety
+ * Pointers must be NULL or valid as described; the arrays in `mesh` valid for the
+ * counts and stride it gives.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_lightmap_create(const struct antumbra_mesh_view *mesh,
+                                         const float *uvs,
+                                         const float *normals,
+                                         const struct antumbra_lightmap_options *options,
+                                         struct antumbra_lightmap **out);
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Frees a lightmap. NULL is a no-op.
+ *
+ * Ownership: takes back a lightmap from create; it must not be used afterwards.
+ * Thread safety: needs exclusive access: no other call on it may be running.
+ *
+ * # Safety
+ * `lightmap` must be NULL or a live lightmap, destroyed at most once.
+ */
+void antumbra_lightmap_destroy(struct antumbra_lightmap *lightmap);
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Describes a lightmap.
+ *
+ * @param lightmap a live lightmap.
+ * @param info receives the description; untouched on failure.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (misaligned);
+ *         POISONED.
+ *
+ * Thread safety: safe from any thread, concurrently with other reads.
+ *
+ * # Safety
+ * `lightmap` must be NULL or live; `info` NULL or valid for one write.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_lightmap_describe(const struct antumbra_lightmap *lightmap,
+                                           struct antumbra_lightmap_info *info);
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Copies the receivers out, in texel order (row by row from texel (0, 0)).
+ *
+ * @param lightmap a live lightmap.
+ * @param positions NULL or 3 floats per receiver: where its rays start (after
+ *        the lift).
+ * @param normals NULL or 3 floats per receiver: its unit normal.
+ * @param texels NULL or 2 `uint32_t` per receiver: its texel (x, y).
+ * @param receiver_count the lightmap's receiver count (see
+ *        `antumbra_lightmap_describe`).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (lightmap, or all three arrays);
+ *         INVALID_ARGUMENT (receiver_count, misaligned or overlapping arrays);
+ *         POISONED. The arrays are untouched on failure.
+ *
+ * Thread safety: safe from any thread, concurrently with other reads.
+ *
+ * # Safety
+ * Each array NULL or valid for writing its length; they must not overlap.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_lightmap_receivers(const struct antumbra_lightmap *lightmap,
+                                            float *positions,
+                                            float *normals,
+                                            uint32_t *texels,
+                                            size_t receiver_count);
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Bakes the lightmap's receivers against the mesh it was built from: the same
+ * engine and options as `antumbra_transfer_bake`, each receiver drawing its own
+ * rays, so the set's entry `i` (its "vertex" `i`) is receiver `i`. With
+ * bounces, a receiver's pass k reads the mesh's pass k - 1 at each hit,
+ * interpolated from the hit triangle's vertices (so the vertices' passes run
+ * too, as in a vertex bake). Shade, save and compress the set as any other.
+ *
+ * @param lightmap a live lightmap.
+ * @param mesh the mesh the lightmap was built from (same vertex and triangle
+ *        counts; same rules as `antumbra_transfer_bake`).
+ * @param normals NULL (area-weighted) or 3 floats per vertex: the vertex normals
+ *        the bounces interpolate at hits.
+ * @param options what to measure (fill with `antumbra_transfer_options_init`).
+ * @param progress NULL or a function told of progress: `done` of `total`
+ *        passes (receivers × (1 + bounces) + vertices × bounces).
+ * @param user_data passed to `progress` untouched.
+ * @param out receives the new transfer set; untouched on failure.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (a mesh other than
+ *         the lightmap's, options as `antumbra_transfer_bake`); NON_FINITE;
+ *         OUT_OF_MEMORY; POISONED; PANIC.
+ *
+ * Cost: as a vertex bake of `receiver_count` vertices. Thread safety: safe from
+ * any thread, concurrently with other reads of the lightmap.
+ *
+ * # Safety
+ * As `antumbra_transfer_bake`; `lightmap` NULL or live.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_lightmap_bake(const struct antumbra_lightmap *lightmap,
+                                       const struct antumbra_mesh_view *mesh,
+                                       const float *normals,
+                                       const struct antumbra_transfer_options *options,
+                                       antumbra_transfer_progress_fn progress,
+                                       void *user_data,
+                                       struct antumbra_transfer **out);
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Writes a texture from per-receiver values: each texel the values of the
+ * receiver it reads (its own, or for a gutter texel the nearest receiver's);
+ * texels outside the charts and gutter are left as they are. Row `y` of the
+ * image is texel row `y` (`v` from `y/H`), `channels` floats per texel.
+ *
+ * @param lightmap a live lightmap.
+ * @param values `channels` floats per receiver, in receiver order (finite or
+ *        not: copied as given).
+ * @param value_count `receiver_count × channels`.
+ * @param channels floats per texel, at least 1.
+ * @param image `width × height × channels` floats.
+ * @param image_count its length, `width × height × channels`.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (a count that does
+ *         not match, channels 0, misaligned or overlapping arrays); POISONED.
+ *         The image is untouched on failure.
+ *
+ * Thread safety: safe from any thread, concurrently with other reads.
+ *
+ * # Safety
+ * `values` valid for `value_count` reads, `image` for `image_count` writes,
+ * not overlapping.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_lightmap_expand(const struct antumbra_lightmap *lightmap,
+                                         const float *values,
+                                         size_t value_count,
+                                         uint32_t channels,
+                                         float *image,
+                                         size_t image_count);
+#endif
 
 #if !defined(ANTUMBRA_HAS_STD)
 /**

@@ -38,6 +38,7 @@ mod fallible;
 mod frame;
 mod hemi;
 mod hemi_shading;
+mod lightmap;
 mod mesh;
 #[cfg(not(feature = "std"))]
 mod panic_hook;
@@ -80,6 +81,14 @@ pub use hemi_shading::{
 pub use hemi_shading::{
     antumbra_hemi_shader, antumbra_hemi_shader_create, antumbra_hemi_shader_destroy,
     antumbra_hemi_shader_regroup, antumbra_hemi_shader_shade, antumbra_hemi_shader_transfer,
+};
+#[cfg(feature = "std")]
+pub use lightmap::{
+    ANTUMBRA_LIGHTMAP_MAX_GUTTER, ANTUMBRA_LIGHTMAP_MAX_SIDE, ANTUMBRA_LIGHTMAP_MAX_TEXELS,
+    antumbra_lightmap, antumbra_lightmap_bake, antumbra_lightmap_create,
+    antumbra_lightmap_describe, antumbra_lightmap_destroy, antumbra_lightmap_expand,
+    antumbra_lightmap_info, antumbra_lightmap_options, antumbra_lightmap_options_init,
+    antumbra_lightmap_receivers,
 };
 pub use mesh::antumbra_mesh_view;
 pub use result::*;

@@ -132,7 +132,7 @@ pub struct antumbra_transfer_options {
 }
 
 #[cfg(feature = "std")]
-const DEFAULT_OPTIONS: antumbra_transfer_options = antumbra_transfer_options {
+pub(crate) const DEFAULT_OPTIONS: antumbra_transfer_options = antumbra_transfer_options {
     kind: ANTUMBRA_TRANSFER_KIND_DIFFUSE,
     bands: 4,
     grid: 8,
@@ -251,7 +251,7 @@ pub type antumbra_transfer_progress_fn =
 /// `antumbra_transfer_compress` or `antumbra_transfer_compress_clustered`, freed
 /// with `antumbra_transfer_destroy`.
 pub struct antumbra_transfer {
-    set: TransferSet,
+    pub(crate) set: TransferSet,
     poisoned: AtomicBool,
 }
 
@@ -452,7 +452,10 @@ fn check_options(o: &antumbra_transfer_options) -> Result<Option<BakeBrdf>, Erro
 ///
 /// # Safety
 /// `normals` must be NULL or valid for `3 * mesh.vertex_count()` floats.
-unsafe fn bake_normals(mesh: &MeshView<'_>, normals: *const f32) -> Result<Vec<Vec3>, Error> {
+pub(crate) unsafe fn bake_normals(
+    mesh: &MeshView<'_>,
+    normals: *const f32,
+) -> Result<Vec<Vec3>, Error> {
     let vertices = mesh.vertex_count();
     let mut out = Vec::new();
     out.try_reserve_exact(vertices).map_err(|e| {
@@ -540,7 +543,7 @@ fn bake_error(error: BakeError) -> Error {
     Error::invalid(message!("{field}: {error}"))
 }
 
-fn boxed(set: TransferSet, out: *mut *mut antumbra_transfer) -> Result<(), Error> {
+pub(crate) fn boxed(set: TransferSet, out: *mut *mut antumbra_transfer) -> Result<(), Error> {
     let handle = crate::fallible::boxed(
         antumbra_transfer {
             set,
@@ -554,7 +557,9 @@ fn boxed(set: TransferSet, out: *mut *mut antumbra_transfer) -> Result<(), Error
     Ok(())
 }
 
-fn check_out(out: *mut *mut antumbra_transfer) -> Result<*mut *mut antumbra_transfer, Error> {
+pub(crate) fn check_out(
+    out: *mut *mut antumbra_transfer,
+) -> Result<*mut *mut antumbra_transfer, Error> {
     if out.is_null() {
         return Err(Error::null("out"));
     }
@@ -619,56 +624,78 @@ pub unsafe extern "C" fn antumbra_transfer_bake(
                 "mesh->triangle_count is 0: a bake needs at least one triangle",
             ));
         }
-        let brdf = check_options(options)?;
+        check_options(options)?;
         // SAFETY: caller contract on `normals`.
         let normals = unsafe { bake_normals(&mesh, normals) }?;
-        let scene = BvhScene::new(&mesh).map_err(|e| match e {
-            BvhError::CoordinateOutOfRange { vertex } => Error::invalid(message!(
-                "mesh->positions: vertex {vertex} has a coordinate beyond the supported \
-                 range of ±{:e}",
-                antumbra_core::raycast::MAX_COORDINATE
-            )),
-            BvhError::OutOfMemory(e) => Error::new(
-                ANTUMBRA_RESULT_OUT_OF_MEMORY,
-                message!("no memory for {} triangles: {e}", mesh.triangle_count()),
-            ),
-        })?;
-        let measurement = match (options.kind, &brdf) {
-            (ANTUMBRA_TRANSFER_KIND_GLOSSY_SH, _) => Measurement::GlossySh,
-            (ANTUMBRA_TRANSFER_KIND_MRT, Some(brdf)) => Measurement::Mrt {
-                grid: options.grid,
-                brdf: brdf.as_dyn(),
-            },
-            _ => Measurement::Diffuse,
-        };
-        let sink = progress.map(|callback| ProgressSink {
-            callback,
-            user_data,
-        });
-        let report = |done: usize, total: usize| {
-            if let Some(sink) = &sink {
-                sink.report(done, total);
+        let scene = scene_of(&mesh)?;
+        let parallel = options.parallel == 1;
+        let set = bake_with(options, progress, user_data, |bake_options| {
+            if parallel {
+                transfer::bake(&mesh, &normals, &scene, bake_options)
+            } else {
+                transfer::bake_serial(&mesh, &normals, &scene, bake_options)
             }
-        };
-        let bake_options = BakeOptions {
-            measurement,
-            bands: options.bands,
-            rays: options.rays,
-            bounces: options.bounces,
-            albedo: options.albedo,
-            ray_offset: options.ray_offset,
-            seed: options.seed,
-            progress: sink.as_ref().map(|_| &report as transfer::Progress<'_>),
-        };
-        let set = if options.parallel == 1 {
-            transfer::bake(&mesh, &normals, &scene, &bake_options)
-        } else {
-            transfer::bake_serial(&mesh, &normals, &scene, &bake_options)
-        }
-        .map_err(bake_error)?;
+        })?;
         boxed(set, out)?;
         Ok(())
     })
+}
+
+/// The BVH of a bake's mesh, its errors named as the C API names them.
+#[cfg(feature = "std")]
+pub(crate) fn scene_of(mesh: &MeshView<'_>) -> Result<BvhScene, Error> {
+    BvhScene::new(mesh).map_err(|e| match e {
+        BvhError::CoordinateOutOfRange { vertex } => Error::invalid(message!(
+            "mesh->positions: vertex {vertex} has a coordinate beyond the supported \
+             range of ±{:e}",
+            antumbra_core::raycast::MAX_COORDINATE
+        )),
+        BvhError::OutOfMemory(e) => Error::new(
+            ANTUMBRA_RESULT_OUT_OF_MEMORY,
+            message!("no memory for {} triangles: {e}", mesh.triangle_count()),
+        ),
+    })
+}
+
+/// Runs `bake` with the core options of `options` (checked) and the caller's
+/// progress callback: the part of every C bake entry point after its inputs are
+/// read.
+#[cfg(feature = "std")]
+pub(crate) fn bake_with(
+    options: &antumbra_transfer_options,
+    progress: antumbra_transfer_progress_fn,
+    user_data: *mut c_void,
+    bake: impl FnOnce(&BakeOptions<'_>) -> Result<TransferSet, BakeError>,
+) -> Result<TransferSet, Error> {
+    let brdf = check_options(options)?;
+    let measurement = match (options.kind, &brdf) {
+        (ANTUMBRA_TRANSFER_KIND_GLOSSY_SH, _) => Measurement::GlossySh,
+        (ANTUMBRA_TRANSFER_KIND_MRT, Some(brdf)) => Measurement::Mrt {
+            grid: options.grid,
+            brdf: brdf.as_dyn(),
+        },
+        _ => Measurement::Diffuse,
+    };
+    let sink = progress.map(|callback| ProgressSink {
+        callback,
+        user_data,
+    });
+    let report = |done: usize, total: usize| {
+        if let Some(sink) = &sink {
+            sink.report(done, total);
+        }
+    };
+    let bake_options = BakeOptions {
+        measurement,
+        bands: options.bands,
+        rays: options.rays,
+        bounces: options.bounces,
+        albedo: options.albedo,
+        ray_offset: options.ray_offset,
+        seed: options.seed,
+        progress: sink.as_ref().map(|_| &report as transfer::Progress<'_>),
+    };
+    bake(&bake_options).map_err(bake_error)
 }
 
 /// Frees a transfer set. NULL is a no-op.
