@@ -641,7 +641,8 @@ typedef struct antumbra_lightmap_info {
    */
   uint32_t gutter;
   /**
-   * Receivers the lift moved out of geometry.
+   * Receivers the lift moved (off an edge into their triangle, where
+   * another surface may meet it, or out of geometry).
    */
   uint32_t lifted;
   /**

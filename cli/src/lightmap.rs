@@ -108,7 +108,8 @@ pub struct TexelBake {
     pub atlas: TexelAtlas,
     /// Their transfer.
     pub set: TransferSet,
-    /// Receivers the lift moved out of geometry.
+    /// Receivers the lift moved (off an edge into their triangle, or out of
+    /// geometry).
     pub lifted: usize,
 }
 

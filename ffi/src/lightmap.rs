@@ -89,7 +89,8 @@ pub struct antumbra_lightmap_info {
     pub height: u32,
     /// Gutter in texels.
     pub gutter: u32,
-    /// Receivers the lift moved out of geometry.
+    /// Receivers the lift moved (off an edge into their triangle, where
+    /// another surface may meet it, or out of geometry).
     pub lifted: u32,
     /// Receivers: the texels the charts cover or touch (the length of the
     /// arrays of `antumbra_lightmap_receivers`, and the vertex count of the set

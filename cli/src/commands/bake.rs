@@ -103,8 +103,8 @@ fn run_texels(
         prt::Kind::Mrt => format!("matrix radiance transfer ({})", brdf.describe()),
     };
     println!(
-        "baked the {width}x{height} lightmap ({what}) of {}: {receivers} texels, {} lifted out of \
-         geometry, {} rays each, {} bounce{}, in {}",
+        "baked the {width}x{height} lightmap ({what}) of {}: {receivers} texels ({} moved off \
+         creases or out of geometry), {} rays each, {} bounce{}, in {}",
         textured.mesh.name(),
         bake.lifted,
         args.rays,

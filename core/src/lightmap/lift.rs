@@ -8,6 +8,9 @@ use super::TexelAtlas;
 use crate::geom::{Frame, MeshView};
 use crate::raycast::{Ray, RayCaster};
 
+/// Below this barycentric weight a receiver counts as on its triangle's edge.
+const EDGE_WEIGHT: f32 = 1e-3;
+
 /// How [`TexelAtlas::lift`] probes around each receiver.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LiftOptions {
@@ -38,7 +41,9 @@ impl TexelAtlas {
     /// just above the receiver's triangle in the tangent plane, and where one
     /// meets the back of a triangle (the receiver is behind that surface), the
     /// receiver moves past the nearest such hit, `height` above its own plane.
-    /// Receivers whose probes meet no back face stay where they are.
+    /// A receiver on an edge of its triangle (where another surface may meet it,
+    /// a crease) first moves `height` into the triangle. Other receivers stay
+    /// where they are.
     ///
     /// `caster` must hold `mesh`'s triangles in the same order (hit indices
     /// address `mesh`), and `mesh` must be the one the atlas was built from.
@@ -56,6 +61,7 @@ impl TexelAtlas {
         }
         let mut moved = 0;
         for receiver in &mut self.receivers {
+            let mut pulled = false;
             let triangle = receiver.triangle as usize;
             let [a, b, c] = mesh.triangle(triangle);
             let mut up = (b - a).cross(c - a).normalize_or_zero();
@@ -67,6 +73,18 @@ impl TexelAtlas {
             }
             let frame = Frame::from_normal(up);
             let size = receiver.texel_size;
+            // A receiver on its triangle's edge (a touched texel's nearest
+            // point, a centre on an edge) may lie on another surface too (the
+            // floor under a wall's bottom row): its rays would start exactly in
+            // that surface's plane, where the two sides' hits are decided by
+            // rounding. Moving it `height` into its own triangle puts it on the
+            // right side of every surface through the edge.
+            let [u, v] = receiver.barycentric;
+            if u.min(v).min(1.0 - u - v) < EDGE_WEIGHT {
+                let inward = ((a + b + c) / 3.0 - receiver.position).normalize_or_zero();
+                receiver.position += inward * (options.height * size);
+                pulled = true;
+            }
             let start = receiver.position + up * (options.height * size);
             let reach = options.reach * size;
             let mut nearest: Option<(f32, Vec3)> = None;
@@ -93,8 +111,8 @@ impl TexelAtlas {
             if let Some((t, direction)) = nearest {
                 // Past the back face by a sliver of the texel, off the plane.
                 receiver.position = start + direction * (t + options.height * size);
-                moved += 1;
             }
+            moved += usize::from(pulled || nearest.is_some());
         }
         Some(moved)
     }

@@ -407,8 +407,13 @@ fn lift_moves_receivers_out_of_a_box_on_the_floor() {
     let mut near_wall = 0;
     for (old, new) in before.iter().zip(atlas.receivers()) {
         if old.triangle >= 2 {
-            // The box's own receivers start outside it and see no back face.
-            assert_eq!(old.position, new.position, "{old:?}");
+            // The box's own receivers start outside it and see no back face;
+            // those on an edge of their face move a sliver into it.
+            let sliver = 1e-3 * old.texel_size * 1.001;
+            assert!(
+                old.position.distance(new.position) <= sliver,
+                "{old:?} -> {new:?}"
+            );
             continue;
         }
         let depth = s - old.position.x.abs().max(old.position.y.abs());
@@ -422,8 +427,9 @@ fn lift_moves_receivers_out_of_a_box_on_the_floor() {
             assert!(out >= s && out < s + 0.1 * old.texel_size, "{new:?}");
             assert!(new.position.z > 0.0 && new.position.z < 0.01 * old.texel_size);
         } else if !inside(old.position) && -depth > 1.01 * old.texel_size {
-            // Away from the box, nothing moves.
-            assert_eq!(old.position, new.position);
+            // Away from the box, nothing moves but a sliver off the floor's
+            // border.
+            assert!(old.position.distance(new.position) <= 1e-3 * old.texel_size * 1.001);
         }
     }
     assert!(
