@@ -7,7 +7,9 @@ use std::path::Path;
 
 use antumbra_core::lightmap::{AtlasOptions, LiftOptions, TexelAtlas};
 use antumbra_core::raycast::BvhScene;
-use antumbra_core::transfer::{BakeOptions, BakePoint, TransferKind, TransferSet, bake_points};
+use antumbra_core::transfer::{
+    BakeOptions, BakePoint, BounceReads, TransferKind, TransferSet, bake_points,
+};
 use glam::Vec3;
 
 use crate::error::{Context, Error, Result};
@@ -147,8 +149,19 @@ pub fn bake_texels(
             normal: r.normal,
         })
         .collect();
-    let set = bake_points(&view, &textured.normals, &bvh, &points, options, true)
-        .map_err(|e| Error::msg(format!("cannot bake: {e}")))?;
+    // Bounces read the texels under their hits' UVs.
+    let lookup = |triangle: usize, u: f32, v: f32| atlas.receiver_at_hit(&view, triangle, u, v);
+    let reads = BounceReads::Points(&lookup);
+    let set = bake_points(
+        &view,
+        &textured.normals,
+        &bvh,
+        &points,
+        reads,
+        options,
+        true,
+    )
+    .map_err(|e| Error::msg(format!("cannot bake: {e}")))?;
     Ok(TexelBake { atlas, set, lifted })
 }
 

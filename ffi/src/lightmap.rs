@@ -26,7 +26,7 @@ use crate::transfer::{
 use antumbra_core::lightmap::{
     AtlasError, AtlasOptions, LiftOptions, MAX_ATLAS_SIDE, MAX_ATLAS_TEXELS, MAX_GUTTER, TexelAtlas,
 };
-use antumbra_core::transfer::{self, BakePoint};
+use antumbra_core::transfer::{self, BakePoint, BounceReads};
 
 /// The largest side of a lightmap, in texels.
 #[cfg(feature = "std")]
@@ -410,18 +410,18 @@ unsafe fn optional<'a, T>(
 /// Bakes the lightmap's receivers against the mesh it was built from: the same
 /// engine and options as `antumbra_transfer_bake`, each receiver drawing its own
 /// rays, so the set's entry `i` (its "vertex" `i`) is receiver `i`. With
-/// bounces, a receiver's pass k reads the mesh's pass k - 1 at each hit,
-/// interpolated from the hit triangle's vertices (so the vertices' passes run
-/// too, as in a vertex bake). Shade, save and compress the set as any other.
+/// bounces, a receiver's pass k reads pass k - 1 of the texel under each hit's
+/// UV (the gutter included), so light bounces between texels. Shade, save and
+/// compress the set as any other.
 ///
 /// @param lightmap a live lightmap.
 /// @param mesh the mesh the lightmap was built from (same vertex and triangle
 ///        counts; same rules as `antumbra_transfer_bake`).
 /// @param normals NULL (area-weighted) or 3 floats per vertex: the vertex normals
-///        the bounces interpolate at hits.
+///        that tell a hit's front from its back.
 /// @param options what to measure (fill with `antumbra_transfer_options_init`).
 /// @param progress NULL or a function told of progress: `done` of `total`
-///        passes (receivers × (1 + bounces) + vertices × bounces).
+///        passes (receivers × (1 + bounces)).
 /// @param user_data passed to `progress` untouched.
 /// @param out receives the new transfer set; untouched on failure.
 /// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (a mesh other than
@@ -475,8 +475,20 @@ pub unsafe extern "C" fn antumbra_lightmap_bake(
             })
             .collect();
         let parallel = options.parallel == 1;
+        // Bounces read the texels under their hits' UVs.
+        let lookup =
+            |triangle: usize, u: f32, v: f32| l.atlas.receiver_at_hit(&mesh, triangle, u, v);
         let set = bake_with(options, progress, user_data, |bake_options| {
-            transfer::bake_points(&mesh, &normals, &scene, &points, bake_options, parallel)
+            let reads = BounceReads::Points(&lookup);
+            transfer::bake_points(
+                &mesh,
+                &normals,
+                &scene,
+                &points,
+                reads,
+                bake_options,
+                parallel,
+            )
         })?;
         boxed(set, out)
     })
@@ -674,9 +686,16 @@ mod tests {
                 normal: r.normal,
             })
             .collect();
-        let want =
-            transfer::bake_points(&mesh, &normals, &scene, &bake_points, &bake_options, false)
-                .unwrap();
+        let want = transfer::bake_points(
+            &mesh,
+            &normals,
+            &scene,
+            &bake_points,
+            BounceReads::Vertices,
+            &bake_options,
+            false,
+        )
+        .unwrap();
         // SAFETY: a live set from the bake.
         let got = unsafe { &(*set).set };
         assert_eq!(*got, want);

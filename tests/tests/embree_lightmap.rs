@@ -27,7 +27,7 @@ use antumbra_core::Ray;
 use antumbra_core::lightmap::{AtlasOptions, LiftOptions, TexelAtlas, TexelReceiver};
 use antumbra_core::raycast::BvhScene;
 use antumbra_core::sh::eval_basis_into;
-use antumbra_core::transfer::{BakeOptions, BakePoint, Measurement, bake_points};
+use antumbra_core::transfer::{BakeOptions, BakePoint, BounceReads, Measurement, bake_points};
 use antumbra_tests::data::Mesh;
 use antumbra_tests::oracle;
 use glam::{DVec3, Vec2, Vec3};
@@ -258,7 +258,16 @@ fn check_scene(name: &str, scene: &Charted, footprint: [Vec2; 2]) -> (f64, f64) 
             seed,
             ..BakeOptions::new(Measurement::Diffuse)
         };
-        let set = bake_points(&view, &scene.normals, &bvh, &points, &options, true).unwrap();
+        let set = bake_points(
+            &view,
+            &scene.normals,
+            &bvh,
+            &points,
+            BounceReads::Vertices,
+            &options,
+            true,
+        )
+        .unwrap();
         (0..points.len())
             .flat_map(|p| set.vertex_block(p).unwrap().to_vec())
             .collect::<Vec<f32>>()

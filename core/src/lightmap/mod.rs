@@ -225,6 +225,8 @@ pub struct TexelAtlas {
     receivers: Vec<TexelReceiver>,
     /// Per texel, row by row: the receiver it reads, or [`EMPTY`].
     reads: Vec<u32>,
+    /// The mesh's UVs, for mapping hits to texels.
+    uvs: Vec<[f32; 2]>,
 }
 
 /// A texel that reads no receiver.
@@ -286,6 +288,7 @@ impl TexelAtlas {
             gutter: options.gutter,
             receivers,
             reads,
+            uvs: crate::fallible::copied(uvs)?,
         })
     }
 
@@ -318,6 +321,34 @@ impl TexelAtlas {
         }
         let read = self.reads[y as usize * self.width as usize + x as usize];
         (read != EMPTY).then_some(read as usize)
+    }
+
+    /// The receiver that the point of `triangle` (of the mesh the atlas was
+    /// built from) with barycentric weights `u`, `v` of its second and third
+    /// corners reads: that of the texel under the point's UV. This is how a
+    /// texel bake's bounce reads the previous pass at a hit
+    /// ([`crate::transfer::BounceReads::Points`]). `None` outside the mesh or
+    /// the charts.
+    pub fn receiver_at_hit(
+        &self,
+        mesh: &MeshView<'_>,
+        triangle: usize,
+        u: f32,
+        v: f32,
+    ) -> Option<usize> {
+        if triangle >= mesh.triangle_count() {
+            return None;
+        }
+        let [a, b, c] = mesh
+            .triangle_indices(triangle)
+            .map(|i| glam::Vec2::from(*self.uvs.get(i as usize).unwrap_or(&[f32::NAN; 2])));
+        let uv = a * (1.0 - u - v) + b * u + c * v;
+        let texel = |t: f32, side: u32| {
+            let x = libm::floorf(t * side as f32);
+            // NaN and points off the atlas read nothing; `v = 1` is the last row.
+            (x >= 0.0 && x <= side as f32).then(|| (x as u32).min(side - 1))
+        };
+        self.receiver_at(texel(uv.x, self.width)?, texel(uv.y, self.height)?)
     }
 
     /// Fills `image` (`width × height` texels of `channels` values, row by row)

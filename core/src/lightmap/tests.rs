@@ -449,3 +449,112 @@ fn lift_moves_receivers_out_of_a_box_on_the_floor() {
             .is_none()
     );
 }
+
+/// The furnace of the transfer tests, baked at texels with texel bounces: inside
+/// a spherical cavity open to a uniform sky through a cap of area fraction `f`,
+/// every point receives `π L f` directly, and each bounce of albedo `ρ`
+/// multiplies it by `ρ (1 − f)`. Each triangle is its own chart, so a hit reads
+/// the texel of the very triangle it lands on.
+#[cfg(feature = "bvh")]
+#[test]
+fn texel_bounces_fill_a_furnace_as_the_geometric_series() {
+    use crate::transfer::{BakeOptions, BakePoint, BounceReads, Measurement, bake_points};
+    // 24 rings: the cap's rim (cos θ = 0.5) is ring 8 exactly.
+    let (positions, all) = crate::geom::uv_sphere(24, 48, |theta, phi| {
+        let s = libm::sinf(theta);
+        [s * libm::cosf(phi), s * libm::sinf(phi), libm::cosf(theta)]
+    });
+    let mut corners = Vec::new();
+    for t in all.chunks_exact(3) {
+        let centroid: Vec3 = t
+            .iter()
+            .map(|&i| Vec3::from(positions[i as usize]))
+            .sum::<Vec3>()
+            / 3.0;
+        if centroid.z < 0.5 {
+            corners.push([t[0], t[1], t[2]]);
+        }
+    }
+    // Every triangle its own vertices and its own cell of a 48 x 48 UV grid.
+    let cells = 48usize;
+    let (mut flat, mut uvs, mut normals, mut indices) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for (k, t) in corners.iter().enumerate() {
+        let cell = Vec2::new((k % cells) as f32, (k / cells) as f32);
+        let local = [
+            Vec2::new(0.1, 0.1),
+            Vec2::new(0.9, 0.1),
+            Vec2::new(0.1, 0.9),
+        ];
+        for (&i, l) in t.iter().zip(local) {
+            let p = Vec3::from(positions[i as usize]);
+            indices.push(flat.len() as u32);
+            flat.push(p.to_array());
+            uvs.push(((cell + l) / cells as f32).to_array());
+            // Inward: the cavity's inside is lit.
+            normals.push(-p.normalize());
+        }
+    }
+    let mesh = MeshView::new(&flat, &indices).unwrap();
+    let side = (cells * 4) as u32;
+    let atlas = TexelAtlas::new(&mesh, &uvs, &normals, &AtlasOptions::new(side, side)).unwrap();
+    let bvh = crate::raycast::BvhScene::new(&mesh).unwrap();
+    let points: Vec<BakePoint> = atlas
+        .receivers()
+        .iter()
+        .map(|r| BakePoint {
+            position: r.position,
+            normal: r.normal,
+        })
+        .collect();
+    let lookup = |triangle: usize, u: f32, v: f32| atlas.receiver_at_hit(&mesh, triangle, u, v);
+    let f = 0.25f64;
+    let albedo = 0.8f32;
+    let l0 = 2.0 * core::f32::consts::PI.sqrt();
+    for bounces in [0u32, 2] {
+        let options = BakeOptions {
+            bands: 2,
+            rays: 64,
+            bounces,
+            albedo,
+            seed: 3,
+            ..BakeOptions::new(Measurement::Diffuse)
+        };
+        let set = bake_points(
+            &mesh,
+            &normals,
+            &bvh,
+            &points,
+            BounceReads::Points(&lookup),
+            &options,
+            true,
+        )
+        .unwrap();
+        let q = f64::from(albedo) * (1.0 - f);
+        let want = core::f64::consts::PI * f * (0..=bounces).map(|i| q.powi(i as i32)).sum::<f64>();
+        let mean = (0..set.vertex_count())
+            .map(|p| f64::from(set.vertex_block(p).unwrap()[0] * l0))
+            .sum::<f64>()
+            / set.vertex_count() as f64;
+        let error = mean / want - 1.0;
+        std::println!(
+            "texel furnace, {bounces} bounces, {} texels: closed form {want:.5}, mean error {:+.3} %",
+            set.vertex_count(),
+            error * 100.0
+        );
+        assert!(error.abs() < 0.02, "{bounces} bounces: {error}");
+    }
+    // Every hit on the mesh maps to a texel: the centroid of each triangle.
+    for t in 0..mesh.triangle_count() {
+        assert!(
+            atlas
+                .receiver_at_hit(&mesh, t, 1.0 / 3.0, 1.0 / 3.0)
+                .is_some(),
+            "{t}"
+        );
+    }
+    assert_eq!(
+        atlas.receiver_at_hit(&mesh, mesh.triangle_count(), 0.3, 0.3),
+        None
+    );
+}

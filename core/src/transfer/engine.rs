@@ -53,8 +53,25 @@ struct PassContext<'a, C: ?Sized> {
     projection: Projection,
     sampling: Sampling,
     pass: u32,
-    /// `E_{pass-1}` of every vertex (`coeffs` each), for passes ≥ 1.
+    /// `E_{pass-1}` of every vertex, or of every point when `reads` says so
+    /// (`coeffs` each), for passes ≥ 1.
     previous: &'a [f32],
+    /// Where a bounce's hit reads `previous`.
+    reads: BounceReads<'a>,
+}
+
+/// Where a bounce ray's hit reads the previous pass, in [`bake_points`].
+#[derive(Clone, Copy)]
+pub enum BounceReads<'a> {
+    /// The mesh's vertices' previous pass, interpolated at the hit from the
+    /// hit triangle's corners (the vertices' passes run too).
+    Vertices,
+    /// The points' own previous pass, at the point `lookup(triangle, u, v)`
+    /// gives for a hit (`u`, `v` the barycentric weights of the triangle's
+    /// second and third corners, as in [`crate::Hit`]), such as the lightmap
+    /// texel under the hit's UV; a hit that maps to no point sees nothing.
+    /// Only the points' passes run.
+    Points(&'a (dyn Fn(usize, f32, f32) -> Option<usize> + Sync)),
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -291,10 +308,12 @@ pub fn bake_serial<C: RayCaster + Sync + ?Sized>(
 /// set is identical serial or parallel (`parallel` runs on rayon's pool with
 /// the `parallel` feature).
 ///
-/// With bounces, pass `k` at a point reads the mesh's pass `k - 1` at the hit,
-/// interpolated from the hit triangle's vertices: every pass but the last also
-/// runs over the mesh's vertices (as [`bake`]'s passes do), so the cost is the
-/// points' `bounces + 1` passes plus the vertices' `bounces`.
+/// With bounces, pass `k` at a point reads pass `k - 1` at the hit as `reads`
+/// says: [`BounceReads::Vertices`] interpolates the mesh's vertices' pass (every
+/// pass but the last also runs over the vertices, as [`bake`]'s do, so the cost
+/// is the points' `bounces + 1` passes plus the vertices' `bounces`);
+/// [`BounceReads::Points`] reads the points' own pass at the point a hit maps to
+/// (a lightmap's texels: only the points' passes run).
 ///
 /// Errors: those of [`bake`], [`BakeError::NoVertices`] for no points, and
 /// [`BakeError::Point`] for a point whose position is not finite or whose normal
@@ -304,6 +323,7 @@ pub fn bake_points<C: RayCaster + Sync + ?Sized>(
     normals: &[Vec3],
     caster: &C,
     points: &[BakePoint],
+    reads: BounceReads<'_>,
     options: &BakeOptions<'_>,
     parallel: bool,
 ) -> Result<TransferSet, BakeError> {
@@ -324,7 +344,7 @@ pub fn bake_points<C: RayCaster + Sync + ?Sized>(
         normals,
         caster,
         options,
-        Targets::Points(points),
+        Targets::Points(points, reads),
         parallel,
     )
 }
@@ -341,7 +361,7 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
     let vertices = mesh.vertex_count();
     let kept = match &targets {
         Targets::Vertices(range) => range.len(),
-        Targets::Points(points) => points.len(),
+        Targets::Points(points, _) => points.len(),
     };
     let (kind, projection, grid) = match options.measurement {
         Measurement::Diffuse => (TransferKind::Diffuse, Projection::None, 0),
@@ -376,14 +396,17 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
     };
     let sites = match &targets {
         Targets::Vertices(_) => vertices,
-        Targets::Points(points) => points.len(),
+        Targets::Points(points, _) => points.len(),
     };
     let mut measured = zeros(sites.checked_mul(gathered))?;
     let mut previous = Vec::new();
     let done = AtomicUsize::new(0);
     let total = match &targets {
         Targets::Vertices(_) => vertices * options.bounces as usize + kept,
-        Targets::Points(_) => (vertices + kept) * options.bounces as usize + kept,
+        Targets::Points(_, BounceReads::Vertices) => {
+            (vertices + kept) * options.bounces as usize + kept
+        }
+        Targets::Points(_, BounceReads::Points(_)) => kept * (options.bounces as usize + 1),
     };
     let report = options.progress;
     let progress = |count: usize| {
@@ -406,6 +429,10 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
             sampling,
             pass,
             previous: &previous,
+            reads: match &targets {
+                Targets::Points(_, reads) => *reads,
+                Targets::Vertices(_) => BounceReads::Vertices,
+            },
         };
         // The last pass only for the sites kept; earlier ones for every vertex,
         // which the next pass reads.
@@ -435,7 +462,7 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
                 }
                 irradiance
             }
-            Targets::Points(points) => {
+            Targets::Points(points, reads) => {
                 let mut irradiance = zeros(points.len().checked_mul(coeffs))?;
                 let work = |index: usize, irr: &mut [f32], meas: &mut [f32]| {
                     let point = points[index];
@@ -462,6 +489,9 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
                 }
                 if last {
                     Vec::new()
+                } else if let BounceReads::Points(_) = reads {
+                    // The next pass reads the points themselves.
+                    irradiance
                 } else {
                     // The mesh's own pass, which the points' next pass reads at
                     // its hits: irradiance only.
@@ -469,6 +499,7 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
                     let mut unused = zeros(Some(vertices))?;
                     let ctx = PassContext {
                         projection: Projection::None,
+                        reads: BounceReads::Vertices,
                         ..ctx
                     };
                     let work = |vertex: usize, irr: &mut [f32], meas: &mut [f32]| {
@@ -512,7 +543,7 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
                 .map(|n| n.to_array())
                 .collect(),
         ),
-        Targets::Points(points) => (
+        Targets::Points(points, _) => (
             points.iter().map(|p| p.position.to_array()).collect(),
             points.iter().map(|p| p.normal.to_array()).collect(),
         ),
@@ -640,8 +671,8 @@ pub struct BakePoint {
 enum Targets<'a> {
     /// These vertices of the mesh.
     Vertices(core::ops::Range<usize>),
-    /// These points.
-    Points(&'a [BakePoint]),
+    /// These points, their bounces reading as given.
+    Points(&'a [BakePoint], BounceReads<'a>),
 }
 
 /// One pass over one vertex: writes its irradiance transfer `E_pass` and adds the
@@ -710,11 +741,26 @@ fn gather_n<C: RayCaster + ?Sized, const N: usize>(
                     // The back of a surface: its outgoing radiance is not modelled.
                     return true;
                 }
-                let corner = |i: usize| ctx.previous[i * N..].first_chunk::<N>();
-                let (Some(ea), Some(eb), Some(ec)) = (corner(a), corner(b), corner(c)) else {
-                    return true;
-                };
-                core::array::from_fn(|j| albedo_over_pi * (wa * ea[j] + wb * eb[j] + wc * ec[j]))
+                match ctx.reads {
+                    BounceReads::Vertices => {
+                        let corner = |i: usize| ctx.previous[i * N..].first_chunk::<N>();
+                        let (Some(ea), Some(eb), Some(ec)) = (corner(a), corner(b), corner(c))
+                        else {
+                            return true;
+                        };
+                        core::array::from_fn(|j| {
+                            albedo_over_pi * (wa * ea[j] + wb * eb[j] + wc * ec[j])
+                        })
+                    }
+                    BounceReads::Points(lookup) => {
+                        let Some(e) = lookup(hit.triangle as usize, hit.u, hit.v)
+                            .and_then(|p| ctx.previous.get(p * N..)?.first_chunk::<N>())
+                        else {
+                            return true;
+                        };
+                        core::array::from_fn(|j| albedo_over_pi * e[j])
+                    }
+                }
             };
             // Irradiance: ∫ L cos θ dω.
             let w_irr = match ctx.sampling {

@@ -135,8 +135,8 @@ use alloc::vec::Vec;
 use core::fmt;
 
 pub use engine::{
-    BakePoint, BakeRay, MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_points, bake_rays, bake_serial,
-    bake_vertices,
+    BakePoint, BakeRay, BounceReads, MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_points, bake_rays,
+    bake_serial, bake_vertices,
 };
 pub use format::FormatError;
 pub use mrt::{

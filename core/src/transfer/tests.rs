@@ -1614,15 +1614,32 @@ fn point_bakes_converge_to_the_brute_force_reference() {
     let mut errors = Vec::new();
     for rays in [64u32, 256, 1024, 4096] {
         let options = options(Measurement::Diffuse, 4, rays);
-        let set = bake_points(&mesh, &scene.normals, &caster, &points, &options, false).unwrap();
+        let set = bake_points(
+            &mesh,
+            &scene.normals,
+            &caster,
+            &points,
+            BounceReads::Vertices,
+            &options,
+            false,
+        )
+        .unwrap();
         assert_eq!(set.vertex_count(), points.len());
         assert_eq!(set.positions()[3], points[3].position.to_array());
         let got: Vec<f32> = (0..points.len())
             .flat_map(|p| set.vertex_block(p).unwrap().iter().copied())
             .collect();
         errors.push(relative_rms(&got, &reference));
-        let parallel =
-            bake_points(&mesh, &scene.normals, &caster, &points, &options, true).unwrap();
+        let parallel = bake_points(
+            &mesh,
+            &scene.normals,
+            &caster,
+            &points,
+            BounceReads::Vertices,
+            &options,
+            true,
+        )
+        .unwrap();
         assert_eq!(parallel, set);
     }
     println!("point bakes against the reference: {errors:?}");
@@ -1653,10 +1670,28 @@ fn point_bakes_are_per_point_and_bounce_like_vertex_bakes() {
             normal: scene.normals[v],
         })
         .collect();
-    let set = bake_points(&mesh, &scene.normals, &caster, &points, &options, false).unwrap();
+    let set = bake_points(
+        &mesh,
+        &scene.normals,
+        &caster,
+        &points,
+        BounceReads::Vertices,
+        &options,
+        false,
+    )
+    .unwrap();
     let mut moved = points.clone();
     moved[0].position += Vec3::new(0.1, 0.0, 0.0);
-    let other = bake_points(&mesh, &scene.normals, &caster, &moved, &options, false).unwrap();
+    let other = bake_points(
+        &mesh,
+        &scene.normals,
+        &caster,
+        &moved,
+        BounceReads::Vertices,
+        &options,
+        false,
+    )
+    .unwrap();
     assert_ne!(set.vertex_block(0), other.vertex_block(0));
     for p in 1..points.len() {
         assert_eq!(set.vertex_block(p), other.vertex_block(p), "point {p}");
@@ -1689,6 +1724,7 @@ fn point_bakes_are_per_point_and_bounce_like_vertex_bakes() {
         &scene.normals,
         &caster,
         &points,
+        BounceReads::Vertices,
         &BakeOptions {
             bounces: 0,
             ..options
@@ -1715,8 +1751,17 @@ fn point_bakes_refuse_bad_points() {
     let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
     let caster = BruteForceCaster::new(mesh);
     let options = options(Measurement::Diffuse, 2, 16);
-    let bake =
-        |points: &[BakePoint]| bake_points(&mesh, &scene.normals, &caster, points, &options, false);
+    let bake = |points: &[BakePoint]| {
+        bake_points(
+            &mesh,
+            &scene.normals,
+            &caster,
+            points,
+            BounceReads::Vertices,
+            &options,
+            false,
+        )
+    };
     assert_eq!(bake(&[]).unwrap_err(), BakeError::NoVertices);
     let good = BakePoint {
         position: Vec3::ZERO,
