@@ -69,6 +69,16 @@ impl Framebuffer {
         self.depth[k].is_finite().then_some(self.color[k])
     }
 
+    /// Replaces the colour of every drawn pixel by `f` of it (a deferred
+    /// pass: draw texture coordinates as colours, then look the texture up).
+    pub fn map_colors(&mut self, f: impl Fn(Vec3) -> Vec3) {
+        for (color, depth) in self.color.iter_mut().zip(&self.depth) {
+            if depth.is_finite() {
+                *color = f(*color);
+            }
+        }
+    }
+
     /// Draws a triangle: every covered pixel whose centre is nearer than what it
     /// holds takes the interpolated colour.
     pub fn draw_triangle(&mut self, vertices: &[ScreenVertex; 3]) {

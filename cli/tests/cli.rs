@@ -90,6 +90,7 @@ fn demo_writes_decodable_pictures_with_content() {
         "bunny-hemi-glossy.png",
         "bunny-hemi-twist.png",
         "bunny-mrt-rotating-sky.png",
+        "lightmap-boxes.png",
         "bunny-soft-shadows.png",
         "bunny-soft-shadows-difference.png",
     ] {

@@ -13,6 +13,7 @@ pub(super) mod hemi;
 mod hemi_diffuse;
 mod hemi_glossy;
 mod hemi_twist;
+mod lightmap;
 mod mrt_relit;
 mod soft_shadows;
 
@@ -39,6 +40,7 @@ const PICTURES: &[DemoPicture] = &[
     hemi_glossy::PICTURE,
     hemi_twist::PICTURE,
     mrt_relit::PICTURE,
+    lightmap::PICTURE,
     soft_shadows::PICTURE,
     soft_shadows::DIFFERENCE,
 ];
