@@ -1421,6 +1421,10 @@ static void test_lightmap(void)
     o.gutter = ANTUMBRA_LIGHTMAP_MAX_GUTTER + 1;
     expect_lightmap_fails("lightmap, gutter", &mesh, uvs, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT, "options->gutter");
     o.gutter = 2;
+    o.lift_probes = ANTUMBRA_LIGHTMAP_MAX_PROBES + 1;
+    expect_lightmap_fails("lightmap, probes", &mesh, uvs, &o, ANTUMBRA_RESULT_INVALID_ARGUMENT,
+                          "options->lift_probes");
+    o.lift_probes = 8;
     memcpy(bad_uvs, uvs, sizeof uvs);
     bad_uvs[5] = NAN;
     expect_lightmap_fails("lightmap, uv NaN", &mesh, bad_uvs, &o, ANTUMBRA_RESULT_NON_FINITE, "uvs[2]");

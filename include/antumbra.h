@@ -167,6 +167,13 @@
 
 #if defined(ANTUMBRA_HAS_STD)
 /**
+ * The most lift probes per receiver.
+ */
+#define ANTUMBRA_LIGHTMAP_MAX_PROBES 64
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
  * Triangle index reported by a ray that hits nothing.
  */
 #define ANTUMBRA_INVALID_INDEX UINT32_MAX
@@ -613,8 +620,8 @@ typedef struct antumbra_lightmap_options {
    */
   uint32_t gutter;
   /**
-   * Probe rays per receiver of the lift out of geometry (0 turns it off).
-   * Default 8.
+   * Probe rays per receiver of the lift out of geometry, 0 to
+   * `ANTUMBRA_LIGHTMAP_MAX_PROBES` (0 turns the probes off). Default 8.
    */
   uint32_t lift_probes;
 } antumbra_lightmap_options;
@@ -1756,11 +1763,11 @@ void antumbra_lightmap_options_init(struct antumbra_lightmap_options *options);
  * @param options the atlas (fill with `antumbra_lightmap_options_init`).
  * @param out receives the new lightmap; untouched on failure.
  * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, uvs, options, out);
- *         INVALID_ARGUMENT (a size or gutter out of range, a UV outside [0, 1]
- *         or not finite, collinear UVs, overlapping charts naming both
+ *         INVALID_ARGUMENT (a size, gutter or probe count out of range, a UV
+ *         outside [0, 1], collinear UVs, overlapping charts naming both
  *         triangles and the texel, a normal not unit length, no triangles,
  *         misaligned pointers); INDEX_OUT_OF_RANGE; NON_FINITE (positions,
- *         normals); OUT_OF_MEMORY; PANIC.
+ *         uvs, normals); OUT_OF_MEMORY; PANIC.
  *
  * Cost: linear in the texels the triangles' UV boxes span, plus a BVH build and
  * `lift_probes` short rays per receiver. Thread safety: safe from any thread.
@@ -1842,18 +1849,18 @@ antumbra_result antumbra_lightmap_receivers(const struct antumbra_lightmap *ligh
  * Bakes the lightmap's receivers against the mesh it was built from: the same
  * engine and options as `antumbra_transfer_bake`, each receiver drawing its own
  * rays, so the set's entry `i` (its "vertex" `i`) is receiver `i`. With
- * bounces, a receiver's pass k reads the mesh's pass k - 1 at each hit,
- * interpolated from the hit triangle's vertices (so the vertices' passes run
- * too, as in a vertex bake). Shade, save and compress the set as any other.
+ * bounces, a receiver's pass k reads pass k - 1 of the texel under each hit's
+ * UV (the gutter included), so light bounces between texels. Shade, save and
+ * compress the set as any other.
  *
  * @param lightmap a live lightmap.
  * @param mesh the mesh the lightmap was built from (same vertex and triangle
  *        counts; same rules as `antumbra_transfer_bake`).
  * @param normals NULL (area-weighted) or 3 floats per vertex: the vertex normals
- *        the bounces interpolate at hits.
+ *        that tell a hit's front from its back.
  * @param options what to measure (fill with `antumbra_transfer_options_init`).
  * @param progress NULL or a function told of progress: `done` of `total`
- *        passes (receivers × (1 + bounces) + vertices × bounces).
+ *        passes (receivers × (1 + bounces)).
  * @param user_data passed to `progress` untouched.
  * @param out receives the new transfer set; untouched on failure.
  * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (a mesh other than

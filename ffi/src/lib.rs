@@ -84,11 +84,11 @@ pub use hemi_shading::{
 };
 #[cfg(feature = "std")]
 pub use lightmap::{
-    ANTUMBRA_LIGHTMAP_MAX_GUTTER, ANTUMBRA_LIGHTMAP_MAX_SIDE, ANTUMBRA_LIGHTMAP_MAX_TEXELS,
-    antumbra_lightmap, antumbra_lightmap_bake, antumbra_lightmap_create,
-    antumbra_lightmap_describe, antumbra_lightmap_destroy, antumbra_lightmap_expand,
-    antumbra_lightmap_info, antumbra_lightmap_options, antumbra_lightmap_options_init,
-    antumbra_lightmap_receivers,
+    ANTUMBRA_LIGHTMAP_MAX_GUTTER, ANTUMBRA_LIGHTMAP_MAX_PROBES, ANTUMBRA_LIGHTMAP_MAX_SIDE,
+    ANTUMBRA_LIGHTMAP_MAX_TEXELS, antumbra_lightmap, antumbra_lightmap_bake,
+    antumbra_lightmap_create, antumbra_lightmap_describe, antumbra_lightmap_destroy,
+    antumbra_lightmap_expand, antumbra_lightmap_info, antumbra_lightmap_options,
+    antumbra_lightmap_options_init, antumbra_lightmap_receivers,
 };
 pub use mesh::antumbra_mesh_view;
 pub use result::*;

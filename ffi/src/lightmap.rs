@@ -37,6 +37,9 @@ pub const ANTUMBRA_LIGHTMAP_MAX_TEXELS: u64 = 1 << 26;
 /// The largest gutter, in texels.
 #[cfg(feature = "std")]
 pub const ANTUMBRA_LIGHTMAP_MAX_GUTTER: u32 = 64;
+/// The most lift probes per receiver.
+#[cfg(feature = "std")]
+pub const ANTUMBRA_LIGHTMAP_MAX_PROBES: u32 = 64;
 
 // The header needs literals; they must be core's limits.
 const _: () = assert!(
@@ -63,8 +66,8 @@ pub struct antumbra_lightmap_options {
     /// chart never reads an unbaked texel (1 suffices; each mip level needs one
     /// more). Default 2.
     pub gutter: u32,
-    /// Probe rays per receiver of the lift out of geometry (0 turns it off).
-    /// Default 8.
+    /// Probe rays per receiver of the lift out of geometry, 0 to
+    /// `ANTUMBRA_LIGHTMAP_MAX_PROBES` (0 turns the probes off). Default 8.
     pub lift_probes: u32,
 }
 
@@ -177,11 +180,11 @@ fn atlas_error(error: AtlasError) -> Error {
 /// @param options the atlas (fill with `antumbra_lightmap_options_init`).
 /// @param out receives the new lightmap; untouched on failure.
 /// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (mesh, uvs, options, out);
-///         INVALID_ARGUMENT (a size or gutter out of range, a UV outside [0, 1]
-///         or not finite, collinear UVs, overlapping charts naming both
+///         INVALID_ARGUMENT (a size, gutter or probe count out of range, a UV
+///         outside [0, 1], collinear UVs, overlapping charts naming both
 ///         triangles and the texel, a normal not unit length, no triangles,
 ///         misaligned pointers); INDEX_OUT_OF_RANGE; NON_FINITE (positions,
-///         normals); OUT_OF_MEMORY; PANIC.
+///         uvs, normals); OUT_OF_MEMORY; PANIC.
 ///
 /// Cost: linear in the texels the triangles' UV boxes span, plus a BVH build and
 /// `lift_probes` short rays per receiver. Thread safety: safe from any thread.
@@ -237,12 +240,18 @@ pub unsafe extern "C" fn antumbra_lightmap_create(
         };
         let mut atlas =
             TexelAtlas::new(&mesh, &uvs, &normals, &atlas_options).map_err(atlas_error)?;
+        if options.lift_probes > ANTUMBRA_LIGHTMAP_MAX_PROBES {
+            return Err(Error::invalid(message!(
+                "options->lift_probes is {}; expected 0 to {ANTUMBRA_LIGHTMAP_MAX_PROBES}",
+                options.lift_probes
+            )));
+        }
         let lifted = if options.lift_probes == 0 {
             0
         } else {
             let scene = scene_of(&mesh)?;
             let lift = LiftOptions {
-                probes: options.lift_probes.min(64),
+                probes: options.lift_probes,
                 ..LiftOptions::default()
             };
             atlas
