@@ -27,6 +27,7 @@
 //! Cost: linear in the texels the triangles' UV boxes span, plus, for the lift,
 //! eight short rays per receiver.
 
+mod bake;
 mod gutter;
 mod lift;
 mod raster;

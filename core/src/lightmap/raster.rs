@@ -129,10 +129,9 @@ pub(super) fn receivers(
             double_area,
         }
     };
-    // Twice each footprint's area in texels (for the texel's world size).
-    let texel_areas =
-        fallible::collect((0..mesh.triangle_count()).map(|t| footprint(t).double_area.abs()))?;
-    let receiver = |triangle: usize, weights: [f64; 3], texel: [u32; 2], coverage| {
+    // `shape` is the triangle's footprint: its area in texels gives the
+    // texel's world size.
+    let receiver = |triangle: usize, shape: &Footprint, weights: [f64; 3], texel, coverage| {
         let indices = mesh.triangle_indices(triangle).map(|v| v as usize);
         let w = weights.map(|w| w.clamp(0.0, 1.0) as f32);
         let sum = w[0] + w[1] + w[2];
@@ -142,7 +141,8 @@ pub(super) fn receivers(
             .zip(w)
             .fold(Vec3::ZERO, |p, (&v, w)| p + mesh.position(v) * w);
         let [a, b, c] = mesh.triangle(triangle);
-        let geometric = (b - a).cross(c - a).normalize_or_zero();
+        let cross = (b - a).cross(c - a);
+        let geometric = cross.normalize_or_zero();
         let interpolated = indices
             .iter()
             .zip(w)
@@ -157,8 +157,8 @@ pub(super) fn receivers(
         } else {
             Vec3::Z
         };
-        let world_area = (b - a).cross(c - a).length();
-        let texel_area = texel_areas[triangle];
+        let world_area = cross.length();
+        let texel_area = shape.double_area.abs();
         TexelReceiver {
             texel,
             position,
@@ -220,7 +220,13 @@ pub(super) fn receivers(
                 *slot = receivers.len() as u32;
                 fallible::push(
                     &mut receivers,
-                    receiver(triangle, shape.weights(point), [x, y], Coverage::Centre),
+                    receiver(
+                        triangle,
+                        &shape,
+                        shape.weights(point),
+                        [x, y],
+                        Coverage::Centre,
+                    ),
                 )?;
                 fallible::push(&mut distances, 0.0)?;
             }
@@ -243,7 +249,7 @@ pub(super) fn receivers(
                 }
                 let centre = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
                 let (weights, distance) = shape.nearest(centre);
-                let touched = receiver(triangle, weights, [x, y], Coverage::Touched);
+                let touched = receiver(triangle, &shape, weights, [x, y], Coverage::Touched);
                 if *slot == EMPTY {
                     *slot = receivers.len() as u32;
                     fallible::push(&mut receivers, touched)?;

@@ -458,7 +458,7 @@ fn lift_moves_receivers_out_of_a_box_on_the_floor() {
 #[cfg(feature = "bvh")]
 #[test]
 fn texel_bounces_fill_a_furnace_as_the_geometric_series() {
-    use crate::transfer::{BakeOptions, BakePoint, BounceReads, Measurement, bake_points};
+    use crate::transfer::{BakeOptions, Measurement};
     // 24 rings: the cap's rim (cos θ = 0.5) is ring 8 exactly.
     let (positions, all) = crate::geom::uv_sphere(24, 48, |theta, phi| {
         let s = libm::sinf(theta);
@@ -499,15 +499,6 @@ fn texel_bounces_fill_a_furnace_as_the_geometric_series() {
     let side = (cells * 4) as u32;
     let atlas = TexelAtlas::new(&mesh, &uvs, &normals, &AtlasOptions::new(side, side)).unwrap();
     let bvh = crate::raycast::BvhScene::new(&mesh).unwrap();
-    let points: Vec<BakePoint> = atlas
-        .receivers()
-        .iter()
-        .map(|r| BakePoint {
-            position: r.position,
-            normal: r.normal,
-        })
-        .collect();
-    let lookup = |triangle: usize, u: f32, v: f32| atlas.receiver_at_hit(&mesh, triangle, u, v);
     let f = 0.25f64;
     let albedo = 0.8f32;
     let l0 = 2.0 * core::f32::consts::PI.sqrt();
@@ -520,16 +511,7 @@ fn texel_bounces_fill_a_furnace_as_the_geometric_series() {
             seed: 3,
             ..BakeOptions::new(Measurement::Diffuse)
         };
-        let set = bake_points(
-            &mesh,
-            &normals,
-            &bvh,
-            &points,
-            BounceReads::Points(&lookup),
-            &options,
-            true,
-        )
-        .unwrap();
+        let set = atlas.bake(&mesh, &normals, &bvh, &options, true).unwrap();
         let q = f64::from(albedo) * (1.0 - f);
         let want = core::f64::consts::PI * f * (0..=bounces).map(|i| q.powi(i as i32)).sum::<f64>();
         let mean = (0..set.vertex_count())

@@ -437,81 +437,65 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
         // The last pass only for the sites kept; earlier ones for every vertex,
         // which the next pass reads.
         let last = pass == options.bounces;
-        let next_previous = match &targets {
+        // This pass at every site it covers: the vertices (the last pass only
+        // those in range), or the points.
+        let site = |index: usize| match &targets {
             Targets::Vertices(range) => {
-                let mut irradiance = zeros(vertices.checked_mul(coeffs))?;
+                (!last || range.contains(&index)).then(|| Site::vertex(mesh, normals, index))
+            }
+            Targets::Points(points, _) => Some(Site {
+                position: points[index].position,
+                normal: points[index].normal,
+                stream: POINT_STREAMS | index as u64,
+            }),
+        };
+        let mut irradiance = zeros(sites.checked_mul(coeffs))?;
+        let work = |index: usize, irr: &mut [f32], meas: &mut [f32]| {
+            if let Some(site) = site(index) {
+                gather(&ctx, site, irr, meas);
+                progress(1);
+            }
+        };
+        run_vertices(
+            parallel,
+            &mut irradiance,
+            coeffs,
+            &mut measured,
+            gathered,
+            &work,
+        );
+        if projection == Projection::None {
+            for (m, e) in measured.iter_mut().zip(&irradiance) {
+                *m += *e;
+            }
+        }
+        // What the next pass's bounces read: this pass, or, for points that
+        // read the mesh's vertices, the vertices' own pass (irradiance only).
+        previous = match &targets {
+            Targets::Points(_, BounceReads::Vertices) if !last => {
+                let mut vertex_irradiance = zeros(vertices.checked_mul(coeffs))?;
+                let mut unused = zeros(Some(vertices))?;
+                let ctx = PassContext {
+                    projection: Projection::None,
+                    reads: BounceReads::Vertices,
+                    ..ctx
+                };
                 let work = |vertex: usize, irr: &mut [f32], meas: &mut [f32]| {
-                    if last && !range.contains(&vertex) {
-                        return;
-                    }
                     gather(&ctx, Site::vertex(mesh, normals, vertex), irr, meas);
                     progress(1);
                 };
                 run_vertices(
                     parallel,
-                    &mut irradiance,
+                    &mut vertex_irradiance,
                     coeffs,
-                    &mut measured,
-                    gathered,
+                    &mut unused,
+                    1,
                     &work,
                 );
-                if projection == Projection::None {
-                    for (m, e) in measured.iter_mut().zip(&irradiance) {
-                        *m += *e;
-                    }
-                }
-                irradiance
+                vertex_irradiance
             }
-            Targets::Points(points, reads) => {
-                let mut irradiance = zeros(points.len().checked_mul(coeffs))?;
-                let work = |index: usize, irr: &mut [f32], meas: &mut [f32]| {
-                    let point = points[index];
-                    let site = Site {
-                        position: point.position,
-                        normal: point.normal,
-                        stream: POINT_STREAMS | index as u64,
-                    };
-                    gather(&ctx, site, irr, meas);
-                    progress(1);
-                };
-                run_vertices(
-                    parallel,
-                    &mut irradiance,
-                    coeffs,
-                    &mut measured,
-                    gathered,
-                    &work,
-                );
-                if projection == Projection::None {
-                    for (m, e) in measured.iter_mut().zip(&irradiance) {
-                        *m += *e;
-                    }
-                }
-                if last {
-                    Vec::new()
-                } else if let BounceReads::Points(_) = reads {
-                    // The next pass reads the points themselves.
-                    irradiance
-                } else {
-                    // The mesh's own pass, which the points' next pass reads at
-                    // its hits: irradiance only.
-                    let mut irradiance = zeros(vertices.checked_mul(coeffs))?;
-                    let mut unused = zeros(Some(vertices))?;
-                    let ctx = PassContext {
-                        projection: Projection::None,
-                        reads: BounceReads::Vertices,
-                        ..ctx
-                    };
-                    let work = |vertex: usize, irr: &mut [f32], meas: &mut [f32]| {
-                        gather(&ctx, Site::vertex(mesh, normals, vertex), irr, meas);
-                        progress(1);
-                    };
-                    run_vertices(parallel, &mut irradiance, coeffs, &mut unused, 1, &work);
-                    irradiance
-                }
-            }
+            _ => irradiance,
         };
-        previous = next_previous;
     }
     if let Targets::Vertices(range) = &targets {
         measured.truncate(range.end * gathered);
