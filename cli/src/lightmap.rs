@@ -7,13 +7,11 @@ use std::path::Path;
 
 use antumbra_core::lightmap::{AtlasOptions, LiftOptions, TexelAtlas};
 use antumbra_core::raycast::BvhScene;
-use antumbra_core::transfer::{
-    BakeOptions, BakePoint, BounceReads, TransferKind, TransferSet, bake_points,
-};
+use antumbra_core::transfer::{BakeOptions, TransferKind, TransferSet};
 use glam::Vec3;
 
 use crate::error::{Context, Error, Result};
-use crate::mesh::TriangleMesh;
+use crate::mesh::{TriangleMesh, obj_models, open_obj};
 
 /// A mesh with one UV and one unit normal per vertex.
 pub struct TexturedMesh {
@@ -30,25 +28,14 @@ impl TexturedMesh {
     /// Loads every object of an OBJ file with its texture coordinates: an error
     /// naming the file when any face has none.
     pub fn load_obj(path: &Path) -> Result<Self> {
-        let name = path.display().to_string();
-        let file = std::fs::File::open(path).with_context(|| format!("cannot open mesh {name}"))?;
-        Self::parse_obj(&name, &mut std::io::BufReader::new(file))
+        let (name, mut reader) = open_obj(path)?;
+        Self::parse_obj(&name, &mut reader)
     }
 
     /// [`Self::load_obj`] from text in memory.
     pub fn parse_obj(name: &str, reader: &mut impl std::io::BufRead) -> Result<Self> {
         // One index per vertex: position and UV pairs become the vertices.
-        #[allow(clippy::needless_update)]
-        let options = tobj::LoadOptions {
-            triangulate: true,
-            single_index: true,
-            ignore_points: true,
-            ignore_lines: true,
-            ..Default::default()
-        };
-        let (models, _materials) =
-            tobj::load_obj_buf(reader, &options, |_| Err(tobj::LoadError::OpenFileFailed))
-                .with_context(|| format!("cannot parse OBJ mesh {name}"))?;
+        let models = obj_models(name, reader, true)?;
         let (mut positions, mut uvs, mut indices) = (Vec::new(), Vec::new(), Vec::new());
         for model in models {
             let mesh = &model.mesh;
@@ -141,27 +128,10 @@ pub fn bake_texels(
     let lifted = atlas
         .lift(&view, &bvh, &LiftOptions::default())
         .expect("the default lift options are valid");
-    let points: Vec<BakePoint> = atlas
-        .receivers()
-        .iter()
-        .map(|r| BakePoint {
-            position: r.position,
-            normal: r.normal,
-        })
-        .collect();
     // Bounces read the texels under their hits' UVs.
-    let lookup = |triangle: usize, u: f32, v: f32| atlas.receiver_at_hit(&view, triangle, u, v);
-    let reads = BounceReads::Points(&lookup);
-    let set = bake_points(
-        &view,
-        &textured.normals,
-        &bvh,
-        &points,
-        reads,
-        options,
-        true,
-    )
-    .map_err(|e| Error::msg(format!("cannot bake: {e}")))?;
+    let set = atlas
+        .bake(&view, &textured.normals, &bvh, options, true)
+        .map_err(|e| Error::msg(format!("cannot bake: {e}")))?;
     Ok(TexelBake { atlas, set, lifted })
 }
 

@@ -13,6 +13,39 @@ use glam::Vec3;
 use crate::bounds::Bounds;
 use crate::error::{Context, Error, Result};
 
+/// Opens an OBJ file for [`obj_models`]; the path as the name for messages.
+pub(crate) fn open_obj(path: &Path) -> Result<(String, BufReader<std::fs::File>)> {
+    let name = path.display().to_string();
+    if path.is_dir() {
+        return Err(Error::msg(format!("{name} is a folder, not an OBJ file")));
+    }
+    let file = std::fs::File::open(path).with_context(|| format!("cannot open mesh {name}"))?;
+    Ok((name, BufReader::new(file)))
+}
+
+/// The objects of an OBJ file, triangulated; `single_index` gives one index per
+/// vertex (positions split where their texture coordinates differ).
+pub(crate) fn obj_models(
+    name: &str,
+    reader: &mut impl std::io::BufRead,
+    single_index: bool,
+) -> Result<Vec<tobj::Model>> {
+    // tobj's optional features add fields; the update keeps this compiling with them.
+    #[allow(clippy::needless_update)]
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    // Materials do not matter here: never read .mtl files.
+    let (models, _materials) =
+        tobj::load_obj_buf(reader, &options, |_| Err(tobj::LoadError::OpenFileFailed))
+            .with_context(|| format!("cannot parse OBJ mesh {name}"))?;
+    Ok(models)
+}
+
 /// An owned, validated indexed triangle mesh.
 #[derive(Clone, Debug)]
 pub struct TriangleMesh {
@@ -52,12 +85,7 @@ impl TriangleMesh {
 
     /// Loads every object of an OBJ file, triangulated, into one mesh.
     pub fn load_obj(path: &Path) -> Result<Self> {
-        let name = path.display().to_string();
-        if path.is_dir() {
-            return Err(Error::msg(format!("{name} is a folder, not an OBJ file")));
-        }
-        let file = std::fs::File::open(path).with_context(|| format!("cannot open mesh {name}"))?;
-        let mut reader = BufReader::new(file);
+        let (name, mut reader) = open_obj(path)?;
         Self::parse_obj(&name, &mut reader)
     }
 
@@ -67,19 +95,7 @@ impl TriangleMesh {
     }
 
     fn parse_obj(name: &str, reader: &mut impl std::io::BufRead) -> Result<Self> {
-        // tobj's optional features add fields; the update keeps this compiling with them.
-        #[allow(clippy::needless_update)]
-        let options = tobj::LoadOptions {
-            triangulate: true,
-            single_index: false,
-            ignore_points: true,
-            ignore_lines: true,
-            ..Default::default()
-        };
-        // Materials do not matter for visibility: never read .mtl files.
-        let (models, _materials) =
-            tobj::load_obj_buf(reader, &options, |_| Err(tobj::LoadError::OpenFileFailed))
-                .with_context(|| format!("cannot parse OBJ mesh {name}"))?;
+        let models = obj_models(name, reader, false)?;
         let mut positions: Vec<[f32; 3]> = Vec::new();
         let mut indices: Vec<u32> = Vec::new();
         for model in models {

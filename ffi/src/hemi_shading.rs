@@ -67,7 +67,7 @@ use crate::hemi::{
     check_coordinate_range, check_options, non_finite, worth_clustering,
 };
 use crate::mesh::{antumbra_mesh_view, mesh_from_c};
-use crate::raw;
+use crate::raw::{self, Span, Spans, check_disjoint};
 use crate::result::*;
 use crate::sh::ANTUMBRA_SH_MAX_BANDS;
 
@@ -254,7 +254,7 @@ pub unsafe extern "C" fn antumbra_hemi_shading_options_init(
     options: *mut antumbra_hemi_shading_options,
 ) {
     let _ = guard("antumbra_hemi_shading_options_init", || {
-        write_one(options, DEFAULT_SHADING_OPTIONS, "options")
+        raw::write_one(options, DEFAULT_SHADING_OPTIONS, "options")
     });
 }
 
@@ -273,19 +273,8 @@ pub unsafe extern "C" fn antumbra_hemi_shading_options_init(
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn antumbra_hemi_material_init(material: *mut antumbra_hemi_material) {
     let _ = guard("antumbra_hemi_material_init", || {
-        write_one(material, DEFAULT_MATERIAL, "material")
+        raw::write_one(material, DEFAULT_MATERIAL, "material")
     });
-}
-
-fn write_one<T>(pointer: *mut T, value: T, argument: &str) -> Result<(), Error> {
-    if pointer.is_null() {
-        return Err(Error::null(argument));
-    }
-    let out = raw::writable(pointer, 1, argument)?;
-    // SAFETY: non-NULL and aligned (checked), valid for a write by the caller's
-    // contract.
-    unsafe { out.write(value) };
-    Ok(())
 }
 
 // ---------------------------------------------------------------------------
@@ -556,68 +545,6 @@ unsafe fn read_shading_options(
 // ---------------------------------------------------------------------------
 // Validated per-call inputs
 // ---------------------------------------------------------------------------
-
-/// A byte range of caller memory, for the overlap checks.
-#[derive(Clone, Copy)]
-struct Span {
-    name: &'static str,
-    start: usize,
-    end: usize,
-}
-
-impl Span {
-    fn of<T>(name: &'static str, pointer: *const T, len: usize) -> Option<Span> {
-        (!pointer.is_null() && len > 0).then(|| Span {
-            name,
-            start: pointer as usize,
-            end: pointer as usize + len * core::mem::size_of::<T>(),
-        })
-    }
-
-    fn overlaps(&self, other: &Span) -> bool {
-        self.start < other.end && other.start < self.end
-    }
-}
-
-/// The input arrays of one call (at most eight: two per mesh, the normals, the
-/// lighting and the material's two), in a fixed array so validation allocates
-/// nothing.
-#[derive(Clone, Copy, Default)]
-struct Spans {
-    items: [Option<Span>; 8],
-}
-
-impl Spans {
-    fn push(&mut self, span: Option<Span>) {
-        if let Some(span) = span {
-            let slot = self
-                .items
-                .iter_mut()
-                .find(|slot| slot.is_none())
-                .expect("a call has at most eight input arrays");
-            *slot = Some(span);
-        }
-    }
-}
-
-/// Outputs must not overlap each other or any input: they are written while the
-/// inputs are still read.
-fn check_disjoint(outputs: &[Option<Span>], inputs: &Spans) -> Result<(), Error> {
-    for (k, output) in outputs.iter().enumerate() {
-        let Some(output) = output else { continue };
-        for other in outputs[k + 1..].iter().chain(&inputs.items).flatten() {
-            if output.overlaps(other) {
-                return Err(Error::invalid(message!(
-                    "{} overlaps {}; outputs must not share memory with each other or \
-                     with the inputs",
-                    output.name,
-                    other.name
-                )));
-            }
-        }
-    }
-    Ok(())
-}
 
 /// The memory a mesh view reads.
 fn mesh_spans(

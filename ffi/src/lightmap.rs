@@ -17,7 +17,7 @@ use core::sync::atomic::AtomicBool;
 use crate::boundary::{Poisonable, guard, with_handle};
 use crate::error::Error;
 use crate::mesh::{antumbra_mesh_view, mesh_from_c};
-use crate::raw;
+use crate::raw::{self, Span, Spans, check_disjoint};
 use crate::result::*;
 use crate::transfer::{
     antumbra_transfer, antumbra_transfer_options, antumbra_transfer_progress_fn, bake_normals,
@@ -26,8 +26,6 @@ use crate::transfer::{
 use antumbra_core::lightmap::{
     AtlasError, AtlasOptions, LiftOptions, MAX_ATLAS_SIDE, MAX_ATLAS_TEXELS, MAX_GUTTER, TexelAtlas,
 };
-use antumbra_core::transfer::{self, BakePoint, BounceReads};
-
 /// The largest side of a lightmap, in texels.
 #[cfg(feature = "std")]
 pub const ANTUMBRA_LIGHTMAP_MAX_SIDE: u32 = 16_384;
@@ -137,13 +135,7 @@ impl Poisonable for antumbra_lightmap {
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn antumbra_lightmap_options_init(options: *mut antumbra_lightmap_options) {
     let _ = guard("antumbra_lightmap_options_init", || {
-        if options.is_null() {
-            return Err(Error::null("options"));
-        }
-        let out = raw::writable(options, 1, "options")?;
-        // SAFETY: non-NULL and aligned (checked), valid for a write by contract.
-        unsafe { out.write(DEFAULT_OPTIONS) };
-        Ok(())
+        raw::write_one(options, DEFAULT_OPTIONS, "options")
     });
 }
 
@@ -152,8 +144,9 @@ fn atlas_error(error: AtlasError) -> Error {
         AtlasError::Resolution { .. } => "options->width and height",
         AtlasError::Gutter { .. } => "options->gutter",
         AtlasError::Count { argument, .. } => argument,
-        AtlasError::UvOutOfRange { .. } | AtlasError::DegenerateUv { .. } => "uvs",
-        AtlasError::Overlap { .. } => "uvs",
+        AtlasError::UvOutOfRange { .. }
+        | AtlasError::DegenerateUv { .. }
+        | AtlasError::Overlap { .. } => "uvs",
         AtlasError::Normal { .. } => "normals",
         AtlasError::OutOfMemory => {
             return Error::new(ANTUMBRA_RESULT_OUT_OF_MEMORY, message!("lightmap: {error}"));
@@ -309,10 +302,6 @@ pub unsafe extern "C" fn antumbra_lightmap_describe(
     info: *mut antumbra_lightmap_info,
 ) -> antumbra_result {
     with_handle("antumbra_lightmap_describe", lightmap, |l| {
-        if info.is_null() {
-            return Err(Error::null("info"));
-        }
-        let out = raw::writable(info, 1, "info")?;
         let value = antumbra_lightmap_info {
             width: l.atlas.width(),
             height: l.atlas.height(),
@@ -320,9 +309,7 @@ pub unsafe extern "C" fn antumbra_lightmap_describe(
             lifted: l.lifted,
             receiver_count: l.atlas.receivers().len(),
         };
-        // SAFETY: checked non-NULL and aligned; valid by contract.
-        unsafe { out.write(value) };
-        Ok(())
+        raw::write_one(info, value, "info")
     })
 }
 
@@ -366,19 +353,12 @@ pub unsafe extern "C" fn antumbra_lightmap_receivers(
         }
         let n3 = raw::element_count(receiver_count, 3, "receiver_count")?;
         let n2 = raw::element_count(receiver_count, 2, "receiver_count")?;
-        let spans = [
-            (positions as usize, n3 * 4, "positions"),
-            (normals as usize, n3 * 4, "normals"),
-            (texels as usize, n2 * 4, "texels"),
+        let outputs = [
+            Span::of("positions", positions, n3),
+            Span::of("normals", normals, n3),
+            Span::of("texels", texels, n2),
         ];
-        for (i, a) in spans.iter().enumerate() {
-            for b in &spans[i + 1..] {
-                let overlap = a.0 != 0 && b.0 != 0 && a.0 < b.0 + b.1 && b.0 < a.0 + a.1;
-                if overlap && a.1 > 0 && b.1 > 0 {
-                    return Err(Error::invalid(message!("{} and {} overlap", a.2, b.2)));
-                }
-            }
-        }
+        check_disjoint(&outputs, &Spans::default())?;
         // SAFETY: caller contract; checked for alignment and overlap.
         let mut positions = unsafe { optional(positions, n3, "positions") }?;
         // SAFETY: as above.
@@ -474,30 +454,10 @@ pub unsafe extern "C" fn antumbra_lightmap_bake(
         // SAFETY: caller contract on `normals`.
         let normals = unsafe { bake_normals(&mesh, normals) }?;
         let scene = scene_of(&mesh)?;
-        let points: Vec<BakePoint> = l
-            .atlas
-            .receivers()
-            .iter()
-            .map(|r| BakePoint {
-                position: r.position,
-                normal: r.normal,
-            })
-            .collect();
         let parallel = options.parallel == 1;
-        // Bounces read the texels under their hits' UVs.
-        let lookup =
-            |triangle: usize, u: f32, v: f32| l.atlas.receiver_at_hit(&mesh, triangle, u, v);
         let set = bake_with(options, progress, user_data, |bake_options| {
-            let reads = BounceReads::Points(&lookup);
-            transfer::bake_points(
-                &mesh,
-                &normals,
-                &scene,
-                &points,
-                reads,
-                bake_options,
-                parallel,
-            )
+            l.atlas
+                .bake(&mesh, &normals, &scene, bake_options, parallel)
         })?;
         boxed(set, out)
     })
@@ -564,11 +524,9 @@ pub unsafe extern "C" fn antumbra_lightmap_expand(
                 l.atlas.height()
             )));
         }
-        let (v0, v1) = (values as usize, values as usize + value_count * 4);
-        let (i0, i1) = (image as usize, image as usize + image_count * 4);
-        if v0 < i1 && i0 < v1 {
-            return Err(Error::invalid("values and image overlap"));
-        }
+        let mut inputs = Spans::default();
+        inputs.push(Span::of("values", values, value_count));
+        check_disjoint(&[Span::of("image", image, image_count)], &inputs)?;
         // SAFETY: caller contract; checked for alignment and overlap.
         let values = unsafe { raw::slice(values, value_count, "values") }?;
         // SAFETY: as above.
@@ -687,24 +645,9 @@ mod tests {
             rays: 32,
             ..BakeOptions::new(Measurement::Diffuse)
         };
-        let bake_points: Vec<BakePoint> = atlas
-            .receivers()
-            .iter()
-            .map(|r| BakePoint {
-                position: r.position,
-                normal: r.normal,
-            })
-            .collect();
-        let want = transfer::bake_points(
-            &mesh,
-            &normals,
-            &scene,
-            &bake_points,
-            BounceReads::Vertices,
-            &bake_options,
-            false,
-        )
-        .unwrap();
+        let want = atlas
+            .bake(&mesh, &normals, &scene, &bake_options, false)
+            .unwrap();
         // SAFETY: a live set from the bake.
         let got = unsafe { &(*set).set };
         assert_eq!(*got, want);

@@ -99,6 +99,20 @@ pub(crate) fn writable<T>(
     Ok(pointer)
 }
 
+/// Writes `value` to the one `T` an export's caller passed for output, after
+/// checking that `pointer` is not NULL (naming `argument`) and is aligned. The
+/// export's contract makes a non-NULL `pointer` valid for that write.
+pub(crate) fn write_one<T>(pointer: *mut T, value: T, argument: &str) -> Result<(), Error> {
+    if pointer.is_null() {
+        return Err(Error::null(argument));
+    }
+    let out = writable(pointer, 1, argument)?;
+    // SAFETY: non-NULL and aligned (checked), valid for a write by the export's
+    // contract.
+    unsafe { out.write(value) };
+    Ok(())
+}
+
 /// A required pointer to one value.
 ///
 /// # Safety
@@ -116,4 +130,66 @@ pub(crate) unsafe fn reference<'a, T>(
         }
     })?;
     Ok(&one[0])
+}
+
+/// A byte range of caller memory, for the overlap checks.
+#[derive(Clone, Copy)]
+pub(crate) struct Span {
+    pub(crate) name: &'static str,
+    pub(crate) start: usize,
+    pub(crate) end: usize,
+}
+
+impl Span {
+    pub(crate) fn of<T>(name: &'static str, pointer: *const T, len: usize) -> Option<Span> {
+        (!pointer.is_null() && len > 0).then(|| Span {
+            name,
+            start: pointer as usize,
+            end: pointer as usize + len * core::mem::size_of::<T>(),
+        })
+    }
+
+    pub(crate) fn overlaps(&self, other: &Span) -> bool {
+        self.start < other.end && other.start < self.end
+    }
+}
+
+/// The input arrays of one call (at most eight: two per mesh, the normals, the
+/// lighting and the material's two), in a fixed array so validation allocates
+/// nothing.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct Spans {
+    items: [Option<Span>; 8],
+}
+
+impl Spans {
+    pub(crate) fn push(&mut self, span: Option<Span>) {
+        if let Some(span) = span {
+            let slot = self
+                .items
+                .iter_mut()
+                .find(|slot| slot.is_none())
+                .expect("a call has at most eight input arrays");
+            *slot = Some(span);
+        }
+    }
+}
+
+/// Outputs must not overlap each other or any input: they are written while the
+/// inputs are still read.
+pub(crate) fn check_disjoint(outputs: &[Option<Span>], inputs: &Spans) -> Result<(), Error> {
+    for (k, output) in outputs.iter().enumerate() {
+        let Some(output) = output else { continue };
+        for other in outputs[k + 1..].iter().chain(&inputs.items).flatten() {
+            if output.overlaps(other) {
+                return Err(Error::invalid(message!(
+                    "{} overlaps {}; outputs must not share memory with each other or \
+                     with the inputs",
+                    output.name,
+                    other.name
+                )));
+            }
+        }
+    }
+    Ok(())
 }

@@ -261,17 +261,6 @@ const _: () = {
     assert_send_sync::<antumbra_transfer>();
 };
 
-fn write_one<T>(pointer: *mut T, value: T, argument: &str) -> Result<(), Error> {
-    if pointer.is_null() {
-        return Err(Error::null(argument));
-    }
-    let out = raw::writable(pointer, 1, argument)?;
-    // SAFETY: non-NULL and aligned (checked), valid for a write by the caller's
-    // contract.
-    unsafe { out.write(value) };
-    Ok(())
-}
-
 #[cfg(feature = "std")]
 /// Writes the default bake options: diffuse kind, 4 bands, grid 8, 256 rays, no
 /// bounces, parallel, a Phong BRDF of exponent 16 (MRT), albedo 0.5, ray offset
@@ -289,7 +278,7 @@ fn write_one<T>(pointer: *mut T, value: T, argument: &str) -> Result<(), Error> 
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn antumbra_transfer_options_init(options: *mut antumbra_transfer_options) {
     let _ = guard("antumbra_transfer_options_init", || {
-        write_one(options, DEFAULT_OPTIONS, "options")
+        raw::write_one(options, DEFAULT_OPTIONS, "options")
     });
 }
 
@@ -311,7 +300,7 @@ pub unsafe extern "C" fn antumbra_transfer_material_init(
     material: *mut antumbra_transfer_material,
 ) {
     let _ = guard("antumbra_transfer_material_init", || {
-        write_one(material, DEFAULT_MATERIAL, "material")
+        raw::write_one(material, DEFAULT_MATERIAL, "material")
     });
 }
 

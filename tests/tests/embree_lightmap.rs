@@ -212,13 +212,7 @@ fn check_scene(name: &str, scene: &Charted, footprint: [Vec2; 2]) -> (f64, f64) 
     let near_count = chosen.len();
     let step = all.len() / (RECEIVERS - near_count);
     chosen.extend(all.iter().step_by(step).take(RECEIVERS - near_count));
-    let points: Vec<BakePoint> = chosen
-        .iter()
-        .map(|r| BakePoint {
-            position: r.position,
-            normal: r.normal,
-        })
-        .collect();
+    let points: Vec<BakePoint> = chosen.iter().map(|r| BakePoint::from(*r)).collect();
 
     let offset = BakeOptions::new(Measurement::Diffuse).ray_offset;
     let cells = REF_RINGS * REF_SECTORS;
