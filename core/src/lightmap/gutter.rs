@@ -1,28 +1,33 @@
 //! Which receiver each texel reads: its own, or for a gutter texel the
-//! receiver reached first by a breadth-first dilation in 8-neighbour steps.
+//! receiver reached first by a breadth-first dilation in 8-neighbour steps;
+//! and a lightmap's values spread over its texels that way, from the atlas
+//! ([`TexelAtlas::expand`](super::TexelAtlas::expand)) or from a texel set
+//! alone ([`AtlasTexels::expand`]).
 
 use alloc::vec::Vec;
 
-use super::{AtlasError, EMPTY, TexelReceiver};
+use super::{AtlasError, EMPTY, MAX_GUTTER};
 use crate::fallible;
+use crate::transfer::AtlasTexels;
 
 /// Per texel (row by row) the receiver it reads or [`EMPTY`]: receivers'
 /// texels their own, and texels within `gutter` steps (8-neighbour) of one the
 /// receiver of a texel one step nearer. Ties go to the neighbour met first
 /// (rows, then columns, from the top-left), so the result is deterministic.
+/// `texels` are the receivers' row-major texel indices, each below
+/// `width · height`.
 pub(super) fn reads(
-    receivers: &[TexelReceiver],
+    texels: impl ExactSizeIterator<Item = usize>,
     width: u32,
     height: u32,
     gutter: u32,
 ) -> Result<Vec<u32>, AtlasError> {
     let (w, h) = (width as usize, height as usize);
     let mut reads = fallible::filled(EMPTY, w * h)?;
-    let mut frontier = fallible::with_capacity(receivers.len())?;
-    for (index, receiver) in receivers.iter().enumerate() {
-        let [x, y] = receiver.texel.map(|c| c as usize);
-        reads[y * w + x] = index as u32;
-        frontier.push(y * w + x);
+    let mut frontier = fallible::with_capacity(texels.len())?;
+    for (index, texel) in texels.enumerate() {
+        reads[texel] = index as u32;
+        frontier.push(texel);
     }
     let mut next = Vec::new();
     for _ in 0..gutter {
@@ -48,4 +53,54 @@ pub(super) fn reads(
         }
     }
     Ok(reads)
+}
+
+/// Fills `image` (`channels` values per texel, row by row) from `values`
+/// (`channels` per receiver) through `reads`; texels that read none are left
+/// as they are. `None` when a length does not match.
+pub(super) fn fill(
+    reads: &[u32],
+    receivers: usize,
+    values: &[f32],
+    channels: usize,
+    image: &mut [f32],
+) -> Option<()> {
+    if channels == 0
+        || values.len() != receivers.checked_mul(channels)?
+        || image.len() != reads.len().checked_mul(channels)?
+    {
+        return None;
+    }
+    for (texel, &read) in image.chunks_exact_mut(channels).zip(reads) {
+        if read != EMPTY {
+            let start = read as usize * channels;
+            texel.copy_from_slice(&values[start..start + channels]);
+        }
+    }
+    Some(())
+}
+
+impl AtlasTexels {
+    /// Fills `image` (`width × height` texels of `channels` values, row by
+    /// row from `v = 0`) from `values` (`channels` per entry, in entry order):
+    /// each entry's texel its value, and texels within `gutter` texels of one
+    /// (8-neighbour steps, at most [`MAX_GUTTER`]) the nearest entry's, as
+    /// [`TexelAtlas::expand`](super::TexelAtlas::expand) does with its own
+    /// gutter. Other texels are left as they are. `None` when a length does
+    /// not match, the gutter is too wide, or memory for the per-texel reads
+    /// runs out.
+    pub fn expand(
+        &self,
+        gutter: u32,
+        values: &[f32],
+        channels: usize,
+        image: &mut [f32],
+    ) -> Option<()> {
+        if gutter > MAX_GUTTER {
+            return None;
+        }
+        let texels = self.texels().iter().map(|&t| t as usize);
+        let reads = reads(texels, self.width(), self.height(), gutter).ok()?;
+        fill(&reads, self.texels().len(), values, channels, image)
+    }
 }

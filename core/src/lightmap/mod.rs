@@ -282,7 +282,10 @@ impl TexelAtlas {
         }
         let mut receivers = raster::receivers(mesh, uvs, normals, width, height)?;
         receivers.sort_unstable_by_key(|r| (r.texel[1], r.texel[0]));
-        let reads = gutter::reads(&receivers, width, height, options.gutter)?;
+        let texels = receivers
+            .iter()
+            .map(|r| r.texel[1] as usize * width as usize + r.texel[0] as usize);
+        let reads = gutter::reads(texels, width, height, options.gutter)?;
         Ok(TexelAtlas {
             width,
             height,
@@ -357,19 +360,6 @@ impl TexelAtlas {
     /// value of the receiver it reads, gutter included; texels that read none are
     /// left as they are. `None` when a length does not match.
     pub fn expand(&self, values: &[f32], channels: usize, image: &mut [f32]) -> Option<()> {
-        let texels = self.reads.len();
-        if channels == 0
-            || values.len() != self.receivers.len().checked_mul(channels)?
-            || image.len() != texels.checked_mul(channels)?
-        {
-            return None;
-        }
-        for (texel, &read) in image.chunks_exact_mut(channels).zip(&self.reads) {
-            if read != EMPTY {
-                let start = read as usize * channels;
-                texel.copy_from_slice(&values[start..start + channels]);
-            }
-        }
-        Some(())
+        gutter::fill(&self.reads, self.receivers.len(), values, channels, image)
     }
 }

@@ -333,6 +333,31 @@ fn expand_fills_receivers_and_gutter() {
         }
     }
     assert!(gutter > 0);
+    // A texel set alone (a bake file's) spreads values over the same texels.
+    let set_texels = crate::transfer::AtlasTexels::new(
+        20,
+        20,
+        atlas
+            .receivers()
+            .iter()
+            .map(|r| r.texel[1] * 20 + r.texel[0])
+            .collect(),
+    )
+    .unwrap();
+    let mut from_set = vec![f32::NAN; 20 * 20 * 2];
+    set_texels
+        .expand(atlas.gutter(), &values, 2, &mut from_set)
+        .unwrap();
+    assert_eq!(
+        from_set.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+        image.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+        "set and atlas expand alike"
+    );
+    assert!(
+        set_texels
+            .expand(MAX_GUTTER + 1, &values, 2, &mut from_set)
+            .is_none()
+    );
     assert!(atlas.expand(&values[1..], 2, &mut image).is_none());
     assert!(atlas.expand(&values, 2, &mut image[1..]).is_none());
     assert!(atlas.expand(&values, 0, &mut image).is_none());
@@ -526,6 +551,34 @@ fn texel_bounces_fill_a_furnace_as_the_geometric_series() {
         );
         assert!(error.abs() < 0.02, "{bounces} bounces: {error}");
     }
+    // Split in three parts, the bounces' bake joins into the whole, bit for
+    // bit, texels included.
+    let options = BakeOptions {
+        bands: 2,
+        rays: 16,
+        bounces: 1,
+        albedo,
+        seed: 5,
+        ..BakeOptions::new(Measurement::Diffuse)
+    };
+    let whole = atlas.bake(&mesh, &normals, &bvh, &options, false).unwrap();
+    let count = atlas.receivers().len();
+    let cuts = [0, count / 3, count / 2, count];
+    let parts: Vec<_> = cuts
+        .windows(2)
+        .map(|c| {
+            atlas
+                .bake_part(&mesh, &normals, &bvh, &options, c[0]..c[1])
+                .unwrap()
+        })
+        .collect();
+    assert_eq!(crate::transfer::TransferSet::concat(&parts).unwrap(), whole);
+    assert_eq!(whole.texels().unwrap().texels().len(), count);
+    assert!(
+        atlas
+            .bake_part(&mesh, &normals, &bvh, &options, count..count + 1)
+            .is_err()
+    );
     // Every hit on the mesh maps to a texel: the centroid of each triangle.
     for t in 0..mesh.triangle_count() {
         assert!(

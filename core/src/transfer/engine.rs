@@ -327,26 +327,70 @@ pub fn bake_points<C: RayCaster + Sync + ?Sized>(
     options: &BakeOptions<'_>,
     parallel: bool,
 ) -> Result<TransferSet, BakeError> {
+    check_points(points)?;
+    bake_impl(
+        mesh,
+        normals,
+        caster,
+        options,
+        Targets::Points(points, reads, 0..points.len()),
+        parallel,
+    )
+}
+
+/// The part of [`bake_points`] that holds the points in `kept`: a set of those
+/// only, each value bit for bit the one the whole bake gives (each point draws
+/// from its own random streams), so the sets of consecutive ranges joined by
+/// [`TransferSet::concat`] are the whole bake. With bounces every pass but the
+/// last still runs over every point (a bounce may read any of them). This is
+/// how a lightmap bake is split across machines; it runs on rayon's pool with
+/// the `parallel` feature.
+///
+/// Errors: those of [`bake_points`], and [`BakeError::VertexRange`] when `kept`
+/// is empty or runs past the points.
+pub fn bake_point_range<C: RayCaster + Sync + ?Sized>(
+    mesh: &MeshView<'_>,
+    normals: &[Vec3],
+    caster: &C,
+    points: &[BakePoint],
+    reads: BounceReads<'_>,
+    options: &BakeOptions<'_>,
+    kept: core::ops::Range<usize>,
+) -> Result<TransferSet, BakeError> {
+    if kept.is_empty() || kept.end > points.len() {
+        return Err(BakeError::VertexRange {
+            start: kept.start,
+            end: kept.end,
+            vertices: points.len(),
+        });
+    }
+    check_points(points)?;
+    bake_impl(
+        mesh,
+        normals,
+        caster,
+        options,
+        Targets::Points(points, reads, kept),
+        cfg!(feature = "parallel"),
+    )
+}
+
+/// [`BakeError::NoVertices`], [`BakeError::TooManyVertices`] or
+/// [`BakeError::Point`] for points a bake cannot start from.
+fn check_points(points: &[BakePoint]) -> Result<(), BakeError> {
     if points.is_empty() {
         return Err(BakeError::NoVertices);
     }
     if points.len() > u32::MAX as usize {
         return Err(BakeError::TooManyVertices(points.len()));
     }
-    if let Some(index) = points
+    match points
         .iter()
         .position(|p| !p.position.is_finite() || !unit_normal(p.normal))
     {
-        return Err(BakeError::Point { index });
+        Some(index) => Err(BakeError::Point { index }),
+        None => Ok(()),
     }
-    bake_impl(
-        mesh,
-        normals,
-        caster,
-        options,
-        Targets::Points(points, reads),
-        parallel,
-    )
 }
 
 fn bake_impl<C: RayCaster + Sync + ?Sized>(
@@ -361,7 +405,7 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
     let vertices = mesh.vertex_count();
     let kept = match &targets {
         Targets::Vertices(range) => range.len(),
-        Targets::Points(points, _) => points.len(),
+        Targets::Points(_, _, kept) => kept.len(),
     };
     let (kind, projection, grid) = match options.measurement {
         Measurement::Diffuse => (TransferKind::Diffuse, Projection::None, 0),
@@ -396,17 +440,19 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
     };
     let sites = match &targets {
         Targets::Vertices(_) => vertices,
-        Targets::Points(points, _) => points.len(),
+        Targets::Points(points, _, _) => points.len(),
     };
     let mut measured = zeros(sites.checked_mul(gathered))?;
     let mut previous = Vec::new();
     let done = AtomicUsize::new(0);
     let total = match &targets {
         Targets::Vertices(_) => vertices * options.bounces as usize + kept,
-        Targets::Points(_, BounceReads::Vertices) => {
-            (vertices + kept) * options.bounces as usize + kept
+        Targets::Points(points, BounceReads::Vertices, _) => {
+            (vertices + points.len()) * options.bounces as usize + kept
         }
-        Targets::Points(_, BounceReads::Points(_)) => kept * (options.bounces as usize + 1),
+        Targets::Points(points, BounceReads::Points(_), _) => {
+            points.len() * options.bounces as usize + kept
+        }
     };
     let report = options.progress;
     let progress = |count: usize| {
@@ -430,20 +476,20 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
             pass,
             previous: &previous,
             reads: match &targets {
-                Targets::Points(_, reads) => *reads,
+                Targets::Points(_, reads, _) => *reads,
                 Targets::Vertices(_) => BounceReads::Vertices,
             },
         };
         // The last pass only for the sites kept; earlier ones for every vertex,
         // which the next pass reads.
         let last = pass == options.bounces;
-        // This pass at every site it covers: the vertices (the last pass only
-        // those in range), or the points.
+        // This pass at every site it covers: the vertices or the points (the
+        // last pass only those in range).
         let site = |index: usize| match &targets {
             Targets::Vertices(range) => {
                 (!last || range.contains(&index)).then(|| Site::vertex(mesh, normals, index))
             }
-            Targets::Points(points, _) => Some(Site {
+            Targets::Points(points, _, kept) => (!last || kept.contains(&index)).then(|| Site {
                 position: points[index].position,
                 normal: points[index].normal,
                 stream: POINT_STREAMS | index as u64,
@@ -472,7 +518,7 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
         // What the next pass's bounces read: this pass, or, for points that
         // read the mesh's vertices, the vertices' own pass (irradiance only).
         previous = match &targets {
-            Targets::Points(_, BounceReads::Vertices) if !last => {
+            Targets::Points(_, BounceReads::Vertices, _) if !last => {
                 let mut vertex_irradiance = zeros(vertices.checked_mul(coeffs))?;
                 let mut unused = zeros(Some(vertices))?;
                 let ctx = PassContext {
@@ -497,10 +543,9 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
             _ => irradiance,
         };
     }
-    if let Targets::Vertices(range) = &targets {
-        measured.truncate(range.end * gathered);
-        measured.drain(..range.start * gathered);
-    }
+    let (Targets::Vertices(range) | Targets::Points(_, _, range)) = &targets;
+    measured.truncate(range.end * gathered);
+    measured.drain(..range.start * gathered);
     let data = if let Measurement::Mrt { .. } = options.measurement {
         let b = &brdf_nodes;
         let apply = |v: usize, dst: &mut [f32]| {
@@ -527,9 +572,15 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
                 .map(|n| n.to_array())
                 .collect(),
         ),
-        Targets::Points(points, _) => (
-            points.iter().map(|p| p.position.to_array()).collect(),
-            points.iter().map(|p| p.normal.to_array()).collect(),
+        Targets::Points(points, _, kept) => (
+            points[kept.clone()]
+                .iter()
+                .map(|p| p.position.to_array())
+                .collect(),
+            points[kept.clone()]
+                .iter()
+                .map(|p| p.normal.to_array())
+                .collect(),
         ),
     };
     Ok(TransferSet {
@@ -549,6 +600,7 @@ fn bake_impl<C: RayCaster + Sync + ?Sized>(
         frames: super::frames_of(&normals),
         normals,
         payload: Payload::Dense(data),
+        texels: None,
     })
 }
 
@@ -655,8 +707,9 @@ pub struct BakePoint {
 enum Targets<'a> {
     /// These vertices of the mesh.
     Vertices(core::ops::Range<usize>),
-    /// These points, their bounces reading as given.
-    Points(&'a [BakePoint], BounceReads<'a>),
+    /// These points, their bounces reading as given; the result holds those
+    /// in the range (every pass but the last runs over all of them).
+    Points(&'a [BakePoint], BounceReads<'a>, core::ops::Range<usize>),
 }
 
 /// One pass over one vertex: writes its irradiance transfer `E_pass` and adds the

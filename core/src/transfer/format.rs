@@ -1,4 +1,4 @@
-//! The bake file format, versions 1 and 2: a transfer set as little-endian bytes.
+//! The bake file format, versions 1 to 3: a transfer set as little-endian bytes.
 //!
 //! ```text
 //! offset size  field
@@ -24,20 +24,30 @@
 //!     68    4  payload_crc32
 //!     72    4  header_crc32     CRC-32 of bytes 0..72
 //!     76       payload
+//! version 3 (a lightmap: the set carries its texels):
+//!     64    4  clusters         u32 C: 0 when K = 0, else 1..=V
+//!     68    4  atlas_width      u32 W in 1..=16384
+//!     72    4  atlas_height     u32 H in 1..=16384, W·H ≤ 2^26
+//!     76    4  payload_crc32
+//!     80    4  header_crc32     CRC-32 of bytes 0..80
+//!     84       payload
 //! ```
 //!
 //! Payload (`f32`, finite, except the cluster indices): positions `V × 3`, unit
 //! normals `V × 3` (within 1e-3), then either the dense blocks `V × D` (`D` =
 //! [`TransferKind::block_len`], layouts in the [transfer module docs](super)) or,
 //! when `K > 0`, the PCA: means `C × D`, components `C × K × D` (cluster-major),
-//! weights `V × K`, and in version 2 each vertex's cluster, `V × u32` below `C`
-//! (version 1 has one cluster). The file ends with the payload: trailing bytes
-//! are an error.
+//! weights `V × K`, and when `C ≥ 2` each vertex's cluster, `V × u32` below `C`
+//! (version 1 has one cluster); version 3 ends with each entry's texel, `V ×
+//! u32` row-major indices `y·W + x`, strictly increasing and below `W·H`
+//! ([`AtlasTexels`](super::AtlasTexels)). The file ends with the payload:
+//! trailing bytes are an error.
 //!
-//! A set that version 1 can hold (dense, or one cluster) is always written as
-//! version 1, so readers that predate clustering still load it; version 2 is
-//! written only for two or more clusters, and a version-2 file of fewer is
-//! refused, so every file that loads writes back to the same bytes.
+//! A set that version 1 can hold (dense, or one cluster, without texels) is
+//! always written as version 1, so readers that predate clustering still load
+//! it; version 2 only for two or more clusters, version 3 only for a set with
+//! texels, and a file of a version its set did not need is refused, so every
+//! file that loads writes back to the same bytes.
 //!
 //! Loading ([`TransferSet::from_bytes`]) checks, in order: the magic, the
 //! version, the length of that version's header, the header checksum, every header field's range, the payload
@@ -58,27 +68,31 @@ use core::fmt;
 use crate::fallible;
 
 use super::pca::Pca;
-use super::{BakeInfo, BrdfInfo, MAX_BOUNCES, MAX_GRID, Payload, TransferKind, TransferSet};
+use super::{
+    AtlasTexels, BakeInfo, BrdfInfo, MAX_BOUNCES, MAX_GRID, Payload, TransferKind, TransferSet,
+};
 
 /// The first eight bytes of a bake file.
 pub const MAGIC: [u8; 8] = *b"ANTXFER\0";
-/// The newest version, written for clustered PCA sets.
-pub const VERSION: u32 = 2;
+/// The newest version, written for texel sets (lightmaps).
+pub const VERSION: u32 = 3;
 /// Bytes before the payload in version 1.
 pub const HEADER_LEN: usize = 72;
 /// Bytes before the payload in version 2.
 pub const HEADER_LEN_V2: usize = 76;
+/// Bytes before the payload in version 3.
+pub const HEADER_LEN_V3: usize = 84;
 
-/// Header length of `version` (1 or 2).
+/// Header length of `version` (1 to 3; the version-1 length for others).
 fn header_len(version: u32) -> usize {
-    if version == 2 {
-        HEADER_LEN_V2
-    } else {
-        HEADER_LEN
+    match version {
+        2 => HEADER_LEN_V2,
+        3 => HEADER_LEN_V3,
+        _ => HEADER_LEN,
     }
 }
 
-/// Recomputes both checksums of a bake file of version 1 or 2 in place (for
+/// Recomputes both checksums of a bake file of version 1 to 3 in place (for
 /// tools and tests that edit a field); does nothing to bytes too short for the
 /// header their version field names.
 pub fn reseal(bytes: &mut [u8]) {
@@ -129,7 +143,8 @@ pub enum FormatError {
     /// A payload value is not finite (or a normal not unit length).
     Value {
         /// `"positions"`, `"normals"`, `"data"`, `"mean"`, `"components"`,
-        /// `"weights"` or `"clusters"` (an index not below the cluster count).
+        /// `"weights"`, `"clusters"` (an index not below the cluster count) or
+        /// `"texels"` (outside the atlas, or not above the one before).
         field: &'static str,
         /// Index of the offending `f32` (or vector, for normals) in that array.
         index: u64,
@@ -164,7 +179,8 @@ impl fmt::Display for FormatError {
             FormatError::Value { field, index } => {
                 write!(
                     f,
-                    "{field}[{index}] is not finite (or not a unit normal, or not a cluster)"
+                    "{field}[{index}] is not finite (or not a unit normal, not a cluster, or a \
+                     texel outside the atlas or out of order)"
                 )
             }
             FormatError::OutOfMemory { field, bytes } => {
@@ -219,6 +235,8 @@ struct Layout {
     block: usize,
     components: usize,
     clusters: usize,
+    /// Version 3: one texel index per vertex at the end.
+    texels: bool,
 }
 
 impl Layout {
@@ -228,7 +246,7 @@ impl Layout {
         let d = self.block as u64;
         let k = self.components as u64;
         let c = self.clusters as u64;
-        let frames = v.checked_mul(6)?;
+        let frames = v.checked_mul(if self.texels { 7 } else { 6 })?;
         let data = if k == 0 {
             v.checked_mul(d)?
         } else {
@@ -245,7 +263,8 @@ impl Layout {
 impl TransferSet {
     /// Bytes of [`to_bytes`](Self::to_bytes)' output.
     pub fn byte_len(&self) -> usize {
-        let values = 6 * self.vertex_count()
+        let per_entry = if self.texels.is_some() { 7 } else { 6 };
+        let values = per_entry * self.vertex_count()
             + match &self.payload {
                 Payload::Dense(d) => d.len(),
                 Payload::Pca(p) => p.value_count(),
@@ -253,10 +272,11 @@ impl TransferSet {
         header_len(self.file_version()) + 4 * values
     }
 
-    /// The version [`to_bytes`](Self::to_bytes) writes: 2 for a clustered PCA,
-    /// 1 for everything version 1 holds.
+    /// The version [`to_bytes`](Self::to_bytes) writes: 3 for a texel set, 2
+    /// for a clustered PCA, 1 for everything version 1 holds.
     pub fn file_version(&self) -> u32 {
         match self.pca() {
+            _ if self.texels.is_some() => 3,
             Some(p) if p.clusters > 1 => 2,
             _ => 1,
         }
@@ -300,6 +320,10 @@ impl TransferSet {
                 }
             }
         }
+        for t in self.texels.iter().flat_map(|t| &t.texels) {
+            out[at..at + 4].copy_from_slice(&t.to_le_bytes());
+            at += 4;
+        }
         let payload_len = (out.len() - header) as u64;
         let h = &mut out[..header];
         h.fill(0);
@@ -322,8 +346,13 @@ impl TransferSet {
             h[8 + 4 * i..12 + 4 * i].copy_from_slice(&f.to_le_bytes());
         }
         h[56..64].copy_from_slice(&payload_len.to_le_bytes());
-        if let Some(p) = self.pca().filter(|_| version == 2) {
-            h[64..68].copy_from_slice(&(p.clusters as u32).to_le_bytes());
+        if version >= 2 {
+            let clusters = self.pca().map_or(0, |p| p.clusters as u32);
+            h[64..68].copy_from_slice(&clusters.to_le_bytes());
+        }
+        if let Some(t) = &self.texels {
+            h[68..72].copy_from_slice(&t.width.to_le_bytes());
+            h[72..76].copy_from_slice(&t.height.to_le_bytes());
         }
         reseal(out);
     }
@@ -414,20 +443,42 @@ impl TransferSet {
                 return Err(field("brdf_params", p.to_bits()));
             }
         }
-        let clusters = if version == 2 {
-            let clusters = u32_at(h, 64);
-            if components == 0 || !(2..=vertices).contains(&clusters) {
-                return Err(field("clusters", clusters));
+        let clusters = match version {
+            2 => {
+                let clusters = u32_at(h, 64);
+                if components == 0 || !(2..=vertices).contains(&clusters) {
+                    return Err(field("clusters", clusters));
+                }
+                clusters
             }
-            clusters
+            3 => {
+                let clusters = u32_at(h, 64);
+                let allowed = if components == 0 { 0..=0 } else { 1..=vertices };
+                if !allowed.contains(&clusters) {
+                    return Err(field("clusters", clusters));
+                }
+                clusters
+            }
+            _ => u32::from(components != 0),
+        };
+        let atlas = if version == 3 {
+            let (width, height) = (u32_at(h, 68), u32_at(h, 72));
+            if super::texels::check_resolution(width, 1).is_err() {
+                return Err(field("atlas_width", width));
+            }
+            if super::texels::check_resolution(width, height).is_err() {
+                return Err(field("atlas_height", height));
+            }
+            Some((width, height))
         } else {
-            u32::from(components != 0)
+            None
         };
         let layout = Layout {
             vertices: vertices as usize,
             block,
             components: components as usize,
             clusters: clusters as usize,
+            texels: atlas.is_some(),
         };
         let payload_len = u64::from_le_bytes(h[56..64].try_into().unwrap_or([0xFF; 8]));
         let expected = layout.values().and_then(|v| v.checked_mul(4));
@@ -508,7 +559,15 @@ impl TransferSet {
             let basis = take(c * k * block, "components")?;
             let weights = take(v * k, "weights")?;
             let cluster_of = if c > 1 {
-                read_clusters(&payload[cursor..], clusters)?
+                let indices = read_indices(&payload[cursor..cursor + 4 * v], "clusters")?;
+                cursor += 4 * v;
+                if let Some(index) = indices.iter().position(|&i| i >= clusters) {
+                    return Err(FormatError::Value {
+                        field: "clusters",
+                        index: index as u64,
+                    });
+                }
+                indices
             } else {
                 Vec::new()
             };
@@ -523,6 +582,23 @@ impl TransferSet {
                 weights,
                 cluster_of,
             })
+        };
+        let texels = match atlas {
+            Some((width, height)) => {
+                let texels = read_indices(&bytes[header + cursor..], "texels")?;
+                if let Some(index) = super::texels::first_disorder(&texels, width, height) {
+                    return Err(FormatError::Value {
+                        field: "texels",
+                        index: index as u64,
+                    });
+                }
+                Some(AtlasTexels {
+                    width,
+                    height,
+                    texels,
+                })
+            }
+            None => None,
         };
         Ok(TransferSet {
             kind,
@@ -544,29 +620,25 @@ impl TransferSet {
             })?,
             normals,
             payload,
+            texels,
         })
     }
 }
 
-/// The vertices' cluster indices at the end of a version-2 payload (`bytes`
-/// holds exactly them), each checked below `clusters`.
-fn read_clusters(bytes: &[u8], clusters: u32) -> Result<Vec<u32>, FormatError> {
+/// A section of `u32` (the vertices' clusters, or a lightmap's texels):
+/// `bytes` holds exactly them; `field` names it if memory runs out.
+fn read_indices(bytes: &[u8], field: &'static str) -> Result<Vec<u32>, FormatError> {
     let count = bytes.len() / 4;
     let mut out: Vec<u32> =
         fallible::with_capacity(count).map_err(|_| FormatError::OutOfMemory {
-            field: "clusters",
+            field,
             bytes: bytes.len() as u64,
         })?;
-    for (index, b) in bytes.chunks_exact(4).enumerate() {
-        let c = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-        if c >= clusters {
-            return Err(FormatError::Value {
-                field: "clusters",
-                index: index as u64,
-            });
-        }
-        out.push(c);
-    }
+    out.extend(
+        bytes
+            .chunks_exact(4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+    );
     Ok(out)
 }
 

@@ -127,6 +127,7 @@ mod mrt;
 mod pca;
 pub mod rng;
 mod shade;
+mod texels;
 
 #[cfg(test)]
 mod tests;
@@ -135,8 +136,8 @@ use alloc::vec::Vec;
 use core::fmt;
 
 pub use engine::{
-    BakePoint, BakeRay, BounceReads, MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_points, bake_rays,
-    bake_serial, bake_vertices,
+    BakePoint, BakeRay, BounceReads, MAX_BOUNCES, MAX_GRID, MAX_RAYS, bake, bake_point_range,
+    bake_points, bake_rays, bake_serial, bake_vertices,
 };
 pub use format::FormatError;
 pub use mrt::{
@@ -149,6 +150,7 @@ pub use shade::{
     shade_glossy_sh, shade_glossy_sh_2002, shade_glossy_sh_reference, shade_mrt, shade_mrt_pca,
     shade_mrt_reference,
 };
+pub use texels::{AtlasTexels, TexelsError};
 
 /// Which measurement a transfer set holds (also its code in bake files).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -321,7 +323,8 @@ pub enum BakeError {
         /// The point.
         index: usize,
     },
-    /// The vertex range of [`bake_vertices`] is empty or reaches past the mesh.
+    /// The vertex range of [`bake_vertices`] (or the point range of
+    /// [`bake_point_range`]) is empty or reaches past the mesh (the points).
     VertexRange {
         /// First vertex asked for.
         start: usize,
@@ -367,7 +370,8 @@ impl fmt::Display for BakeError {
                 vertices,
             } => write!(
                 f,
-                "vertices {start}..{end} are not a non-empty range of the mesh's {vertices}"
+                "entries {start}..{end} are not a non-empty range of the {vertices} vertices (or \
+                 points) of the bake"
             ),
         }
     }
@@ -411,6 +415,39 @@ pub struct TransferSet {
     /// once with the set so that shading does not rebuild a frame per vertex.
     pub(crate) frames: Vec<crate::Frame>,
     pub(crate) payload: Payload,
+    /// For a texel bake, the lightmap texel of every entry.
+    pub(crate) texels: Option<AtlasTexels>,
+}
+
+/// The texels of joined parts: none when no part has any, else the parts'
+/// lists one after another, which must all be of one atlas and stay strictly
+/// increasing.
+fn join_texels(parts: &[TransferSet]) -> Result<Option<AtlasTexels>, ConcatError> {
+    let Some(first) = parts.first().and_then(|p| p.texels.as_ref()) else {
+        return match parts.iter().position(|p| p.texels.is_some()) {
+            Some(index) => Err(ConcatError::Texels { index }),
+            None => Ok(None),
+        };
+    };
+    let mut texels: Vec<u32> = Vec::new();
+    for (index, part) in parts.iter().enumerate() {
+        let fits = part.texels.as_ref().filter(|t| {
+            (t.width, t.height) == (first.width, first.height)
+                && match (texels.last(), t.texels.first()) {
+                    (Some(last), Some(next)) => next > last,
+                    _ => true,
+                }
+        });
+        let Some(part_texels) = fits else {
+            return Err(ConcatError::Texels { index });
+        };
+        texels.extend_from_slice(&part_texels.texels);
+    }
+    Ok(Some(AtlasTexels {
+        width: first.width,
+        height: first.height,
+        texels,
+    }))
 }
 
 /// The vertex frames of unit normals (the bake's and the run time's).
@@ -449,6 +486,13 @@ pub enum ConcatError {
         /// The compressed part.
         index: usize,
     },
+    /// Part `index` is a texel bake and part 0 is not (or the other way
+    /// round), its atlas has another size, or its texels do not follow the
+    /// previous part's (the parts of one lightmap, in order, do).
+    Texels {
+        /// The part that does not fit.
+        index: usize,
+    },
 }
 
 impl fmt::Display for ConcatError {
@@ -464,6 +508,11 @@ impl fmt::Display for ConcatError {
                 f,
                 "part {index} is PCA-compressed; join dense parts, then compress"
             ),
+            ConcatError::Texels { index } => write!(
+                f,
+                "part {index} does not continue part 0's lightmap (a vertex bake beside a \
+                 texel bake, another atlas size, or texels not after the previous part's)"
+            ),
         }
     }
 }
@@ -472,8 +521,10 @@ impl core::error::Error for ConcatError {}
 
 impl TransferSet {
     /// The vertices of `parts`, in order, as one set: the whole bake when the parts
-    /// are [`bake_vertices`] of consecutive ranges with the same options. The
-    /// parts must be dense and baked alike.
+    /// are [`bake_vertices`] of consecutive ranges with the same options (or,
+    /// for a lightmap, [`TexelAtlas::bake_part`](crate::lightmap::TexelAtlas::bake_part)
+    /// of consecutive ranges of its receivers). The parts must be dense and
+    /// baked alike, and either all per-vertex or all texels of one atlas.
     pub fn concat(parts: &[TransferSet]) -> Result<TransferSet, ConcatError> {
         let first = parts.first().ok_or(ConcatError::Empty)?;
         let mut data = Vec::new();
@@ -498,6 +549,7 @@ impl TransferSet {
             .iter()
             .flat_map(|p| p.normals.iter().copied())
             .collect();
+        let texels = join_texels(parts)?;
         Ok(TransferSet {
             kind: first.kind,
             bands: first.bands,
@@ -507,6 +559,7 @@ impl TransferSet {
             positions,
             normals,
             payload: Payload::Dense(data),
+            texels,
         })
     }
 

@@ -544,6 +544,7 @@ impl TransferSet {
             normals: self.normals.clone(),
             frames: self.frames.clone(),
             payload: Payload::Dense(Vec::new()),
+            texels: self.texels.clone(),
         }
     }
 }

@@ -1205,12 +1205,19 @@ fn small_files() -> Vec<(&'static str, Vec<u8>)> {
     let pca = mrt.compress(2).unwrap();
     let clustered = mrt.compress_clustered(2, 1, 7).unwrap();
     assert_eq!(clustered.file_version(), 2);
-    vec![
+    // Texel sets of each payload layout: version 3.
+    let texels = |set: &TransferSet| set.clone().with_texels(4, 2, vec![0, 5, 7]).unwrap();
+    let files = vec![
         ("diffuse", diffuse.to_bytes()),
         ("mrt", mrt.to_bytes()),
         ("mrt-pca", pca.to_bytes()),
         ("mrt-cpca", clustered.to_bytes()),
-    ]
+        ("diffuse-texels", texels(&diffuse).to_bytes()),
+        ("mrt-pca-texels", texels(&pca).to_bytes()),
+        ("mrt-cpca-texels", texels(&clustered).to_bytes()),
+    ];
+    assert_eq!(texels(&pca).file_version(), 3);
+    files
 }
 
 #[test]
@@ -1289,7 +1296,7 @@ fn hostile_headers_are_rejected_by_name() {
         TransferSet::from_bytes(&magic).unwrap_err(),
         FormatError::Magic
     );
-    for version in [0u32, 3] {
+    for version in [0u32, 4] {
         assert_eq!(
             TransferSet::from_bytes(&patch(&bytes, 8, &version.to_le_bytes())).unwrap_err(),
             FormatError::Version(version)
@@ -1380,6 +1387,113 @@ fn hostile_cluster_fields_are_rejected_by_name() {
             field: "clusters",
             index: 2
         }
+    );
+}
+
+#[test]
+fn hostile_texel_fields_are_rejected_by_name() {
+    let files = small_files();
+    let field = |b: Vec<u8>| match TransferSet::from_bytes(&b) {
+        Err(FormatError::Field { field, .. }) => field,
+        other => panic!("{other:?}"),
+    };
+    let (_, dense) = &files[4];
+    let (_, pca) = &files[5];
+    let (_, clustered) = &files[6];
+    assert_eq!(TransferSet::from_bytes(dense).unwrap().file_version(), 3);
+    // Clusters: 0 for a dense payload, 1..=V for a PCA.
+    assert_eq!(field(patch(dense, 64, &1u32.to_le_bytes())), "clusters");
+    assert_eq!(field(patch(pca, 64, &0u32.to_le_bytes())), "clusters");
+    assert_eq!(field(patch(clustered, 64, &4u32.to_le_bytes())), "clusters");
+    for bad in [0u32, 16_385] {
+        assert_eq!(field(patch(dense, 68, &bad.to_le_bytes())), "atlas_width");
+        assert_eq!(field(patch(dense, 72, &bad.to_le_bytes())), "atlas_height");
+    }
+    // Each side in range, their product not.
+    let wide = patch(dense, 68, &16_384u32.to_le_bytes());
+    assert_eq!(
+        field(patch(&wide, 72, &16_384u32.to_le_bytes())),
+        "atlas_height"
+    );
+    // The texels end the payload: the last entry's (7 of 4 x 2) made 8 (outside
+    // the atlas) or 5 (not above the one before).
+    let at = dense.len() - 4;
+    for bad in [8u32, 5, 0] {
+        assert_eq!(
+            TransferSet::from_bytes(&patch(dense, at, &bad.to_le_bytes())).unwrap_err(),
+            FormatError::Value {
+                field: "texels",
+                index: 2
+            },
+            "{bad}"
+        );
+    }
+    // A smaller atlas that the texels no longer fit.
+    assert_eq!(
+        TransferSet::from_bytes(&patch(dense, 72, &1u32.to_le_bytes())).unwrap_err(),
+        FormatError::Value {
+            field: "texels",
+            index: 1
+        }
+    );
+}
+
+#[test]
+fn texel_sets_check_their_texels_and_join_in_order() {
+    let set = small_mrt_set(2, 1);
+    let v = set.vertex_count();
+    assert!(set.texels().is_none());
+    let err = |r: Result<TransferSet, TexelsError>| r.unwrap_err();
+    assert_eq!(
+        err(set.clone().with_texels(8, 8, vec![0; v + 1])),
+        TexelsError::Count {
+            expected: v,
+            found: v + 1
+        }
+    );
+    assert_eq!(
+        err(set.clone().with_texels(0, 8, (0..v as u32).collect())),
+        TexelsError::Resolution {
+            width: 0,
+            height: 8
+        }
+    );
+    let mut repeated: Vec<u32> = (0..v as u32).collect();
+    repeated[v - 1] = repeated[v - 2];
+    assert_eq!(
+        err(set.clone().with_texels(64, 64, repeated)),
+        TexelsError::Order { index: v - 1 }
+    );
+    // Split in two, each with its texels: the parts join into the whole, and
+    // out of order (or beside a vertex set, or of another atlas) they do not.
+    let texels: Vec<u32> = (0..v as u32).map(|i| 3 * i + 1).collect();
+    let whole = set.clone().with_texels(64, 64, texels.clone()).unwrap();
+    assert_eq!(whole.texels().unwrap().texel(1), Some([4, 0]));
+    let half = v / 2;
+    let part = |range: core::ops::Range<usize>, width: u32| {
+        let mut p = set.clone();
+        p.positions = set.positions[range.clone()].to_vec();
+        p.normals = set.normals[range.clone()].to_vec();
+        p.frames = set.frames[range.clone()].to_vec();
+        let block = set.block_len();
+        p.payload = Payload::Dense(
+            set.dense_data().unwrap()[range.start * block..range.end * block].to_vec(),
+        );
+        p.with_texels(width, 64, texels[range].to_vec()).unwrap()
+    };
+    let (a, b) = (part(0..half, 64), part(half..v, 64));
+    assert_eq!(TransferSet::concat(&[a.clone(), b.clone()]).unwrap(), whole);
+    assert_eq!(
+        TransferSet::concat(&[b.clone(), a.clone()]).unwrap_err(),
+        ConcatError::Texels { index: 1 }
+    );
+    assert_eq!(
+        TransferSet::concat(&[a.clone(), part(half..v, 65)]).unwrap_err(),
+        ConcatError::Texels { index: 1 }
+    );
+    assert_eq!(
+        TransferSet::concat(&[set.clone(), b]).unwrap_err(),
+        ConcatError::Texels { index: 1 }
     );
 }
 
