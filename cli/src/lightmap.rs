@@ -25,6 +25,27 @@ pub struct TexturedMesh {
 }
 
 impl TexturedMesh {
+    /// Loads a mesh with texture coordinates, by the file's extension: glTF 2.0
+    /// for `.gltf` and `.glb` ([`Self::load_gltf`]), OBJ for anything else
+    /// ([`Self::load_obj`]).
+    #[cfg_attr(
+        not(test),
+        expect(
+            dead_code,
+            reason = "bake --texels switches from load_obj to this; remove this attribute then"
+        )
+    )]
+    pub fn load(path: &Path) -> Result<Self> {
+        let is_gltf = path.extension().is_some_and(|extension| {
+            extension.eq_ignore_ascii_case("gltf") || extension.eq_ignore_ascii_case("glb")
+        });
+        if is_gltf {
+            Self::load_gltf(path)
+        } else {
+            Self::load_obj(path)
+        }
+    }
+
     /// Loads every object of an OBJ file with its texture coordinates: an error
     /// naming the file when any face has none.
     pub fn load_obj(path: &Path) -> Result<Self> {
@@ -67,7 +88,7 @@ impl TexturedMesh {
 /// Area-weighted vertex normals over every triangle that touches the vertex's
 /// position (so the copies of a vertex at a UV seam agree), normalised; +Z where
 /// they cancel.
-fn welded_normals(mesh: &TriangleMesh) -> Vec<Vec3> {
+pub(crate) fn welded_normals(mesh: &TriangleMesh) -> Vec<Vec3> {
     let positions = mesh.positions();
     let mut welded: HashMap<[u32; 3], usize> = HashMap::new();
     let representative: Vec<usize> = (0..positions.len())

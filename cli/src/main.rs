@@ -2,8 +2,9 @@
 //!
 //! Renders demo pictures from built-in data, renders and bakes ambient occlusion
 //! of user meshes, lights them with HDR environment maps, and benchmarks and
-//! cross-checks the core's ray casters. File formats (OBJ, OpenEXR, PNG) are
-//! handled here, never in the core. Run `antumbra --help` for the commands.
+//! cross-checks the core's ray casters. File formats (OBJ, glTF, OpenEXR,
+//! PNG) are handled here, never in the core. Run `antumbra --help` for the
+//! commands.
 
 mod bounds;
 mod builtin;
@@ -12,6 +13,7 @@ mod cli;
 mod commands;
 mod envmap;
 mod error;
+mod gltf_mesh;
 mod hemi_shading;
 mod lightmap;
 mod mesh;
