@@ -5,12 +5,15 @@ the test that runs it (tests/tests/bake_reader.rs) fails. Standard library and
 numpy only.
 
     python bake_reader.py describe FILE
-        prints the header fields, one `name value` line each.
+        prints the header fields, one `name value` line each; for a lightmap
+        (version 3) also `atlas_width`, `atlas_height`, `texel_count` and
+        `texels_crc32` (zlib.crc32 of the texel section's bytes).
     python bake_reader.py compare DENSE COMPRESSED
-        reconstructs every vertex block of the PCA-compressed file (version 1 or
-        2) and prints `relative_rms_error E`, its error against the dense file's
-        blocks, sqrt(sum |M - M^|^2 / sum |M|^2), then the compressed file's
-        header fields.
+        reconstructs every vertex (or texel) block of the PCA-compressed file
+        (version 1, 2 or 3) and prints `relative_rms_error E`, its error against
+        the dense file's blocks, sqrt(sum |M - M^|^2 / sum |M|^2), then the
+        compressed file's header fields. Both files must hold the same vertices
+        (and, for lightmaps, the same atlas and texels).
 
 A bad file prints `error WHAT` on standard error and exits with status 1.
 """
@@ -23,6 +26,9 @@ import numpy as np
 
 MAGIC = b"ANTXFER\0"
 KIND_MRT = 3
+HEADER_LEN = {1: 72, 2: 76, 3: 84}
+MAX_ATLAS_SIDE = 16384
+MAX_ATLAS_TEXELS = 1 << 26
 
 
 class BadFile(Exception):
@@ -49,9 +55,9 @@ def read(path):
     if len(data) < 12:
         raise BadFile("truncated")
     (version,) = struct.unpack_from("<I", data, 8)
-    if version not in (1, 2):
+    if version not in HEADER_LEN:
         raise BadFile(f"version {version}")
-    header_len = 72 if version == 1 else 76
+    header_len = HEADER_LEN[version]
     if len(data) < header_len:
         raise BadFile("truncated header")
     (header_crc,) = struct.unpack_from("<I", data, header_len - 4)
@@ -66,16 +72,32 @@ def read(path):
         (clusters,) = struct.unpack_from("<I", data, 64)
         if components == 0 or not 2 <= clusters <= vertices:
             raise BadFile("clusters")
+    elif version == 3:
+        (clusters,) = struct.unpack_from("<I", data, 64)
+        # 0 for a dense payload; 1 is a PCA with one global basis.
+        allowed = clusters == 0 if components == 0 else 1 <= clusters <= vertices
+        if not allowed:
+            raise BadFile("clusters")
     else:
         clusters = 1 if components > 0 else 0
+    lightmap = version == 3
+    if lightmap:
+        (width, height) = struct.unpack_from("<2I", data, 68)
+        if not 1 <= width <= MAX_ATLAS_SIDE:
+            raise BadFile("atlas_width")
+        if not 1 <= height <= MAX_ATLAS_SIDE or width * height > MAX_ATLAS_TEXELS:
+            raise BadFile("atlas_height")
     if components > 0 and kind != KIND_MRT:
         raise BadFile("components")
     d = block_len(kind, bands, grid)
     k = components
+    # Positions and normals, and in a lightmap each entry's texel.
+    values = (7 if lightmap else 6) * vertices
     if k == 0:
-        values = 6 * vertices + vertices * d
+        values += vertices * d
     else:
-        values = 6 * vertices + clusters * d * (k + 1) + vertices * k + (vertices if version == 2 else 0)
+        # Cluster indices only with two or more clusters (version 2, or 3).
+        values += clusters * d * (k + 1) + vertices * k + (vertices if clusters >= 2 else 0)
     if payload_len != 4 * values:
         raise BadFile("payload_len")
     (payload_crc,) = struct.unpack_from("<I", data, header_len - 8)
@@ -90,6 +112,14 @@ def read(path):
     def take(count):
         nonlocal at
         out = floats[at : at + count]
+        at += count
+        return out
+
+    def take_u32(count):
+        # A section of integers: its bytes read again as u32.
+        nonlocal at
+        start = 4 * at
+        out = np.frombuffer(payload[start : start + 4 * count], dtype="<u4")
         at += count
         return out
 
@@ -120,11 +150,8 @@ def read(path):
         mean = take(clusters * d).reshape(clusters, d)
         basis = take(clusters * k * d).reshape(clusters, k, d)
         weights = take(vertices * k).reshape(vertices, k)
-        if version == 2:
-            # The last section holds integers: read its bytes again as u32.
-            start = 4 * at
-            cluster_of = np.frombuffer(payload[start : start + 4 * vertices], dtype="<u4")
-            at += vertices
+        if clusters >= 2:
+            cluster_of = take_u32(vertices)
             if np.any(cluster_of >= clusters):
                 raise BadFile("clusters section")
         else:
@@ -135,6 +162,18 @@ def read(path):
         m = mean[cluster_of].astype(np.float64)
         b = basis[cluster_of].astype(np.float64)
         blocks = m + np.einsum("vk,vkd->vd", weights.astype(np.float64), b)
+    if lightmap:
+        texels_start = 4 * at
+        texels = take_u32(vertices).astype(np.int64)
+        # Each below W * H and above the one before it: the first that is not.
+        bad = (texels >= width * height) | np.concatenate(([False], texels[1:] <= texels[:-1]))
+        if np.any(bad):
+            raise BadFile(f"texels[{int(np.argmax(bad))}]")
+        out["atlas_width"] = width
+        out["atlas_height"] = height
+        out["texel_count"] = len(texels)
+        out["texels_crc32"] = zlib.crc32(payload[texels_start : texels_start + 4 * vertices])
+        out["texels"] = texels
     if at != len(floats):
         raise BadFile("trailing values")
     if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(normals))):
@@ -147,7 +186,7 @@ def read(path):
 
 
 def header(f):
-    return {k: v for k, v in f.items() if k not in ("positions", "blocks")}
+    return {k: v for k, v in f.items() if k not in ("positions", "blocks", "texels")}
 
 
 def print_fields(fields):
@@ -167,6 +206,12 @@ def main(argv):
                 raise BadFile("the first file must be a dense MRT set")
             if not np.array_equal(dense["positions"], compressed["positions"]):
                 raise BadFile("the files hold different vertices")
+            atlas = [(f.get("atlas_width"), f.get("atlas_height")) for f in (dense, compressed)]
+            texels = [f.get("texels") for f in (dense, compressed)]
+            if atlas[0] != atlas[1] or (texels[0] is None) != (texels[1] is None):
+                raise BadFile("one file is a lightmap and the other is not, or of another atlas")
+            if texels[0] is not None and not np.array_equal(texels[0], texels[1]):
+                raise BadFile("the files hold different texels")
             a, b = dense["blocks"], compressed["blocks"]
             error = float(np.sqrt(np.sum((a - b) ** 2) / np.sum(a**2)))
             print(f"relative_rms_error {error!r}")
