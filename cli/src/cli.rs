@@ -139,8 +139,9 @@ pub struct DemoArgs {
 /// Arguments of `antumbra render`.
 #[derive(Debug, Args)]
 pub struct RenderArgs {
-    /// The mesh to render (Wavefront OBJ, +Y up).
-    #[arg(long, value_name = "FILE.obj")]
+    /// The mesh to render (Wavefront OBJ, +Y up; for a lightmap bake also glTF
+    /// 2.0, with the UVs it was baked with).
+    #[arg(long, value_name = "FILE")]
     pub mesh: PathBuf,
 
     /// Light the mesh with this equirectangular environment map (OpenEXR or PNG;
@@ -200,8 +201,9 @@ pub enum BakeKind {
 /// Arguments of `antumbra bake`.
 #[derive(Debug, Args)]
 pub struct BakeArgs {
-    /// The mesh to bake (Wavefront OBJ).
-    #[arg(long, value_name = "FILE.obj")]
+    /// The mesh to bake (Wavefront OBJ; with --texels also glTF 2.0, .gltf or
+    /// .glb).
+    #[arg(long, value_name = "FILE")]
     pub mesh: PathBuf,
 
     /// What to bake.
@@ -275,11 +277,13 @@ pub struct BakeArgs {
     pub shard: Option<crate::shard::Shard>,
 
     /// Bake a lightmap instead of the vertices: every texel of a W×H atlas (W
-    /// alone for a square) that the mesh's UV charts (OBJ vt, non-overlapping,
-    /// in [0, 1]) cover or touch, lifted out of geometry, with a 2-texel gutter;
-    /// written as an OpenEXR image with one 32-bit channel per coefficient
-    /// (`T.j` diffuse, `M.i.j` glossy SH, `R.g.j` MRT), row 0 at v = 1. Transfer
-    /// kinds, without --shard or --pca.
+    /// alone for a square) that the mesh's UV charts (OBJ vt, glTF TEXCOORD_1
+    /// or else TEXCOORD_0; non-overlapping, in [0, 1]) cover or touch, lifted
+    /// out of geometry. Written as a bake file (version 3: the set and its
+    /// texels; --shard and --pca as for vertices), or, for an output ending in
+    /// .exr, as an OpenEXR image with a 2-texel gutter and one 32-bit channel
+    /// per coefficient (`T.j` diffuse, `M.i.j` glossy SH, `R.g.j` MRT), row 0 at
+    /// v = 1.
     #[arg(long, value_name = "W[xH]", value_parser = parse_texels)]
     pub texels: Option<(u32, u32)>,
 }

@@ -50,12 +50,51 @@ impl TexturedMesh {
         }
         let gltf::Gltf { document, blob } =
             gltf::Gltf::open(path).with_context(|| format!("cannot read glTF mesh {name}"))?;
+        // The gltf crate unwraps the UTF-8 of a decoded buffer URI: refuse
+        // one that would not decode before it can panic.
+        for buffer in document.buffers() {
+            if let gltf::buffer::Source::Uri(uri) = buffer.source()
+                && !uri.starts_with("data:")
+                && !percent_decodes_to_utf8(uri)
+            {
+                return Err(Error::msg(format!(
+                    "{name}: buffer {} has the URI {uri:?}, whose %-escapes are not UTF-8",
+                    buffer.index()
+                )));
+            }
+        }
         // External buffers are named relative to the glTF file.
         let folder = path.parent().unwrap_or(Path::new(""));
         let buffers = gltf::import_buffers(&document, Some(folder), blob)
             .with_context(|| format!("cannot load the buffers of glTF mesh {name}"))?;
         from_document(&name, &document, &buffers)
     }
+}
+
+/// Whether `uri`'s `%XX` escapes decode to UTF-8 text (a `%` without two hex
+/// digits after it stays as it is).
+fn percent_decodes_to_utf8(uri: &str) -> bool {
+    let bytes = uri.as_bytes();
+    let mut decoded = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let escape = bytes
+            .get(i + 1..i + 3)
+            .filter(|_| bytes[i] == b'%')
+            .and_then(|hex| std::str::from_utf8(hex).ok())
+            .and_then(|hex| u8::from_str_radix(hex, 16).ok());
+        match escape {
+            Some(byte) => {
+                decoded.push(byte);
+                i += 3;
+            }
+            None => {
+                decoded.push(bytes[i]);
+                i += 1;
+            }
+        }
+    }
+    std::str::from_utf8(&decoded).is_ok()
 }
 
 /// The textured mesh of a parsed glTF document whose buffers are loaded.
@@ -828,6 +867,13 @@ mod tests {
             error.contains("primitive 0: TEXCOORD_0 (accessor 0, 5 elements)"),
             "{error}"
         );
+    }
+
+    #[test]
+    fn buffer_uris_that_do_not_decode_to_utf8_are_refused() {
+        assert!(percent_decodes_to_utf8("quad%20data.bin"));
+        assert!(percent_decodes_to_utf8("100%.bin"));
+        assert!(!percent_decodes_to_utf8("%FF.bin"));
     }
 
     #[test]

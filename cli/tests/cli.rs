@@ -1022,3 +1022,149 @@ fn bake_texels_writes_a_lightmap_of_the_uv_atlas() {
         );
     }
 }
+
+/// `bake --texels` into a bake file: version 3 with the atlas's texels; three
+/// `--shard` parts merge into it byte for byte (with a bounce, which reads
+/// every texel); a part of another atlas size is refused; `render --bake`
+/// shades it into a lightmap texture and a picture of the mesh; a mesh whose
+/// UVs differ is refused.
+#[test]
+fn texel_bakes_shard_merge_and_render() {
+    let dir = scratch("bake-texels-file");
+    let obj = dir.join("floor-box.obj");
+    std::fs::write(&obj, floor_and_box_obj(false)).unwrap();
+    let bake = |out: &std::path::Path, extra: &[&str]| {
+        let mut args = vec![
+            "bake",
+            "--kind",
+            "diffuse",
+            "--bands",
+            "3",
+            "--rays",
+            "32",
+            "--bounces",
+            "1",
+            "--texels",
+            "32x16",
+            "--mesh",
+            obj.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let output = antumbra(&args);
+        assert_success(&output);
+        output
+    };
+    let whole = dir.join("whole.xfer");
+    let output = bake(&whole, &[]);
+    assert!(stdout(&output).contains("version 3"), "{}", stdout(&output));
+    let whole_bytes = std::fs::read(&whole).unwrap();
+    let set = antumbra_core::transfer::TransferSet::from_bytes(&whole_bytes).unwrap();
+    let texels = set.texels().expect("a texel bake file carries its texels");
+    assert_eq!((texels.width(), texels.height()), (32, 16));
+    assert_eq!(texels.texels().len(), set.vertex_count());
+
+    let parts: Vec<std::path::PathBuf> = (0..3)
+        .map(|i| {
+            let part = dir.join(format!("part{i}.xpart"));
+            bake(&part, &["--shard", &format!("{i}/3")]);
+            part
+        })
+        .collect();
+    let merged = dir.join("merged.xfer");
+    let mut args = vec!["merge", "-o", merged.to_str().unwrap()];
+    args.extend(parts.iter().rev().map(|p| p.to_str().unwrap()));
+    assert_success(&antumbra(&args));
+    assert!(
+        std::fs::read(&merged).unwrap() == whole_bytes,
+        "merged parts differ from the whole bake"
+    );
+    // A part of a lightmap of another size does not join.
+    let other = dir.join("other.xpart");
+    let mut args = vec![
+        "bake",
+        "--kind",
+        "diffuse",
+        "--bands",
+        "3",
+        "--rays",
+        "32",
+        "--bounces",
+        "1",
+        "--texels",
+        "32x32",
+        "--shard",
+        "2/3",
+        "--mesh",
+        obj.to_str().unwrap(),
+        "-o",
+        other.to_str().unwrap(),
+    ];
+    assert_success(&antumbra(&args));
+    args.clear();
+    args.extend(["merge", "-o", "never.xfer"]);
+    args.extend(parts[..2].iter().map(|p| p.to_str().unwrap()));
+    args.push(other.to_str().unwrap());
+    let output = antumbra(&args);
+    assert!(!output.status.success());
+    assert!(
+        stderr(&output).contains("different bakes"),
+        "{}",
+        stderr(&output)
+    );
+
+    let picture = dir.join("relit.png");
+    let output = antumbra(&[
+        "render",
+        "--mesh",
+        obj.to_str().unwrap(),
+        "--bake",
+        whole.to_str().unwrap(),
+        "--size",
+        "96",
+        "--out",
+        picture.to_str().unwrap(),
+    ]);
+    assert_success(&output);
+    assert!(picture.exists());
+    use exr::prelude::*;
+    let texture = read_all_flat_layers_from_file(dir.join("relit.exr")).unwrap();
+    let layer = &texture.layer_data[0];
+    assert_eq!((layer.size.0, layer.size.1), (32, 16));
+    let names: Vec<String> = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    assert_eq!(names, ["B", "G", "R"]);
+    let FlatSamples::F32(red) = &layer.channel_data.list[2].sample_data else {
+        panic!("32-bit red")
+    };
+    // The open floor's corner (texel (0, 0), image row 15) is lit; texels
+    // beyond the charts and gutter stay 0.
+    assert!(red[15 * 32] > 0.0, "{}", red[15 * 32]);
+    assert_eq!(red[31], 0.0);
+
+    // The same mesh with its UVs moved: not the lightmap's texels.
+    let moved = dir.join("moved.obj");
+    let text = floor_and_box_obj(false).replace("vt 0.5 ", "vt 0.45 ");
+    assert_ne!(text, floor_and_box_obj(false));
+    std::fs::write(&moved, text).unwrap();
+    let output = antumbra(&[
+        "render",
+        "--mesh",
+        moved.to_str().unwrap(),
+        "--bake",
+        whole.to_str().unwrap(),
+        "--out",
+        dir.join("never.png").to_str().unwrap(),
+    ]);
+    assert!(!output.status.success());
+    assert!(
+        stderr(&output).contains("another mesh or UV set"),
+        "{}",
+        stderr(&output)
+    );
+}

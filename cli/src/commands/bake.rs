@@ -78,7 +78,9 @@ pub fn run(args: &BakeArgs) -> Result<()> {
     Ok(())
 }
 
-/// `bake --texels`: the lightmap of the mesh's UV atlas, written as OpenEXR.
+/// `bake --texels`: the lightmap of the mesh's UV atlas, written as a bake file
+/// (a part file with `--shard`, compressed with `--pca`) or, for an output
+/// ending in `.exr`, as OpenEXR channels.
 fn run_texels(
     args: &BakeArgs,
     config: &prt::BakeConfig,
@@ -86,16 +88,20 @@ fn run_texels(
     width: u32,
     height: u32,
 ) -> Result<()> {
-    if args.shard.is_some() || args.pca.is_some() {
+    let exr = args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if exr && (args.shard.is_some() || args.pca.is_some()) {
         return Err(Error::msg(
-            "--texels bakes the whole atlas into an OpenEXR image: without --shard or --pca",
+            "an OpenEXR lightmap holds the whole atlas, dense: write a bake file (not .exr) \
+             with --shard or --pca, and the merged or dense one as OpenEXR",
         ));
     }
     let started = Instant::now();
-    let textured = lightmap::TexturedMesh::load_obj(&args.mesh)?;
+    let textured = lightmap::TexturedMesh::load(&args.mesh)?;
     let options = prt::bake_options(config);
-    let bake = lightmap::bake_texels(&textured, width, height, &options)?;
-    lightmap::write_exr(&bake, &args.out)?;
+    let bake = lightmap::bake_texels(&textured, width, height, &options, args.shard)?;
     let receivers = bake.atlas.receivers().len();
     let what = match config.kind {
         prt::Kind::Diffuse => "diffuse transfer".to_string(),
@@ -103,19 +109,58 @@ fn run_texels(
         prt::Kind::Mrt => format!("matrix radiance transfer ({})", brdf.describe()),
     };
     println!(
-        "baked the {width}x{height} lightmap ({what}) of {}: {receivers} texels ({} moved off \
-         creases or out of geometry), {} rays each, {} bounce{}, in {}",
+        "baked the {width}x{height} lightmap ({what}) of {}: {} of {receivers} texels ({} moved \
+         off creases or out of geometry), {} rays each, {} bounce{}, in {}",
         textured.mesh.name(),
+        bake.range.len(),
         bake.lifted,
         args.rays,
         args.bounces,
         if args.bounces == 1 { "" } else { "s" },
         format_duration(started.elapsed())
     );
+    if exr {
+        lightmap::write_exr(&bake.set, &args.out)?;
+        println!(
+            "  wrote {} ({} channels per texel)",
+            absolute(&args.out).display(),
+            bake.set.block_len()
+        );
+        return Ok(());
+    }
+    if let Some(shard) = args.shard {
+        let header = PartHeader {
+            shard,
+            first: bake.range.start as u64,
+            end: bake.range.end as u64,
+            total: receivers as u64,
+            seed: args.seed,
+            ray_offset: args.ray_offset,
+            mesh_crc: lightmap::texel_checksum(&textured, width, height),
+        };
+        let bytes = part_bytes(&header, &bake.set);
+        write_file(&args.out, &bytes)?;
+        println!(
+            "  part {}/{}: texels {}..{} of {receivers}; wrote {} ({} bytes); join the parts \
+             with `antumbra merge`",
+            shard.index,
+            shard.count,
+            bake.range.start,
+            bake.range.end,
+            absolute(&args.out).display(),
+            bytes.len()
+        );
+        return Ok(());
+    }
+    let set = compress_if_asked(bake.set, args.pca, args.clusters)?;
+    let bytes = set.to_bytes();
+    write_file(&args.out, &bytes)?;
     println!(
-        "  wrote {} ({} channels per texel)",
+        "  wrote {} (bake file version {}, {} bytes, {:.1} bytes of transfer per texel)",
         absolute(&args.out).display(),
-        bake.set.vertex_block(0).map_or(0, <[f32]>::len)
+        set.file_version(),
+        bytes.len(),
+        set.data_bytes() as f64 / set.vertex_count().max(1) as f64
     );
     Ok(())
 }

@@ -12,6 +12,7 @@ use crate::camera::{Camera, ViewAngles};
 use crate::cli::RenderArgs;
 use crate::envmap::{EnvironmentMap, EnvironmentSampler};
 use crate::error::{Error, Result};
+use crate::lightmap;
 use crate::mesh::TriangleMesh;
 use crate::picture::save_png;
 use crate::prt;
@@ -122,35 +123,25 @@ const RELIGHT_ALBEDO: [f32; 3] = [0.80, 0.78, 0.74];
 /// in SH, draws the mesh with the vertex colours.
 fn run_relight(args: &RenderArgs, bake: &std::path::Path) -> Result<()> {
     let started = Instant::now();
-    let mesh = TriangleMesh::load_obj(&args.mesh)?;
     let bytes = std::fs::read(bake)
         .map_err(|e| Error::msg(format!("cannot read bake file {}: {e}", bake.display())))?;
     let set = TransferSet::from_bytes(&bytes)
         .map_err(|e| Error::msg(format!("{} is not a valid bake file: {e}", bake.display())))?;
+    if set.texels().is_some() {
+        return run_relight_texels(args, bake, &set, started);
+    }
+    let mesh = TriangleMesh::load_obj(&args.mesh)?;
     prt::check_matches(&set, &mesh)?;
-    let env = match &args.env {
-        Some(path) => EnvironmentMap::load(path)?,
-        None => builtin::sunrise()?,
-    };
+    let env = load_env(args)?;
     let lighting = prt::env_lighting(&env, set.bands(), args.rotate)?;
-    let out = args.out.clone().unwrap_or_else(|| {
-        let stem = bake
-            .file_stem()
-            .map_or_else(|| "relit".into(), |s| s.to_string_lossy().into_owned());
-        PathBuf::from(format!("{stem}-relit.png"))
-    });
+    let out = relit_output(args, bake);
     let width = args.size as usize;
     let height = (width * 3 / 4).max(1);
     let camera = camera_for(&mesh.bounds(), width, height);
     let loaded = started.elapsed();
 
     let shading = Instant::now();
-    // Glossy SH and MRT sets hold only the glossy term: the baked lobe as it is.
-    let material = Material {
-        albedo: RELIGHT_ALBEDO,
-        phong_exponent: args.exponent,
-        ..Material::glossy(1.0)
-    };
+    let material = relight_material(args);
     let mut radiance = vec![[0.0f32; 3]; set.vertex_count()];
     set.shade(
         &lighting,
@@ -171,7 +162,142 @@ fn run_relight(args: &RenderArgs, bake: &std::path::Path) -> Result<()> {
     );
     let picture = super::demo::hemi::develop(&frame, prt::exposure_of(&frame));
     save_png(&super::demo::hemi::to_rgb8(&picture), &out)?;
-    let kind = match set.kind() {
+    let kind = describe_set(&set, args);
+    println!(
+        "relit {} ({kind}, {} bands, {} vertices) under {} rotated {}°, {}x{} px",
+        bake.display(),
+        set.bands(),
+        set.vertex_count(),
+        env_name(args),
+        args.rotate,
+        width,
+        height
+    );
+    println!(
+        "  loading {}, shading {} ({:.0} ns per vertex)",
+        format_duration(loaded),
+        format_duration(shaded),
+        shaded.as_secs_f64() * 1e9 / set.vertex_count().max(1) as f64
+    );
+    println!("  wrote {}", absolute(&out).display());
+    Ok(())
+}
+
+/// The environment map of `--env`, or the built-in sunrise.
+fn load_env(args: &RenderArgs) -> Result<EnvironmentMap> {
+    match &args.env {
+        Some(path) => EnvironmentMap::load(path),
+        None => builtin::sunrise(),
+    }
+}
+
+/// The map's name for the summary line.
+fn env_name(args: &RenderArgs) -> String {
+    args.env.as_deref().map_or_else(
+        || "the built-in sunrise".to_string(),
+        |p| p.display().to_string(),
+    )
+}
+
+/// `--out`, or `<bake stem>-relit.png`.
+fn relit_output(args: &RenderArgs, bake: &std::path::Path) -> PathBuf {
+    args.out.clone().unwrap_or_else(|| {
+        let stem = bake
+            .file_stem()
+            .map_or_else(|| "relit".into(), |s| s.to_string_lossy().into_owned());
+        PathBuf::from(format!("{stem}-relit.png"))
+    })
+}
+
+/// The shading material of `render --bake`: glossy SH and MRT sets hold only
+/// the glossy term, the baked lobe as it is.
+fn relight_material(args: &RenderArgs) -> Material {
+    Material {
+        albedo: RELIGHT_ALBEDO,
+        phong_exponent: args.exponent,
+        ..Material::glossy(1.0)
+    }
+}
+
+/// `render --bake` of a texel bake (a lightmap, bake file version 3): shades
+/// every texel under the map in SH (glossy kinds towards the camera, as an
+/// engine's per-pixel view would approximate), spreads the colours over the
+/// atlas with the gutter, writes that texture as an RGB OpenEXR beside the
+/// picture, and draws the mesh (with the UVs the lightmap was baked for) with
+/// bilinear lookups into it.
+fn run_relight_texels(
+    args: &RenderArgs,
+    bake: &std::path::Path,
+    set: &TransferSet,
+    started: Instant,
+) -> Result<()> {
+    let texels = set.texels().expect("a texel bake");
+    let textured = lightmap::TexturedMesh::load(&args.mesh)?;
+    lightmap::check_texels_match(&textured, texels)?;
+    let env = load_env(args)?;
+    let lighting = prt::env_lighting(&env, set.bands(), args.rotate)?;
+    let out = relit_output(args, bake);
+    let width = args.size as usize;
+    let height = (width * 3 / 4).max(1);
+    let camera = camera_for(&textured.mesh.bounds(), width, height);
+    let loaded = started.elapsed();
+
+    let shading = Instant::now();
+    let mut radiance = vec![[0.0f32; 3]; set.vertex_count()];
+    set.shade(
+        &lighting,
+        View::Eye(camera.position().to_array()),
+        &relight_material(args),
+        args.components,
+        &mut radiance,
+    )
+    .map_err(|e| Error::msg(format!("cannot shade: {e}")))?;
+    let (side_x, side_y) = (texels.width() as usize, texels.height() as usize);
+    let mut texture = vec![0.0f32; side_x * side_y * 3];
+    texels
+        .expand(lightmap::GUTTER, radiance.as_flattened(), 3, &mut texture)
+        .ok_or_else(|| Error::msg("the lightmap does not match its texels"))?;
+    let shaded = shading.elapsed();
+    let texture_path = out.with_extension("exr");
+    let names = ["R", "G", "B"].map(String::from);
+    lightmap::write_channels(&texture, (side_x, side_y), &names, &texture_path)?;
+    let supersampling = relight_supersampling(width, height);
+    let frame = lightmap::draw_lightmapped(
+        &camera,
+        &textured,
+        &texture,
+        (side_x, side_y),
+        (width * supersampling, height * supersampling),
+    );
+    let picture = super::demo::hemi::develop(&frame, prt::exposure_of(&frame));
+    save_png(&super::demo::hemi::to_rgb8(&picture), &out)?;
+    println!(
+        "relit the lightmap {} ({}, {} bands, {} texels of {side_x}x{side_y}) under {} rotated \
+         {}°, {width}x{height} px",
+        bake.display(),
+        describe_set(set, args),
+        set.bands(),
+        set.vertex_count(),
+        env_name(args),
+        args.rotate,
+    );
+    println!(
+        "  loading {}, shading and the texture {} ({:.0} ns per texel)",
+        format_duration(loaded),
+        format_duration(shaded),
+        shaded.as_secs_f64() * 1e9 / set.vertex_count().max(1) as f64
+    );
+    println!(
+        "  wrote {} and its lightmap {} (linear RGB, 2-texel gutter, row 0 at v = 1)",
+        absolute(&out).display(),
+        absolute(&texture_path).display()
+    );
+    Ok(())
+}
+
+/// The set's kind for the summary line.
+fn describe_set(set: &TransferSet, args: &RenderArgs) -> String {
+    match set.kind() {
         TransferKind::Diffuse => "diffuse transfer".to_string(),
         TransferKind::GlossySh => format!("glossy SH transfer, Phong exponent {}", args.exponent),
         TransferKind::Mrt => match set.pca() {
@@ -188,28 +314,7 @@ fn run_relight(args: &RenderArgs, bake: &std::path::Path) -> Result<()> {
             ),
             None => format!("MRT {0}×{0}", set.grid()),
         },
-    };
-    println!(
-        "relit {} ({kind}, {} bands, {} vertices) under {} rotated {}°, {}x{} px",
-        bake.display(),
-        set.bands(),
-        set.vertex_count(),
-        args.env.as_deref().map_or_else(
-            || "the built-in sunrise".to_string(),
-            |p| p.display().to_string()
-        ),
-        args.rotate,
-        width,
-        height
-    );
-    println!(
-        "  loading {}, shading {} ({:.0} ns per vertex)",
-        format_duration(loaded),
-        format_duration(shaded),
-        shaded.as_secs_f64() * 1e9 / set.vertex_count().max(1) as f64
-    );
-    println!("  wrote {}", absolute(&out).display());
-    Ok(())
+    }
 }
 
 /// `<mesh stem>-ao.png` or `<mesh stem>-env.png` in the current folder.

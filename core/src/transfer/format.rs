@@ -3,7 +3,7 @@
 //! ```text
 //! offset size  field
 //!      0    8  magic            b"ANTXFER\0"
-//!      8    4  version          u32: 1, or 2 for a clustered PCA
+//!      8    4  version          u32: 1, 2 for a clustered PCA, 3 for a lightmap
 //!     12    4  kind             u32: 1 diffuse, 2 glossy SH, 3 MRT
 //!     16    4  bands            u32 in 1..=8
 //!     20    4  grid             u32: 2..=64 for MRT, 0 otherwise
@@ -146,7 +146,8 @@ pub enum FormatError {
         /// `"weights"`, `"clusters"` (an index not below the cluster count) or
         /// `"texels"` (outside the atlas, or not above the one before).
         field: &'static str,
-        /// Index of the offending `f32` (or vector, for normals) in that array.
+        /// Index of the offending `f32` (or vector, for normals; `u32` for
+        /// clusters and texels) in that array.
         index: u64,
     },
     /// The allocator could not supply memory for an array of the file (only

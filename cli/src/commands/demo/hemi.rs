@@ -39,7 +39,7 @@ use crate::raster::Framebuffer;
 use crate::tonemap::{auto_exposure, filmic, linear_to_srgb};
 
 /// Samples per pixel side when drawing (anti-aliasing by supersampling).
-const SUPERSAMPLING: usize = 3;
+pub(super) const SUPERSAMPLING: usize = 3;
 
 /// Diffuse albedo of the diffuse bunny (the ray-traced pictures' object albedo).
 const DIFFUSE_ALBEDO: Vec3 = Vec3::new(0.80, 0.78, 0.74);

@@ -7,11 +7,11 @@
 use antumbra_core::transfer::{BakeOptions, Material, Measurement, View};
 use glam::{Vec2, Vec3};
 
-use super::hemi::{develop, rasterize, to_rgb8};
+use super::hemi::{SUPERSAMPLING, develop, to_rgb8};
 use super::{DemoContext, DemoPicture};
 use crate::camera::{Camera, ViewAngles};
 use crate::error::{Error, Result};
-use crate::lightmap::{TexturedMesh, bake_texels};
+use crate::lightmap::{TexturedMesh, bake_texels, draw_lightmapped};
 use crate::mesh::TriangleMesh;
 use crate::prt;
 
@@ -112,23 +112,6 @@ fn scene() -> Result<TexturedMesh> {
     Ok(TexturedMesh { mesh, uvs, normals })
 }
 
-/// Bilinear lookup of an RGB texture (`width × height`, row 0 at v = 0) at `uv`,
-/// clamped to the edge.
-fn bilinear(texture: &[f32], width: usize, height: usize, uv: Vec2) -> Vec3 {
-    let x = uv.x * width as f32 - 0.5;
-    let y = uv.y * height as f32 - 0.5;
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let texel = |tx: f32, ty: f32| {
-        let tx = (tx.max(0.0) as usize).min(width - 1);
-        let ty = (ty.max(0.0) as usize).min(height - 1);
-        Vec3::from_slice(&texture[(ty * width + tx) * 3..])
-    };
-    let top = texel(x0, y0).lerp(texel(x0 + 1.0, y0), fx);
-    let bottom = texel(x0, y0 + 1.0).lerp(texel(x0 + 1.0, y0 + 1.0), fx);
-    top.lerp(bottom, fy)
-}
-
 fn render(context: &DemoContext) -> Result<(image::RgbImage, String)> {
     let textured = scene()?;
     let (env, _) = context.sky()?;
@@ -143,7 +126,7 @@ fn render(context: &DemoContext) -> Result<(image::RgbImage, String)> {
         ..BakeOptions::new(Measurement::Diffuse)
     };
     let started = std::time::Instant::now();
-    let bake = bake_texels(&textured, side, side, &options)?;
+    let bake = bake_texels(&textured, side, side, &options, None)?;
     let baked = started.elapsed();
     let lighting = prt::env_lighting(env, BANDS, 0.0)?;
     let receivers = bake.atlas.receivers().len();
@@ -179,21 +162,13 @@ fn render(context: &DemoContext) -> Result<(image::RgbImage, String)> {
         width as f32 / height as f32,
         0.02,
     );
-    // Deferred: draw each pixel's UV, then look the lightmap up there.
-    let uv_colors: Vec<Vec3> = textured
-        .uvs
-        .iter()
-        .map(|uv| Vec3::new(uv[0], uv[1], 0.0))
-        .collect();
-    let mut frame = rasterize(
+    let frame = draw_lightmapped(
         &camera,
-        textured.mesh.positions(),
-        textured.mesh.indices(),
-        &uv_colors,
-        (width, height),
+        &textured,
+        &texture,
+        (side as usize, side as usize),
+        (width * SUPERSAMPLING, height * SUPERSAMPLING),
     );
-    let (side_x, side_y) = (side as usize, side as usize);
-    frame.map_colors(|uv| bilinear(&texture, side_x, side_y, uv.truncate()));
     let exposure = prt::exposure_of(&frame);
     let picture = develop(&frame, exposure);
     let note = format!(
