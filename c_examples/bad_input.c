@@ -1393,7 +1393,9 @@ static void test_lightmap(void)
     antumbra_transfer_options t = small_options(ANTUMBRA_TRANSFER_KIND_DIFFUSE);
     antumbra_transfer *set = NULL;
     antumbra_transfer_info set_info;
+    antumbra_transfer *vertex_set = NULL;
     float *values, *image;
+    uint32_t *entry_texels;
     uint32_t texels[2 * 1024];
     size_t n, texel_count;
     antumbra_result r;
@@ -1492,6 +1494,56 @@ static void test_lightmap(void)
                    ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_lightmap_expand", "values", NULL);
     expect_untouched("lightmap expand", image, texel_count * sizeof(float));
     expect_success("lightmap expand", antumbra_lightmap_expand(lightmap, values, n, 1, image, texel_count));
+
+    /* The set's own texels and texture (what a loaded lightmap file offers). */
+    expect(set_info.atlas_width == info.width && set_info.atlas_height == info.height,
+           "lightmap set: atlas %ux%u, lightmap %ux%u", set_info.atlas_width, set_info.atlas_height, info.width,
+           info.height);
+    entry_texels = (uint32_t *)malloc(n * sizeof(uint32_t));
+    if (entry_texels == NULL) {
+        fprintf(stderr, "bad_input: out of memory\n");
+        exit(EXIT_FAILURE);
+    }
+    memset(entry_texels, SENTINEL, n * sizeof(uint32_t));
+    expect_failure("transfer texels, count", antumbra_transfer_texels(set, entry_texels, n + 1),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_transfer_texels", "count", NULL);
+    expect_failure("transfer texels, texels NULL", antumbra_transfer_texels(set, NULL, n),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_transfer_texels", "texels", NULL);
+    expect_failure("transfer texels, transfer NULL", antumbra_transfer_texels(NULL, entry_texels, n),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_transfer_texels", "transfer", NULL);
+    expect_untouched("transfer texels", entry_texels, n * sizeof(uint32_t));
+    expect_success("transfer texels", antumbra_transfer_texels(set, entry_texels, n));
+    for (size_t k = 1; k < n; k++) {
+        expect(entry_texels[k] > entry_texels[k - 1], "transfer texels: %u after %u", entry_texels[k],
+               entry_texels[k - 1]);
+    }
+    memset(image, SENTINEL, texel_count * sizeof(float));
+    expect_failure("transfer expand, gutter", antumbra_transfer_expand(set, 65, values, n, 1, image, texel_count),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_transfer_expand", "gutter", NULL);
+    expect_failure("transfer expand, value_count",
+                   antumbra_transfer_expand(set, 2, values, n + 1, 1, image, texel_count),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_transfer_expand", "value_count", NULL);
+    expect_failure("transfer expand, image_count",
+                   antumbra_transfer_expand(set, 2, values, n, 1, image, texel_count - 1),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_transfer_expand", "image_count", NULL);
+    expect_failure("transfer expand, overlap", antumbra_transfer_expand(set, 2, image, n, 1, image, texel_count),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_transfer_expand", "overlap", NULL);
+    expect_failure("transfer expand, image NULL", antumbra_transfer_expand(set, 2, values, n, 1, NULL, texel_count),
+                   ANTUMBRA_RESULT_NULL_ARGUMENT, "antumbra_transfer_expand", "image", NULL);
+    expect_untouched("transfer expand", image, texel_count * sizeof(float));
+    expect_success("transfer expand", antumbra_transfer_expand(set, 2, values, n, 1, image, texel_count));
+    /* A per-vertex set has no texels. */
+    expect_success("vertex bake", antumbra_transfer_bake(&mesh, NULL, &t, NULL, NULL, &vertex_set));
+    expect_success("vertex bake describe", antumbra_transfer_describe(vertex_set, &set_info));
+    expect(set_info.atlas_width == 0 && set_info.atlas_height == 0, "vertex set: atlas %ux%u",
+           set_info.atlas_width, set_info.atlas_height);
+    expect_failure("transfer texels, vertex set", antumbra_transfer_texels(vertex_set, entry_texels, 4),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_transfer_texels", "per-vertex", NULL);
+    expect_failure("transfer expand, vertex set",
+                   antumbra_transfer_expand(vertex_set, 2, values, 4, 1, image, texel_count),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_transfer_expand", "per-vertex", NULL);
+    antumbra_transfer_destroy(vertex_set);
+    free(entry_texels);
     free(values);
     free(image);
     antumbra_transfer_destroy(set);

@@ -211,7 +211,7 @@ _Static_assert(offsetof(antumbra_transfer_options, reserved) == 44, "transfer_op
 _Static_assert(offsetof(antumbra_transfer_options, seed) == 48, "transfer_options.seed offset");
 _Static_assert(sizeof(antumbra_transfer_options) == 56, "transfer_options size");
 
-/* ---- antumbra_transfer_info: fourteen 4-byte fields, then two size_t ---- */
+/* ---- antumbra_transfer_info: sixteen 4-byte fields, then two size_t ---- */
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, kind, uint32_t), "transfer_info.kind type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, bands, uint32_t), "transfer_info.bands type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, coeff_count, uint32_t), "transfer_info.coeff_count type");
@@ -224,6 +224,8 @@ _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, albedo, float), "transfer_i
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, brdf, uint32_t), "transfer_info.brdf type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, brdf_params[0], float), "transfer_info.brdf_params type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, clusters, uint32_t), "transfer_info.clusters type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, atlas_width, uint32_t), "transfer_info.atlas_width type");
+_Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, atlas_height, uint32_t), "transfer_info.atlas_height type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, reserved, uint32_t), "transfer_info.reserved type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, data_bytes, size_t), "transfer_info.data_bytes type");
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_info, file_bytes, size_t), "transfer_info.file_bytes type");
@@ -235,10 +237,12 @@ _Static_assert(offsetof(antumbra_transfer_info, albedo) == 32, "transfer_info.al
 _Static_assert(offsetof(antumbra_transfer_info, brdf) == 36, "transfer_info.brdf offset");
 _Static_assert(offsetof(antumbra_transfer_info, brdf_params) == 40, "transfer_info.brdf_params offset");
 _Static_assert(offsetof(antumbra_transfer_info, clusters) == 48, "transfer_info.clusters offset");
-_Static_assert(offsetof(antumbra_transfer_info, reserved) == 52, "transfer_info.reserved offset");
-_Static_assert(offsetof(antumbra_transfer_info, data_bytes) == 56, "transfer_info.data_bytes offset");
-_Static_assert(offsetof(antumbra_transfer_info, file_bytes) == 56 + sizeof(size_t), "transfer_info.file_bytes offset");
-_Static_assert(sizeof(antumbra_transfer_info) == 56 + 2 * sizeof(size_t), "transfer_info size");
+_Static_assert(offsetof(antumbra_transfer_info, atlas_width) == 52, "transfer_info.atlas_width offset");
+_Static_assert(offsetof(antumbra_transfer_info, atlas_height) == 56, "transfer_info.atlas_height offset");
+_Static_assert(offsetof(antumbra_transfer_info, reserved) == 60, "transfer_info.reserved offset");
+_Static_assert(offsetof(antumbra_transfer_info, data_bytes) == 64, "transfer_info.data_bytes offset");
+_Static_assert(offsetof(antumbra_transfer_info, file_bytes) == 64 + sizeof(size_t), "transfer_info.file_bytes offset");
+_Static_assert(sizeof(antumbra_transfer_info) == 64 + 2 * sizeof(size_t), "transfer_info size");
 
 /* ---- antumbra_transfer_material: ten floats, then a pointer ---- */
 _Static_assert(FIELD_TYPE_IS(antumbra_transfer_material, albedo[0], float), "transfer_material.albedo type");

@@ -1018,6 +1018,16 @@ typedef struct antumbra_transfer_info {
    */
   uint32_t clusters;
   /**
+   * Lightmap atlas width in texels of a texel set (a lightmap from
+   * `antumbra_lightmap_bake` or a version-3 bake file; its entries' texels
+   * from `antumbra_transfer_texels`); 0 for a per-vertex set.
+   */
+  uint32_t atlas_width;
+  /**
+   * Lightmap atlas height in texels; 0 for a per-vertex set.
+   */
+  uint32_t atlas_height;
+  /**
    * Always 0.
    */
   uint32_t reserved;
@@ -2674,6 +2684,69 @@ antumbra_result antumbra_transfer_shade(const struct antumbra_transfer *transfer
                                         uint32_t components,
                                         float *rgb,
                                         size_t vertex_count);
+
+/**
+ * Copies the texel of every entry of a texel set (a lightmap): entry `i` was
+ * baked for texel `texels[i] = y * atlas_width + x` (column `x` from u = 0, row
+ * `y` from v = 0), strictly increasing. `antumbra_transfer_describe` gives the
+ * atlas size (0 × 0 for a per-vertex set, which has no texels).
+ *
+ * @param transfer a texel set.
+ * @param texels room for `count` indices.
+ * @param count the set's entry count (`vertex_count`).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (transfer, texels); INVALID_ARGUMENT
+ *         (a per-vertex set, count not the set's, misaligned texels); POISONED;
+ *         PANIC. `texels` is untouched on failure.
+ *
+ * Thread safety: any number of threads may use the same set at once.
+ *
+ * # Safety
+ * `transfer` NULL or a live set; `texels` NULL or valid for `count` writes.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_transfer_texels(const struct antumbra_transfer *transfer,
+                                         uint32_t *texels,
+                                         size_t count);
+
+/**
+ * Writes a lightmap texture from per-entry values of a texel set: each entry's
+ * texel its values, and texels within `gutter` texels of one (8-neighbour
+ * steps) the nearest entry's, so bilinear lookups inside the charts read only
+ * baked values; other texels are left as they are. The same texture
+ * `antumbra_lightmap_expand` writes when the gutters are equal. Row `y` of the
+ * image is texel row `y` (v from `y / atlas_height`).
+ *
+ * @param transfer a texel set.
+ * @param gutter texels of gutter, at most ANTUMBRA_LIGHTMAP_MAX_GUTTER (64);
+ *        2 is the lightmap default.
+ * @param values `channels` floats per entry, in entry order (for example
+ *        `antumbra_transfer_shade`'s RGB output; copied as given).
+ * @param value_count `vertex_count × channels`.
+ * @param channels floats per texel, at least 1.
+ * @param image `atlas_width × atlas_height × channels` floats.
+ * @param image_count its length.
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (a per-vertex
+ *         set, gutter too wide, counts that do not match, channels 0,
+ *         misaligned or overlapping arrays); OUT_OF_MEMORY (the per-texel
+ *         lookups, 4 bytes a texel); POISONED; PANIC. The image is untouched on
+ *         failure.
+ *
+ * Cost: linear in the atlas's texels; allocates 4 bytes per texel for the
+ * gutter's lookups. Thread safety: any number of threads may use the same set
+ * at once.
+ *
+ * # Safety
+ * `values` valid for `value_count` reads, `image` for `image_count` writes,
+ * not overlapping.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_transfer_expand(const struct antumbra_transfer *transfer,
+                                         uint32_t gutter,
+                                         const float *values,
+                                         size_t value_count,
+                                         uint32_t channels,
+                                         float *image,
+                                         size_t image_count);
 
 /**
  * The version of the linked library, packed as `major << 16 | minor << 8 | patch`;

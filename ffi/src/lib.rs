@@ -49,6 +49,7 @@ mod scene;
 mod sh;
 mod ssv;
 mod transfer;
+mod transfer_texels;
 mod version;
 
 #[cfg(not(feature = "std"))]
@@ -122,6 +123,7 @@ pub use transfer::{
     antumbra_transfer_bake, antumbra_transfer_compress, antumbra_transfer_compress_clustered,
     antumbra_transfer_options, antumbra_transfer_options_init, antumbra_transfer_progress_fn,
 };
+pub use transfer_texels::{antumbra_transfer_expand, antumbra_transfer_texels};
 pub use version::{antumbra_version, antumbra_version_string};
 
 /// The crate version's parts, parsed at compile time from `Cargo.toml`; the header's

@@ -541,6 +541,7 @@ pub unsafe extern "C" fn antumbra_lightmap_expand(
 mod tests {
     use super::*;
     use crate::transfer::{antumbra_transfer_describe, antumbra_transfer_destroy};
+    use crate::transfer_texels::antumbra_transfer_texels;
     use antumbra_core::MeshView;
     use antumbra_core::raycast::BvhScene;
     use antumbra_core::transfer::{BakeOptions, Measurement};
@@ -655,6 +656,57 @@ mod tests {
         // SAFETY: a live set; valid for one write.
         let described = unsafe { antumbra_transfer_describe(set, set_info.as_mut_ptr()) };
         assert_eq!(described, ANTUMBRA_RESULT_OK);
+        // SAFETY: written by describe.
+        let set_info = unsafe { set_info.assume_init() };
+        assert_eq!((set_info.atlas_width, set_info.atlas_height), (16, 8));
+
+        // The set's texels are the receivers', and its texture with the same
+        // gutter is the lightmap's.
+        let mut indices_out = vec![0u32; n];
+        // SAFETY: a live set; room for its entries.
+        let copied = unsafe { antumbra_transfer_texels(set, indices_out.as_mut_ptr(), n) };
+        assert_eq!(copied, ANTUMBRA_RESULT_OK);
+        for (k, r) in atlas.receivers().iter().enumerate() {
+            assert_eq!(indices_out[k], r.texel[1] * 16 + r.texel[0]);
+        }
+        // SAFETY: a live set; a wrong count is refused with the output untouched.
+        let refused = unsafe { antumbra_transfer_texels(set, indices_out.as_mut_ptr(), n + 1) };
+        assert_eq!(refused, crate::result::ANTUMBRA_RESULT_INVALID_ARGUMENT);
+        let values: Vec<f32> = (0..2 * n).map(|i| i as f32 + 0.5).collect();
+        let (mut from_lightmap, mut from_set) =
+            (vec![-1.0f32; 16 * 8 * 2], vec![-1.0f32; 16 * 8 * 2]);
+        // SAFETY: live handles; arrays of the stated lengths, disjoint.
+        unsafe {
+            let a = antumbra_lightmap_expand(
+                handle,
+                values.as_ptr(),
+                values.len(),
+                2,
+                from_lightmap.as_mut_ptr(),
+                from_lightmap.len(),
+            );
+            let b = crate::transfer_texels::antumbra_transfer_expand(
+                set,
+                2,
+                values.as_ptr(),
+                values.len(),
+                2,
+                from_set.as_mut_ptr(),
+                from_set.len(),
+            );
+            assert_eq!((a, b), (ANTUMBRA_RESULT_OK, ANTUMBRA_RESULT_OK));
+            let wide = crate::transfer_texels::antumbra_transfer_expand(
+                set,
+                65,
+                values.as_ptr(),
+                values.len(),
+                2,
+                from_set.as_mut_ptr(),
+                from_set.len(),
+            );
+            assert_eq!(wide, crate::result::ANTUMBRA_RESULT_INVALID_ARGUMENT);
+        }
+        assert_eq!(from_set, from_lightmap);
         // SAFETY: from bake and create, destroyed once.
         unsafe {
             antumbra_transfer_destroy(set);

@@ -183,6 +183,12 @@ pub struct antumbra_transfer_info {
     /// the requested count for `antumbra_transfer_compress_clustered`); 0 when
     /// uncompressed.
     pub clusters: u32,
+    /// Lightmap atlas width in texels of a texel set (a lightmap from
+    /// `antumbra_lightmap_bake` or a version-3 bake file; its entries' texels
+    /// from `antumbra_transfer_texels`); 0 for a per-vertex set.
+    pub atlas_width: u32,
+    /// Lightmap atlas height in texels; 0 for a per-vertex set.
+    pub atlas_height: u32,
     /// Always 0.
     pub reserved: u32,
     /// Bytes of the per-vertex data in memory (dense blocks, or the PCA's
@@ -751,6 +757,8 @@ pub unsafe extern "C" fn antumbra_transfer_describe(
             brdf: baked.brdf.kind,
             brdf_params: baked.brdf.params,
             clusters: set.pca().map_or(0, |p| p.clusters() as u32),
+            atlas_width: set.texels().map_or(0, |t| t.width()),
+            atlas_height: set.texels().map_or(0, |t| t.height()),
             reserved: 0,
             data_bytes: set.data_bytes(),
             file_bytes: set.byte_len(),
