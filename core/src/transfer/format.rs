@@ -40,7 +40,7 @@
 //! weights `V × K`, and when `C ≥ 2` each vertex's cluster, `V × u32` below `C`
 //! (version 1 has one cluster); version 3 ends with each entry's texel, `V ×
 //! u32` row-major indices `y·W + x`, strictly increasing and below `W·H`
-//! ([`AtlasTexels`](super::AtlasTexels)). The file ends with the payload:
+//! ([`AtlasTexels`]). The file ends with the payload:
 //! trailing bytes are an error.
 //!
 //! A set that version 1 can hold (dense, or one cluster, without texels) is
