@@ -350,6 +350,34 @@ pub enum BenchCommand {
     /// obvhs and Embree casting the same rays (one thread); PCA error and memory
     /// per vertex against K.
     Transfer(BenchTransferArgs),
+
+    /// Lightmaps: time per texel receiver of a texel bake (building the atlas,
+    /// the lift out of geometry, the bake) against a vertex bake's time per
+    /// vertex of the same mesh at the same rays, and the point bake at the
+    /// mesh's own vertices against the vertex bake (the same sites), for
+    /// diffuse and glossy SH transfer, on one thread, as ratios.
+    Lightmap(BenchLightmapArgs),
+}
+
+/// Arguments of `antumbra bench lightmap`.
+#[derive(Debug, Args)]
+pub struct BenchLightmapArgs {
+    /// Mesh with a UV atlas (OBJ vt, or glTF TEXCOORD_1 or else TEXCOORD_0)
+    /// [default: the demo's two boxes on a floor].
+    #[arg(long, value_name = "FILE")]
+    pub mesh: Option<PathBuf>,
+
+    /// Atlas size W or WxH.
+    #[arg(long, value_name = "W[xH]", default_value = "128", value_parser = parse_texels)]
+    pub texels: (u32, u32),
+
+    /// Rays per receiver (and per vertex).
+    #[arg(long, value_name = "N", default_value_t = 128, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    pub rays: u32,
+
+    /// Timed runs of each bake; the fastest is reported.
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
+    pub repeats: u32,
 }
 
 /// Arguments of `antumbra bench transfer`.

@@ -381,6 +381,34 @@ fn bench_prints_both_casters_and_the_ratio() {
     );
 }
 
+/// `bench lightmap` prints the texel and vertex rows with their ratios, on
+/// the built-in scene and on a mesh without UVs (an error naming it).
+#[test]
+fn bench_lightmap_prints_texels_against_vertices() {
+    let output = antumbra(&[
+        "bench",
+        "lightmap",
+        "--texels",
+        "32",
+        "--rays",
+        "8",
+        "--repeats",
+        "1",
+    ]);
+    assert_success(&output);
+    let text = stdout(&output);
+    for row in ["atlas and lift", "diffuse", "glossy SH", "texel/vertex"] {
+        assert!(text.contains(row), "{row}: {text}");
+    }
+    let output = antumbra(&["bench", "lightmap", "--mesh", &data("teapot.obj")]);
+    assert!(!output.status.success());
+    assert!(
+        stderr(&output).contains("texture coordinates"),
+        "{}",
+        stderr(&output)
+    );
+}
+
 #[test]
 fn missing_and_bad_files_fail_with_a_message_naming_them() {
     let dir = scratch("errors");

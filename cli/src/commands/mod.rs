@@ -2,6 +2,7 @@
 
 mod bake;
 mod bench;
+mod bench_lightmap;
 mod bench_transfer;
 mod demo;
 mod hemi;
@@ -27,6 +28,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Bench(BenchCommand::Raycast(args)) => bench::run_raycast(&args),
         Command::Bench(BenchCommand::Hemi(args)) => hemi::run_bench(&args),
         Command::Bench(BenchCommand::Transfer(args)) => bench_transfer::run(&args),
+        Command::Bench(BenchCommand::Lightmap(args)) => bench_lightmap::run(&args),
         Command::Bench(BenchCommand::Ssv(args)) => ssv::run_bench(&args),
         Command::Verify(VerifyArgs {
             what: Some(VerifyCommand::Ssv(args)),

@@ -33,7 +33,7 @@ pub(super) const PICTURE: DemoPicture = DemoPicture {
 
 /// The scene, +Y up: the floor on the left of the atlas, each box face a chart
 /// on the right. Every quad has its own vertices and flat normals.
-fn scene() -> Result<TexturedMesh> {
+pub(in crate::commands) fn scene() -> Result<TexturedMesh> {
     let (mut positions, mut uvs, mut indices, mut normals) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut quad = |corners: [Vec3; 4], lo: Vec2, size: Vec2| {

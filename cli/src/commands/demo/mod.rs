@@ -13,7 +13,7 @@ pub(super) mod hemi;
 mod hemi_diffuse;
 mod hemi_glossy;
 mod hemi_twist;
-mod lightmap;
+pub(super) mod lightmap;
 mod mrt_relit;
 mod soft_shadows;
 
