@@ -12,7 +12,10 @@
  * (antumbra_lightmap_expand), checks what it can (the open floor brighter than
  * the floor beside the box, texels outside the charts untouched) and writes an
  * uncompressed 32-bit float RGB OpenEXR image. Row 0 of the image is the atlas's
- * top (v = 1), as textures are drawn. Exit status 0 on success. */
+ * top (v = 1), as textures are drawn. Then it saves the lightmap as a bake file
+ * (antumbra_transfer_save; the file carries each entry's texel), loads it back
+ * and builds the same texture from the loaded set alone
+ * (antumbra_transfer_expand), as an engine would. Exit status 0 on success. */
 
 #include <antumbra.h>
 
@@ -226,6 +229,10 @@ int main(int argc, char **argv)
     /* 3 bands per channel, channel-planar: a sky brighter overhead (Y_1^0 ~ z),
      * slightly blue. */
     float sky[3 * 9];
+    antumbra_transfer *loaded = NULL;
+    antumbra_transfer_info set_info, loaded_info;
+    uint8_t *file;
+    size_t file_size;
     float *radiance, *atlas, *image;
     float open_floor, beside_box;
     size_t n, texels;
@@ -299,6 +306,33 @@ int main(int argc, char **argv)
     write_exr(argv[1], image, WIDTH, HEIGHT);
     printf("lightmap: wrote %s\n", argv[1]);
 
+    /* What an engine does with the saved lightmap: the bake file carries the
+     * texels, so after loading it the texture is built from the set alone, and
+     * it equals the one above. */
+    check(antumbra_transfer_describe(set, &set_info), "antumbra_transfer_describe");
+    file_size = set_info.file_bytes;
+    file = (uint8_t *)checked_malloc(file_size);
+    check(antumbra_transfer_save(set, file, file_size, &file_size), "antumbra_transfer_save");
+    check(antumbra_transfer_load(file, file_size, &loaded), "antumbra_transfer_load");
+    check(antumbra_transfer_describe(loaded, &loaded_info), "antumbra_transfer_describe");
+    if (loaded_info.atlas_width != WIDTH || loaded_info.atlas_height != HEIGHT || loaded_info.vertex_count != n) {
+        fprintf(stderr, "lightmap: the loaded file is a %u x %u lightmap of %u texels\n", loaded_info.atlas_width,
+                loaded_info.atlas_height, loaded_info.vertex_count);
+        return EXIT_FAILURE;
+    }
+    check(antumbra_transfer_shade(loaded, sky, 27, &material, 0, radiance, n), "antumbra_transfer_shade (loaded)");
+    memset(image, 0, 3 * texels * sizeof(float));
+    check(antumbra_transfer_expand(loaded, info.gutter, radiance, 3 * n, 3, image, 3 * texels),
+          "antumbra_transfer_expand");
+    if (memcmp(image, atlas, 3 * texels * sizeof(float)) != 0) {
+        fprintf(stderr, "lightmap: the loaded file's texture differs from the lightmap's\n");
+        return EXIT_FAILURE;
+    }
+    printf("lightmap: the %zu-byte bake file (version %u) loads back into the same texture\n", file_size,
+           (unsigned)file[8] | (unsigned)file[9] << 8 | (unsigned)file[10] << 16 | (unsigned)file[11] << 24);
+
+    antumbra_transfer_destroy(loaded);
+    free(file);
     free(image);
     free(atlas);
     free(radiance);

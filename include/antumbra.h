@@ -2520,7 +2520,8 @@ antumbra_result antumbra_transfer_geometry(const struct antumbra_transfer *trans
  * Writes a transfer set as a bake file (docs/bake-format.md: a 72-byte header
  * with magic, version, kind, bands, grid, K, counts and CRC-32 checksums, then
  * little-endian floats; version 2, with a 76-byte header, for a clustered PCA
- * only) into a caller buffer.
+ * only; version 3, with an 84-byte header and each entry's texel, for a
+ * lightmap) into a caller buffer.
  *
  * @param transfer the set.
  * @param buffer destination of `capacity` bytes; may be NULL when `capacity` is 0
