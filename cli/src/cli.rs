@@ -8,8 +8,9 @@ use clap::{Args, Parser, Subcommand};
 ///
 /// Renders ray-traced ambient occlusion and environment lighting, bakes
 /// per-vertex ambient occlusion, and measures and checks the ray casters of the
-/// antumbra-core library. Meshes are Wavefront OBJ files with +Y up; environment
-/// maps are equirectangular OpenEXR (HDR) or PNG files.
+/// antumbra-core library. Meshes are Wavefront OBJ files with +Y up (lightmap
+/// bakes also read glTF 2.0); environment maps are equirectangular OpenEXR
+/// (HDR) or PNG files.
 ///
 /// Start with `antumbra demo`: it needs no files.
 #[derive(Debug, Parser)]
@@ -150,7 +151,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FILE.exr")]
     pub env: Option<PathBuf>,
 
-    /// Where to write the picture [default: <mesh name>-ao.png or <mesh name>-env.png].
+    /// Where to write the picture [default: <mesh name>-ao.png or <mesh name>-env.png;
+    /// with --bake, <bake name>-relit.png].
     #[arg(long, value_name = "FILE.png")]
     pub out: Option<PathBuf>,
 
@@ -168,7 +170,10 @@ pub struct RenderArgs {
     pub no_ground: bool,
 
     /// Relight this bake file (baked from --mesh) with the environment map in SH
-    /// instead of ray tracing [--env defaults to the built-in sunrise].
+    /// instead of ray tracing [--env defaults to the built-in sunrise]. A
+    /// lightmap (`bake --texels`) is shaded per texel into a texture, written
+    /// beside the picture as `<picture stem>-lightmap.exr` (linear RGB, row 0
+    /// at v = 1), and the mesh is drawn through its UVs with it.
     #[arg(long, value_name = "FILE")]
     pub bake: Option<PathBuf>,
 
@@ -295,7 +300,9 @@ pub struct MergeArgs {
     #[arg(required = true, value_name = "PART")]
     pub parts: Vec<PathBuf>,
 
-    /// The bake file to write.
+    /// The bake file to write; for the parts of a lightmap (`bake --texels`),
+    /// an output ending in .exr gets its coefficients as OpenEXR channels (as
+    /// `bake --texels -o FILE.exr` writes them).
     #[arg(long, short = 'o', value_name = "FILE")]
     pub out: PathBuf,
 

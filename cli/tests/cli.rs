@@ -1108,6 +1108,33 @@ fn texel_bakes_shard_merge_and_render() {
         std::fs::read(&merged).unwrap() == whole_bytes,
         "merged parts differ from the whole bake"
     );
+    // Merged straight into OpenEXR: the image the whole bake writes.
+    let merged_exr = dir.join("merged.exr");
+    let mut args = vec!["merge", "-o", merged_exr.to_str().unwrap()];
+    args.extend(parts.iter().map(|p| p.to_str().unwrap()));
+    assert_success(&antumbra(&args));
+    let whole_exr = dir.join("whole.exr");
+    bake(&whole_exr, &[]);
+    {
+        use exr::prelude::*;
+        let read = |path: &std::path::Path| {
+            let image = read_all_flat_layers_from_file(path).unwrap();
+            let layer = &image.layer_data[0];
+            layer
+                .channel_data
+                .list
+                .iter()
+                .map(|c| match &c.sample_data {
+                    FlatSamples::F32(samples) => samples.clone(),
+                    other => panic!("{other:?}"),
+                })
+                .collect::<Vec<_>>()
+        };
+        assert!(
+            read(&merged_exr) == read(&whole_exr),
+            "merged OpenEXR differs"
+        );
+    }
     // A part of a lightmap of another size does not join.
     let other = dir.join("other.xpart");
     let mut args = vec![
@@ -1157,7 +1184,7 @@ fn texel_bakes_shard_merge_and_render() {
     assert_success(&output);
     assert!(picture.exists());
     use exr::prelude::*;
-    let texture = read_all_flat_layers_from_file(dir.join("relit.exr")).unwrap();
+    let texture = read_all_flat_layers_from_file(dir.join("relit-lightmap.exr")).unwrap();
     let layer = &texture.layer_data[0];
     assert_eq!((layer.size.0, layer.size.1), (32, 16));
     let names: Vec<String> = layer

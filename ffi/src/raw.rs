@@ -145,7 +145,9 @@ impl Span {
         (!pointer.is_null() && len > 0).then(|| Span {
             name,
             start: pointer as usize,
-            end: pointer as usize + len * core::mem::size_of::<T>(),
+            // Saturating: a length past the address space is refused by the
+            // slice checks; here it only has to not overflow.
+            end: (pointer as usize).saturating_add(len.saturating_mul(core::mem::size_of::<T>())),
         })
     }
 

@@ -88,14 +88,12 @@ fn run_texels(
     width: u32,
     height: u32,
 ) -> Result<()> {
-    let exr = args
-        .out
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    let exr = is_exr(&args.out);
     if exr && (args.shard.is_some() || args.pca.is_some()) {
         return Err(Error::msg(
             "an OpenEXR lightmap holds the whole atlas, dense: write a bake file (not .exr) \
-             with --shard or --pca, and the merged or dense one as OpenEXR",
+             with --shard or --pca; `antumbra merge -o FILE.exr` writes the joined parts as \
+             OpenEXR",
         ));
     }
     let started = Instant::now();
@@ -362,17 +360,44 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
     if args.pca.is_some() && joined.kind() != TransferKind::Mrt {
         return Err(Error::msg("--pca compresses MRT bakes only"));
     }
-    let vertices = joined.vertex_count();
+    let entries = joined.vertex_count();
+    let what = if joined.texels().is_some() {
+        "texels"
+    } else {
+        "vertices"
+    };
+    if is_exr(&args.out) {
+        if joined.texels().is_none() || args.pca.is_some() {
+            return Err(Error::msg(
+                "an OpenEXR output holds a lightmap's dense coefficients: merge the parts of \
+                 `bake --texels`, without --pca, or write a bake file (not .exr)",
+            ));
+        }
+        lightmap::write_exr(&joined, &args.out)?;
+        println!(
+            "merged {count} parts ({entries} texels) in {}; wrote {} ({} channels per texel)",
+            format_duration(started.elapsed()),
+            absolute(&args.out).display(),
+            joined.block_len()
+        );
+        return Ok(());
+    }
     let set = compress_if_asked(joined, args.pca, args.clusters)?;
     let bytes = set.to_bytes();
     write_file(&args.out, &bytes)?;
     println!(
-        "merged {count} parts ({vertices} vertices) in {}; wrote {} ({} bytes)",
+        "merged {count} parts ({entries} {what}) in {}; wrote {} ({} bytes)",
         format_duration(started.elapsed()),
         absolute(&args.out).display(),
         bytes.len()
     );
     Ok(())
+}
+
+/// Whether `path` names an OpenEXR file (ends in `.exr`, any case).
+fn is_exr(path: &std::path::Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
 }
 
 /// Fraction of `rays` cosine-weighted rays per vertex that escape within

@@ -258,7 +258,11 @@ fn run_relight_texels(
         .expand(lightmap::GUTTER, radiance.as_flattened(), 3, &mut texture)
         .ok_or_else(|| Error::msg("the lightmap does not match its texels"))?;
     let shaded = shading.elapsed();
-    let texture_path = out.with_extension("exr");
+    // Beside the picture, never over it (`--out` may itself end in .exr).
+    let stem = out
+        .file_stem()
+        .map_or_else(|| "relit".into(), |s| s.to_string_lossy().into_owned());
+    let texture_path = out.with_file_name(format!("{stem}-lightmap.exr"));
     let names = ["R", "G", "B"].map(String::from);
     lightmap::write_channels(&texture, (side_x, side_y), &names, &texture_path)?;
     let supersampling = relight_supersampling(width, height);

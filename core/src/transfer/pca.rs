@@ -179,6 +179,20 @@ impl Pca {
     /// `lighting` has `coeffs` entries and `out` at least
     /// [`frame_terms_len`](Self::frame_terms_len).
     pub fn frame_terms(&self, lighting: &[[f32; 3]], k: usize, out: &mut [[f32; 3]]) {
+        self.frame_terms_where(lighting, k, |_, _| true, out);
+    }
+
+    /// [`frame_terms`](Self::frame_terms) for the `(cluster, node)` pairs
+    /// `wanted` accepts only; the others are left as they are. Shading reads
+    /// only the nodes around each vertex's view, so with many clusters most
+    /// pairs are never read (the nodes a cluster's vertices look through).
+    pub fn frame_terms_where(
+        &self,
+        lighting: &[[f32; 3]],
+        k: usize,
+        wanted: impl Fn(usize, usize) -> bool,
+        out: &mut [[f32; 3]],
+    ) {
         let k = k.min(self.components);
         let n = self.coeffs;
         if lighting.len() != n || out.len() < self.frame_terms_len(k) {
@@ -195,14 +209,14 @@ impl Pca {
             .take(self.clusters)
             .enumerate()
         {
-            for c in 0..stride {
-                let block = if c == 0 {
-                    &self.mean[cluster * d..(cluster + 1) * d]
-                } else {
-                    let start = (cluster * self.components + c - 1) * d;
-                    &self.basis[start..start + d]
-                };
-                for g in 0..self.rows {
+            for g in (0..self.rows).filter(|&g| wanted(cluster, g)) {
+                for c in 0..stride {
+                    let block = if c == 0 {
+                        &self.mean[cluster * d..(cluster + 1) * d]
+                    } else {
+                        let start = (cluster * self.components + c - 1) * d;
+                        &self.basis[start..start + d]
+                    };
                     let row = &block[g * n..(g + 1) * n];
                     part[g * stride + c] = row_dot(row, &planar).to_array();
                 }

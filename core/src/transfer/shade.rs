@@ -693,6 +693,28 @@ fn mrt_blocks<const N: usize>(
 }
 
 impl TransferSet {
+    /// Per `(cluster, node)` of a clustered PCA (`cluster · rows + node`),
+    /// whether a vertex of the cluster reads the node at the view
+    /// `view_vector` gives it (the nodes of its tap).
+    fn cluster_nodes_read(
+        &self,
+        pca: &super::Pca,
+        view_vector: &impl Fn(usize) -> Vec3,
+    ) -> Result<alloc::vec::Vec<bool>, ShadeError> {
+        let pairs = pca.clusters() * pca.rows;
+        let mut read = crate::fallible::filled(false, pairs)
+            .map_err(|_| ShadeError::OutOfMemory { bytes: pairs })?;
+        for v in 0..self.vertex_count() {
+            if let Some(tap) = mrt_tap(self.grid, self.frames[v].to_local(view_vector(v))) {
+                let base = pca.cluster_of(v) * pca.rows;
+                for node in tap.nodes {
+                    read[base + node as usize] = true;
+                }
+            }
+        }
+        Ok(read)
+    }
+
     /// Relights every vertex into `out` (RGB radiance toward the viewer). For an
     /// MRT set compressed with PCA, `components` (clamped to the baked count; `None`
     /// = all) selects how many are used. Allocates one per-frame buffer for the
@@ -791,7 +813,21 @@ impl TransferSet {
                 let len = pca.frame_terms_len(k);
                 let mut terms = crate::fallible::filled([0.0f32; 3], len)
                     .map_err(|_| ShadeError::OutOfMemory { bytes: 12 * len })?;
-                pca.frame_terms(lighting, k, &mut terms);
+                if pca.clusters() > 1 {
+                    // Each cluster's terms only at the nodes its vertices'
+                    // taps read: a cluster's vertices face alike, so they
+                    // look through a few of the grid's nodes.
+                    let read = self.cluster_nodes_read(pca, &view_vector)?;
+                    let rows = pca.rows;
+                    pca.frame_terms_where(
+                        lighting,
+                        k,
+                        |cluster, node| read[cluster * rows + node],
+                        &mut terms,
+                    );
+                } else {
+                    pca.frame_terms(lighting, k, &mut terms);
+                }
                 let baked = pca.components();
                 let part = pca.cluster_terms_len(k);
                 let grid = self.grid;

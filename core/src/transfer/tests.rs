@@ -844,6 +844,45 @@ fn clustered_pca_shading_equals_shading_its_reconstruction() {
     }
 }
 
+/// Clustered shading computes each cluster's per-frame terms only at the nodes
+/// its vertices read: the same bits as every vertex shaded through the kernel
+/// from all of them.
+#[test]
+fn clustered_shading_from_the_nodes_read_equals_the_kernel_on_every_term() {
+    let set = small_mrt_set(6, 3);
+    let compressed = set.compress_clustered(5, 3, 2).unwrap();
+    let pca = compressed.pca().unwrap();
+    let lighting = test_lighting(9);
+    for eye in [Vec3::new(0.3, -2.0, 3.0), Vec3::new(-4.0, 1.0, 0.5)] {
+        let mut out = vec![[0.0f32; 3]; set.vertex_count()];
+        compressed
+            .shade(
+                &lighting,
+                View::Eye(eye.to_array()),
+                &Material::glossy(1.0),
+                None,
+                &mut out,
+            )
+            .unwrap();
+        let k = pca.components();
+        let mut terms = vec![[0.0f32; 3]; pca.frame_terms_len(k)];
+        pca.frame_terms(&lighting, k, &mut terms);
+        let part = pca.cluster_terms_len(k);
+        for (v, got) in out.iter().enumerate() {
+            let c = pca.cluster_of(v);
+            let want = shade_mrt_pca(
+                &pca.weights()[v * k..(v + 1) * k],
+                &terms[c * part..(c + 1) * part],
+                k,
+                6,
+                &compressed.frames[v],
+                eye - Vec3::from_array(set.positions()[v]),
+            );
+            assert_eq!(*got, want.to_array(), "vertex {v}");
+        }
+    }
+}
+
 #[test]
 fn clustered_pca_is_deterministic_for_a_seed_and_beats_one_cluster() {
     let set = small_mrt_set(6, 3);
