@@ -2718,8 +2718,8 @@ antumbra_result antumbra_transfer_texels(const struct antumbra_transfer *transfe
  * image is texel row `y` (v from `y / atlas_height`).
  *
  * @param transfer a texel set.
- * @param gutter texels of gutter, at most ANTUMBRA_LIGHTMAP_MAX_GUTTER (64);
- *        2 is the lightmap default.
+ * @param gutter texels of gutter, at most 64 (ANTUMBRA_LIGHTMAP_MAX_GUTTER in
+ *        hosted builds); 2 is the lightmap default.
  * @param values `channels` floats per entry, in entry order (for example
  *        `antumbra_transfer_shade`'s RGB output; copied as given).
  * @param value_count `vertex_count × channels`.

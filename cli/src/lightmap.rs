@@ -10,7 +10,6 @@ use std::ops::Range;
 
 use antumbra_core::lightmap::{AtlasOptions, LiftOptions, TexelAtlas};
 use antumbra_core::raycast::BvhScene;
-use antumbra_core::transfer::format::crc32;
 use antumbra_core::transfer::{AtlasTexels, BakeOptions, TransferKind, TransferSet};
 use glam::{Vec2, Vec3};
 
@@ -18,7 +17,7 @@ use crate::camera::Camera;
 use crate::error::{Context, Error, Result};
 use crate::mesh::{TriangleMesh, obj_models, open_obj};
 use crate::raster::Framebuffer;
-use crate::shard::{Shard, mesh_checksum};
+use crate::shard::Shard;
 
 /// A mesh with one UV and one unit normal per vertex.
 pub struct TexturedMesh {
@@ -194,21 +193,10 @@ pub fn atlas_of(textured: &TexturedMesh, width: u32, height: u32) -> Result<Texe
     Ok(atlas)
 }
 
-/// CRC-32 of what a texel bake's receivers depend on (the mesh's positions,
-/// indices and UVs, and the atlas size), which `antumbra merge` compares so
-/// that parts of different lightmaps are refused.
-pub fn texel_checksum(textured: &TexturedMesh, width: u32, height: u32) -> u32 {
-    let mut bytes = mesh_checksum(&textured.mesh).to_le_bytes().to_vec();
-    for value in textured.uvs.as_flattened() {
-        bytes.extend_from_slice(&value.to_le_bytes());
-    }
-    bytes.extend_from_slice(&width.to_le_bytes());
-    bytes.extend_from_slice(&height.to_le_bytes());
-    crc32(&bytes)
-}
-
 /// Checks that `texels` (a bake file's) are the texels `textured`'s atlas of
-/// that size covers: the lightmap was baked from this mesh and UV set.
+/// that size covers, so the lightmap's entries land where this mesh's UVs look
+/// them up. It compares texel coverage only: a mesh with the same UVs and
+/// other positions passes (the file keeps no checksum of the mesh).
 pub fn check_texels_match(textured: &TexturedMesh, texels: &AtlasTexels) -> Result<()> {
     let atlas = atlas_of(textured, texels.width(), texels.height())?;
     let width = texels.width();
@@ -217,7 +205,7 @@ pub fn check_texels_match(textured: &TexturedMesh, texels: &AtlasTexels) -> Resu
             .receivers()
             .iter()
             .zip(texels.texels())
-            .all(|(r, &t)| r.texel[1] * width + r.texel[0] == t);
+            .all(|(r, &t)| r.texel_index(width) == t);
     if same {
         Ok(())
     } else {

@@ -1,14 +1,16 @@
 //! Bakes split across machines: `antumbra bake --shard I/N` bakes part `I` of `N`
-//! (a contiguous range of the vertices) into a part file, and `antumbra merge`
-//! joins the parts into the bake file a single process would have written, byte
-//! for byte (every vertex draws from its own random streams; see core's
-//! `transfer::bake_vertices`).
+//! (a contiguous range of the vertices, or of a lightmap's texel entries with
+//! `--texels`) into a part file, and `antumbra merge` joins the parts into the
+//! bake file a single process would have written, byte for byte (every vertex
+//! and texel draws from its own random streams; see core's
+//! `transfer::bake_vertices` and `transfer::bake_point_range`).
 //!
 //! A part file is a 68-byte header followed by an ordinary bake file holding the
-//! part's vertices (layout in docs/bake-format.md, "Part files"). The header
+//! part's entries (layout in docs/bake-format.md, "Part files"). The header
 //! carries what the bake file does not record and a merge must check: the shard's
-//! place, the whole mesh's vertex count and a checksum of its positions and
-//! indices, the seed and the ray offset.
+//! place, the whole bake's entry count and a checksum of what they depend on
+//! (the mesh's positions and indices, and for a lightmap its UVs and atlas
+//! size), the seed and the ray offset.
 
 use std::ops::Range;
 
@@ -91,6 +93,19 @@ pub fn mesh_checksum(mesh: &TriangleMesh) -> u32 {
     for i in mesh.indices() {
         bytes.extend_from_slice(&i.to_le_bytes());
     }
+    crc32(&bytes)
+}
+
+/// CRC-32 of what a texel bake's receivers depend on (the mesh's positions,
+/// indices and UVs, and the atlas size), which `antumbra merge` compares so
+/// that parts of different lightmaps are refused.
+pub fn texel_checksum(textured: &crate::lightmap::TexturedMesh, width: u32, height: u32) -> u32 {
+    let mut bytes = mesh_checksum(&textured.mesh).to_le_bytes().to_vec();
+    for value in textured.uvs.as_flattened() {
+        bytes.extend_from_slice(&value.to_le_bytes());
+    }
+    bytes.extend_from_slice(&width.to_le_bytes());
+    bytes.extend_from_slice(&height.to_le_bytes());
     crc32(&bytes)
 }
 

@@ -496,41 +496,18 @@ pub unsafe extern "C" fn antumbra_lightmap_expand(
     image_count: usize,
 ) -> antumbra_result {
     with_handle("antumbra_lightmap_expand", lightmap, |l| {
-        if values.is_null() {
-            return Err(Error::null("values"));
-        }
-        if image.is_null() {
-            return Err(Error::null("image"));
-        }
-        if channels == 0 {
-            return Err(Error::invalid("channels is 0"));
-        }
-        let channels = channels as usize;
+        let size = (l.atlas.width(), l.atlas.height());
         let receivers = l.atlas.receivers().len();
-        let texels = l.atlas.width() as usize * l.atlas.height() as usize;
-        let want_values = raw::element_count(receivers, channels, "channels")?;
-        let want_image = raw::element_count(texels, channels, "channels")?;
-        if value_count != want_values {
-            return Err(Error::invalid(message!(
-                "value_count is {value_count}; {receivers} receivers × {channels} channels \
-                 is {want_values}"
-            )));
-        }
-        if image_count != want_image {
-            return Err(Error::invalid(message!(
-                "image_count is {image_count}; {} × {} texels × {channels} channels is \
-                 {want_image}",
-                l.atlas.width(),
-                l.atlas.height()
-            )));
-        }
-        let mut inputs = Spans::default();
-        inputs.push(Span::of("values", values, value_count));
-        check_disjoint(&[Span::of("image", image, image_count)], &inputs)?;
-        // SAFETY: caller contract; checked for alignment and overlap.
-        let values = unsafe { raw::slice(values, value_count, "values") }?;
-        // SAFETY: as above.
-        let image = unsafe { raw::slice_mut(image, image_count, "image") }?;
+        // SAFETY: caller contract on the arrays.
+        let (values, image, channels) = unsafe {
+            crate::transfer_texels::expand_arguments(
+                (values, value_count),
+                channels,
+                (image, image_count),
+                (receivers, "receivers"),
+                size,
+            )
+        }?;
         l.atlas
             .expand(values, channels, image)
             .ok_or_else(|| Error::invalid("the counts do not match the lightmap"))

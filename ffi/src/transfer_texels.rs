@@ -97,47 +97,25 @@ pub unsafe extern "C" fn antumbra_transfer_expand(
         let atlas = t.set.texels().ok_or_else(|| {
             Error::invalid("transfer is a per-vertex set: it has no lightmap texels")
         })?;
-        if values.is_null() {
-            return Err(Error::null("values"));
-        }
-        if image.is_null() {
-            return Err(Error::null("image"));
-        }
-        if channels == 0 {
-            return Err(Error::invalid("channels is 0"));
-        }
         let max_gutter = antumbra_core::lightmap::MAX_GUTTER;
         if gutter > max_gutter {
             return Err(Error::invalid(message!(
                 "gutter is {gutter}; at most {max_gutter} texels"
             )));
         }
-        let channels = channels as usize;
         let entries = atlas.texels().len();
-        let texels = atlas.width() as usize * atlas.height() as usize;
-        let want_values = raw::element_count(entries, channels, "channels")?;
-        let want_image = raw::element_count(texels, channels, "channels")?;
-        if value_count != want_values {
-            return Err(Error::invalid(message!(
-                "value_count is {value_count}; {entries} entries × {channels} channels is \
-                 {want_values}"
-            )));
-        }
-        if image_count != want_image {
-            return Err(Error::invalid(message!(
-                "image_count is {image_count}; {} × {} texels × {channels} channels is \
-                 {want_image}",
-                atlas.width(),
-                atlas.height()
-            )));
-        }
-        let mut inputs = Spans::default();
-        inputs.push(Span::of("values", values, value_count));
-        check_disjoint(&[Span::of("image", image, image_count)], &inputs)?;
-        // SAFETY: caller contract; checked for alignment and overlap.
-        let values = unsafe { raw::slice(values, value_count, "values") }?;
-        // SAFETY: as above.
-        let image = unsafe { raw::slice_mut(image, image_count, "image") }?;
+        let size = (atlas.width(), atlas.height());
+        let texels = size.0 as usize * size.1 as usize;
+        // SAFETY: caller contract on the arrays.
+        let (values, image, channels) = unsafe {
+            expand_arguments(
+                (values, value_count),
+                channels,
+                (image, image_count),
+                (entries, "entries"),
+                size,
+            )
+        }?;
         atlas
             .expand(gutter, values, channels, image)
             .ok_or_else(|| {
@@ -147,4 +125,54 @@ pub unsafe extern "C" fn antumbra_transfer_expand(
                 )
             })
     })
+}
+
+/// The checked arrays of an expand call (`antumbra_transfer_expand`,
+/// `antumbra_lightmap_expand`): `values`, `channels` floats for each of
+/// `entries` (named `noun` in messages), and `image`, `channels` floats for
+/// each texel of a `width × height` atlas, non-NULL, aligned, of exactly those
+/// lengths and not overlapping; with the channel count as `usize`.
+///
+/// # Safety
+/// `values` valid for `value_count` reads, `image` for `image_count` writes.
+pub(crate) unsafe fn expand_arguments<'a>(
+    (values, value_count): (*const f32, usize),
+    channels: u32,
+    (image, image_count): (*mut f32, usize),
+    (entries, noun): (usize, &str),
+    (width, height): (u32, u32),
+) -> Result<(&'a [f32], &'a mut [f32], usize), Error> {
+    if values.is_null() {
+        return Err(Error::null("values"));
+    }
+    if image.is_null() {
+        return Err(Error::null("image"));
+    }
+    if channels == 0 {
+        return Err(Error::invalid("channels is 0"));
+    }
+    let channels = channels as usize;
+    let texels = width as usize * height as usize;
+    let want_values = raw::element_count(entries, channels, "channels")?;
+    let want_image = raw::element_count(texels, channels, "channels")?;
+    if value_count != want_values {
+        return Err(Error::invalid(message!(
+            "value_count is {value_count}; {entries} {noun} × {channels} channels is \
+             {want_values}"
+        )));
+    }
+    if image_count != want_image {
+        return Err(Error::invalid(message!(
+            "image_count is {image_count}; {width} × {height} texels × {channels} channels is \
+             {want_image}"
+        )));
+    }
+    let mut inputs = Spans::default();
+    inputs.push(Span::of("values", values, value_count));
+    check_disjoint(&[Span::of("image", image, image_count)], &inputs)?;
+    // SAFETY: caller contract; checked for alignment and overlap.
+    let values = unsafe { raw::slice(values, value_count, "values") }?;
+    // SAFETY: as above.
+    let image = unsafe { raw::slice_mut(image, image_count, "image") }?;
+    Ok((values, image, channels))
 }

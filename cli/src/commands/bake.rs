@@ -134,7 +134,7 @@ fn run_texels(
             total: receivers as u64,
             seed: args.seed,
             ray_offset: args.ray_offset,
-            mesh_crc: lightmap::texel_checksum(&textured, width, height),
+            mesh_crc: shard::texel_checksum(&textured, width, height),
         };
         let bytes = part_bytes(&header, &bake.set);
         write_file(&args.out, &bytes)?;

@@ -43,7 +43,7 @@ impl TexelAtlas {
         options: &BakeOptions<'_>,
         parallel: bool,
     ) -> Result<TransferSet, BakeError> {
-        let points: Vec<BakePoint> = self.receivers.iter().map(BakePoint::from).collect();
+        let points = self.bake_points();
         let lookup = |triangle: usize, u: f32, v: f32| self.receiver_at_hit(mesh, triangle, u, v);
         let set = crate::transfer::bake_points(
             mesh,
@@ -72,7 +72,7 @@ impl TexelAtlas {
         options: &BakeOptions<'_>,
         receivers: Range<usize>,
     ) -> Result<TransferSet, BakeError> {
-        let points: Vec<BakePoint> = self.receivers.iter().map(BakePoint::from).collect();
+        let points = self.bake_points();
         let lookup = |triangle: usize, u: f32, v: f32| self.receiver_at_hit(mesh, triangle, u, v);
         let set = bake_point_range(
             mesh,
@@ -86,12 +86,17 @@ impl TexelAtlas {
         Ok(self.with_texels(set, receivers))
     }
 
+    /// Every receiver as a point to bake from.
+    fn bake_points(&self) -> Vec<BakePoint> {
+        self.receivers.iter().map(BakePoint::from).collect()
+    }
+
     /// `set` (entries for `receivers`) with those receivers' texels.
     fn with_texels(&self, set: TransferSet, receivers: Range<usize>) -> TransferSet {
         let width = self.width;
         let texels = self.receivers[receivers]
             .iter()
-            .map(|r| r.texel[1] * width + r.texel[0])
+            .map(|r| r.texel_index(width))
             .collect();
         set.with_texels(width, self.height, texels)
             .expect("an atlas's receivers are one per texel, in texel order")

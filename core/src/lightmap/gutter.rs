@@ -1,14 +1,13 @@
 //! Which receiver each texel reads: its own, or for a gutter texel the
 //! receiver reached first by a breadth-first dilation in 8-neighbour steps;
-//! and a lightmap's values spread over its texels that way, from the atlas
-//! ([`TexelAtlas::expand`](super::TexelAtlas::expand)) or from a texel set
-//! alone ([`AtlasTexels::expand`]).
+//! and a lightmap's values spread over its texels that way, for the atlas
+//! ([`TexelAtlas::expand`](super::TexelAtlas::expand)) and for a texel set
+//! alone ([`AtlasTexels::expand`](crate::transfer::AtlasTexels::expand)).
 
 use alloc::vec::Vec;
 
-use super::{AtlasError, EMPTY, MAX_GUTTER};
+use super::{AtlasError, EMPTY};
 use crate::fallible;
-use crate::transfer::AtlasTexels;
 
 /// Per texel (row by row) the receiver it reads or [`EMPTY`]: receivers'
 /// texels their own, and texels within `gutter` steps (8-neighbour) of one the
@@ -16,7 +15,7 @@ use crate::transfer::AtlasTexels;
 /// (rows, then columns, from the top-left), so the result is deterministic.
 /// `texels` are the receivers' row-major texel indices, each below
 /// `width · height`.
-pub(super) fn reads(
+pub(crate) fn reads(
     texels: impl ExactSizeIterator<Item = usize>,
     width: u32,
     height: u32,
@@ -58,7 +57,7 @@ pub(super) fn reads(
 /// Fills `image` (`channels` values per texel, row by row) from `values`
 /// (`channels` per receiver) through `reads`; texels that read none are left
 /// as they are. `None` when a length does not match.
-pub(super) fn fill(
+pub(crate) fn fill(
     reads: &[u32],
     receivers: usize,
     values: &[f32],
@@ -78,29 +77,4 @@ pub(super) fn fill(
         }
     }
     Some(())
-}
-
-impl AtlasTexels {
-    /// Fills `image` (`width × height` texels of `channels` values, row by
-    /// row from `v = 0`) from `values` (`channels` per entry, in entry order):
-    /// each entry's texel its value, and texels within `gutter` texels of one
-    /// (8-neighbour steps, at most [`MAX_GUTTER`]) the nearest entry's, as
-    /// [`TexelAtlas::expand`](super::TexelAtlas::expand) does with its own
-    /// gutter. Other texels are left as they are. `None` when a length does
-    /// not match, the gutter is too wide, or memory for the per-texel reads
-    /// runs out.
-    pub fn expand(
-        &self,
-        gutter: u32,
-        values: &[f32],
-        channels: usize,
-        image: &mut [f32],
-    ) -> Option<()> {
-        if gutter > MAX_GUTTER {
-            return None;
-        }
-        let texels = self.texels().iter().map(|&t| t as usize);
-        let reads = reads(texels, self.width(), self.height(), gutter).ok()?;
-        fill(&reads, self.texels().len(), values, channels, image)
-    }
 }

@@ -28,7 +28,7 @@
 //! eight short rays per receiver.
 
 mod bake;
-mod gutter;
+pub(crate) mod gutter;
 mod lift;
 mod raster;
 #[cfg(test)]
@@ -215,6 +215,14 @@ pub struct TexelReceiver {
     pub texel_size: f32,
 }
 
+impl TexelReceiver {
+    /// The texel's row-major index `y · width + x` in an atlas `width` texels
+    /// wide (how a texel set and a bake file name it).
+    pub fn texel_index(&self, width: u32) -> u32 {
+        self.texel[1] * width + self.texel[0]
+    }
+}
+
 /// The receivers of a lightmap over a mesh's UV atlas, and which receiver each
 /// texel (receiver, gutter or empty) reads.
 #[derive(Clone, Debug)]
@@ -282,9 +290,7 @@ impl TexelAtlas {
         }
         let mut receivers = raster::receivers(mesh, uvs, normals, width, height)?;
         receivers.sort_unstable_by_key(|r| (r.texel[1], r.texel[0]));
-        let texels = receivers
-            .iter()
-            .map(|r| r.texel[1] as usize * width as usize + r.texel[0] as usize);
+        let texels = receivers.iter().map(|r| r.texel_index(width) as usize);
         let reads = gutter::reads(texels, width, height, options.gutter)?;
         Ok(TexelAtlas {
             width,

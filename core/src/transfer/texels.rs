@@ -11,7 +11,7 @@
 use alloc::vec::Vec;
 use core::fmt;
 
-use crate::lightmap::{MAX_ATLAS_SIDE, MAX_ATLAS_TEXELS};
+use crate::lightmap::{MAX_ATLAS_SIDE, MAX_ATLAS_TEXELS, MAX_GUTTER, gutter};
 
 use super::TransferSet;
 
@@ -107,6 +107,29 @@ impl AtlasTexels {
     pub fn texel(&self, index: usize) -> Option<[u32; 2]> {
         let t = *self.texels.get(index)?;
         Some([t % self.width, t / self.width])
+    }
+
+    /// Fills `image` (`width × height` texels of `channels` values, row by
+    /// row from `v = 0`) from `values` (`channels` per entry, in entry order):
+    /// each entry's texel its value, and texels within `gutter` texels of one
+    /// (8-neighbour steps, at most [`MAX_GUTTER`]) the nearest entry's, as
+    /// [`TexelAtlas::expand`](crate::lightmap::TexelAtlas::expand) does with
+    /// its own gutter. Other texels are left as they are. `None` when a length
+    /// does not match, the gutter is too wide, or memory for the per-texel
+    /// reads (4 bytes a texel) runs out.
+    pub fn expand(
+        &self,
+        gutter: u32,
+        values: &[f32],
+        channels: usize,
+        image: &mut [f32],
+    ) -> Option<()> {
+        if gutter > MAX_GUTTER {
+            return None;
+        }
+        let texels = self.texels.iter().map(|&t| t as usize);
+        let reads = gutter::reads(texels, self.width, self.height, gutter).ok()?;
+        gutter::fill(&reads, self.texels.len(), values, channels, image)
     }
 }
 
