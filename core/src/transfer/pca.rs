@@ -209,14 +209,14 @@ impl Pca {
             .take(self.clusters)
             .enumerate()
         {
-            for g in (0..self.rows).filter(|&g| wanted(cluster, g)) {
-                for c in 0..stride {
-                    let block = if c == 0 {
-                        &self.mean[cluster * d..(cluster + 1) * d]
-                    } else {
-                        let start = (cluster * self.components + c - 1) * d;
-                        &self.basis[start..start + d]
-                    };
+            for c in 0..stride {
+                let block = if c == 0 {
+                    &self.mean[cluster * d..(cluster + 1) * d]
+                } else {
+                    let start = (cluster * self.components + c - 1) * d;
+                    &self.basis[start..start + d]
+                };
+                for g in (0..self.rows).filter(|&g| wanted(cluster, g)) {
                     let row = &block[g * n..(g + 1) * n];
                     part[g * stride + c] = row_dot(row, &planar).to_array();
                 }

@@ -634,6 +634,50 @@ fn block_taps(
     taps
 }
 
+/// Multiply-adds of the per-frame products that listing every vertex's tap
+/// costs, per vertex (writing the list, marking the nodes read and reading it
+/// back): about what a vertex's shading from the products costs.
+const TAP_LIST_COST: usize = 100;
+
+/// Whether computing a clustered PCA's per-frame products only at the nodes
+/// the vertices read beats computing them all: when all of them (`clusters ·
+/// rows · (k + 1)` dot products of `3 · coeffs` multiply-adds) cost more than
+/// listing the taps. Small meshes with many clusters gain (the bunny's 16
+/// clusters of 8 components); large meshes amortise the products anyway.
+fn lazy_terms_pay(pca: &super::Pca, k: usize, vertices: usize) -> bool {
+    let all = pca.clusters() * pca.rows * (k.min(pca.components()) + 1) * 3 * pca.coeffs;
+    pca.clusters() > 1 && all > TAP_LIST_COST * vertices
+}
+
+/// The tap of every vertex (`local` gives its view in its frame), on rayon's
+/// pool with the `parallel` feature; an error when the list cannot be
+/// allocated.
+fn all_taps(
+    grid: u32,
+    vertices: usize,
+    local: &(impl Fn(usize) -> Vec3 + Sync),
+) -> Result<alloc::vec::Vec<Option<MrtTap>>, ShadeError> {
+    let bytes = vertices.saturating_mul(core::mem::size_of::<Option<MrtTap>>());
+    let mut taps =
+        crate::fallible::filled(None, vertices).map_err(|_| ShadeError::OutOfMemory { bytes })?;
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        taps.par_chunks_mut(BLOCK)
+            .enumerate()
+            .for_each(|(b, chunk)| {
+                for (i, t) in chunk.iter_mut().enumerate() {
+                    *t = mrt_tap(grid, local(b * BLOCK + i));
+                }
+            });
+    }
+    #[cfg(not(feature = "parallel"))]
+    for (v, t) in taps.iter_mut().enumerate() {
+        *t = mrt_tap(grid, local(v));
+    }
+    Ok(taps)
+}
+
 /// Vertices ahead of the one being shaded whose rows [`mrt_blocks`] has already
 /// requested: enough that a row requested from memory (hundreds of cycles) has
 /// arrived by the time its vertex is shaded (tens of cycles each).
@@ -693,28 +737,6 @@ fn mrt_blocks<const N: usize>(
 }
 
 impl TransferSet {
-    /// Per `(cluster, node)` of a clustered PCA (`cluster · rows + node`),
-    /// whether a vertex of the cluster reads the node at the view
-    /// `view_vector` gives it (the nodes of its tap).
-    fn cluster_nodes_read(
-        &self,
-        pca: &super::Pca,
-        view_vector: &impl Fn(usize) -> Vec3,
-    ) -> Result<alloc::vec::Vec<bool>, ShadeError> {
-        let pairs = pca.clusters() * pca.rows;
-        let mut read = crate::fallible::filled(false, pairs)
-            .map_err(|_| ShadeError::OutOfMemory { bytes: pairs })?;
-        for v in 0..self.vertex_count() {
-            if let Some(tap) = mrt_tap(self.grid, self.frames[v].to_local(view_vector(v))) {
-                let base = pca.cluster_of(v) * pca.rows;
-                for node in tap.nodes {
-                    read[base + node as usize] = true;
-                }
-            }
-        }
-        Ok(read)
-    }
-
     /// Relights every vertex into `out` (RGB radiance toward the viewer). For an
     /// MRT set compressed with PCA, `components` (clamped to the baked count; `None`
     /// = all) selects how many are used. Allocates one per-frame buffer for the
@@ -813,28 +835,49 @@ impl TransferSet {
                 let len = pca.frame_terms_len(k);
                 let mut terms = crate::fallible::filled([0.0f32; 3], len)
                     .map_err(|_| ShadeError::OutOfMemory { bytes: 12 * len })?;
-                if pca.clusters() > 1 {
-                    // Each cluster's terms only at the nodes its vertices'
-                    // taps read: a cluster's vertices face alike, so they
-                    // look through a few of the grid's nodes.
-                    let read = self.cluster_nodes_read(pca, &view_vector)?;
+                let grid = self.grid;
+                let local = |v: usize| self.frames[v].to_local(view_vector(v));
+                // With many clusters for few vertices, every vertex's tap
+                // first, then each cluster's terms only at the nodes its
+                // vertices read (a cluster's vertices face alike and look
+                // through a few of the grid's nodes), then the shading from
+                // the same taps.
+                let taps = if lazy_terms_pay(pca, k, self.vertex_count()) {
+                    let taps = all_taps(grid, self.vertex_count(), &local)?;
                     let rows = pca.rows;
+                    let pairs = pca.clusters() * rows;
+                    let mut read = crate::fallible::filled(false, pairs)
+                        .map_err(|_| ShadeError::OutOfMemory { bytes: pairs })?;
+                    for (v, tap) in taps.iter().enumerate() {
+                        if let Some(tap) = tap {
+                            let base = pca.cluster_of(v) * rows;
+                            for node in tap.nodes {
+                                read[base + node as usize] = true;
+                            }
+                        }
+                    }
                     pca.frame_terms_where(
                         lighting,
                         k,
                         |cluster, node| read[cluster * rows + node],
                         &mut terms,
                     );
+                    Some(taps)
                 } else {
                     pca.frame_terms(lighting, k, &mut terms);
-                }
+                    None
+                };
                 let baked = pca.components();
                 let part = pca.cluster_terms_len(k);
-                let grid = self.grid;
                 for_each_block(out, |first, block| {
-                    let taps = block_taps(grid, first, block.len(), |v| {
-                        self.frames[v].to_local(view_vector(v))
-                    });
+                    let taps = match &taps {
+                        Some(all) => {
+                            let mut own = [None; BLOCK];
+                            own[..block.len()].copy_from_slice(&all[first..first + block.len()]);
+                            own
+                        }
+                        None => block_taps(grid, first, block.len(), local),
+                    };
                     for (i, (o, tap)) in block.iter_mut().zip(taps).enumerate() {
                         let v = first + i;
                         let w = &pca.weights()[v * baked..v * baked + k];
