@@ -298,7 +298,7 @@ _Static_assert(offsetof(antumbra_hemi_shading_options, far_triangles) == 40, "LP
 _Static_assert(sizeof(antumbra_hemi_shading_options) == 48, "LP64 shading_options size");
 _Static_assert(offsetof(antumbra_hemi_material, view_directions) == 48, "LP64 material.view_directions");
 _Static_assert(sizeof(antumbra_hemi_material) == 56, "LP64 material size");
-_Static_assert(sizeof(antumbra_transfer_info) == 72, "LP64 transfer_info size");
+_Static_assert(sizeof(antumbra_transfer_info) == 80, "LP64 transfer_info size");
 _Static_assert(sizeof(antumbra_transfer_material) == 48, "LP64 transfer_material size");
 #elif UINTPTR_MAX == UINT32_MAX
 _Static_assert(sizeof(void *) == 4 && sizeof(size_t) == 4, "32-bit guard is honest");
@@ -316,7 +316,7 @@ _Static_assert(offsetof(antumbra_hemi_shading_options, far_triangles) == 36, "IL
 _Static_assert(sizeof(antumbra_hemi_shading_options) == 44, "ILP32 shading_options size");
 _Static_assert(offsetof(antumbra_hemi_material, view_directions) == 44, "ILP32 material.view_directions");
 _Static_assert(sizeof(antumbra_hemi_material) == 48, "ILP32 material size");
-_Static_assert(sizeof(antumbra_transfer_info) == 64, "ILP32 transfer_info size");
+_Static_assert(sizeof(antumbra_transfer_info) == 72, "ILP32 transfer_info size");
 _Static_assert(sizeof(antumbra_transfer_material) == 44, "ILP32 transfer_material size");
 #else
 #error "no literal layout written for this pointer width; add one"
