@@ -4,6 +4,8 @@
 //! gutter, so an engine that loads a lightmap file needs nothing else to build
 //! its texture. Both work without the standard library.
 
+use antumbra_core::transfer::{AtlasTexels, TransferSet};
+
 use crate::boundary::with_handle;
 use crate::error::Error;
 use crate::raw::{self, Span, Spans, check_disjoint};
@@ -34,9 +36,7 @@ pub unsafe extern "C" fn antumbra_transfer_texels(
     count: usize,
 ) -> antumbra_result {
     with_handle("antumbra_transfer_texels", transfer, |t| {
-        let atlas = t.set.texels().ok_or_else(|| {
-            Error::invalid("transfer is a per-vertex set: it has no lightmap texels")
-        })?;
+        let atlas = texels_of(&t.set)?;
         if texels.is_null() {
             return Err(Error::null("texels"));
         }
@@ -94,9 +94,7 @@ pub unsafe extern "C" fn antumbra_transfer_expand(
     image_count: usize,
 ) -> antumbra_result {
     with_handle("antumbra_transfer_expand", transfer, |t| {
-        let atlas = t.set.texels().ok_or_else(|| {
-            Error::invalid("transfer is a per-vertex set: it has no lightmap texels")
-        })?;
+        let atlas = texels_of(&t.set)?;
         let max_gutter = antumbra_core::lightmap::MAX_GUTTER;
         if gutter > max_gutter {
             return Err(Error::invalid(message!(
@@ -125,6 +123,12 @@ pub unsafe extern "C" fn antumbra_transfer_expand(
                 )
             })
     })
+}
+
+/// A set's lightmap texels, or the error naming a per-vertex set.
+fn texels_of(set: &TransferSet) -> Result<&AtlasTexels, Error> {
+    set.texels()
+        .ok_or_else(|| Error::invalid("transfer is a per-vertex set: it has no lightmap texels"))
 }
 
 /// The checked arrays of an expand call (`antumbra_transfer_expand`,

@@ -13,7 +13,7 @@
 
 use std::time::{Duration, Instant};
 
-use antumbra_core::lightmap::{AtlasOptions, LiftOptions, TexelAtlas};
+use antumbra_core::lightmap::{LiftOptions, TexelAtlas};
 use antumbra_core::raycast::BvhScene;
 use antumbra_core::transfer::{
     BakeOptions, BakePoint, BounceReads, Measurement, bake_points, bake_serial,
@@ -21,7 +21,7 @@ use antumbra_core::transfer::{
 
 use crate::cli::BenchLightmapArgs;
 use crate::error::{Error, Result};
-use crate::lightmap::{GUTTER, TexturedMesh};
+use crate::lightmap::{TexturedMesh, atlas_of};
 use crate::prt;
 
 /// Seed of every bake.
@@ -56,13 +56,8 @@ fn measure(textured: &TexturedMesh, args: &BenchLightmapArgs) -> Result<()> {
     let view = textured.mesh.view();
     let normals = &textured.normals;
     let bvh = BvhScene::new(&view).map_err(|e| Error::msg(e.to_string()))?;
-    let atlas_options = AtlasOptions {
-        gutter: GUTTER,
-        ..AtlasOptions::new(width, height)
-    };
     let make_atlas = || -> Result<TexelAtlas> {
-        let mut atlas = TexelAtlas::new(&view, &textured.uvs, normals, &atlas_options)
-            .map_err(|e| Error::msg(format!("{}: {e}", textured.mesh.name())))?;
+        let mut atlas = atlas_of(textured, width, height)?;
         atlas
             .lift(&view, &bvh, &LiftOptions::default())
             .expect("the default lift options are valid");
@@ -71,12 +66,6 @@ fn measure(textured: &TexturedMesh, args: &BenchLightmapArgs) -> Result<()> {
     let atlas = make_atlas()?;
     let receivers = atlas.receivers().len();
     let vertices = textured.mesh.vertex_count();
-    if receivers == 0 {
-        return Err(Error::msg(format!(
-            "{}: its charts cover no texel of a {width}x{height} atlas",
-            textured.mesh.name()
-        )));
-    }
     println!(
         "bench lightmap: {} ({vertices} vertices, {} triangles), {width}x{height} atlas with \
          {receivers} texel receivers, {} rays per receiver and per vertex, one thread, fastest \

@@ -43,18 +43,9 @@ impl TexelAtlas {
         options: &BakeOptions<'_>,
         parallel: bool,
     ) -> Result<TransferSet, BakeError> {
-        let points = self.bake_points();
-        let lookup = |triangle: usize, u: f32, v: f32| self.receiver_at_hit(mesh, triangle, u, v);
-        let set = crate::transfer::bake_points(
-            mesh,
-            normals,
-            caster,
-            &points,
-            BounceReads::Points(&lookup),
-            options,
-            parallel,
-        )?;
-        Ok(self.with_texels(set, 0..self.receivers.len()))
+        self.bake_receivers(mesh, 0..self.receivers.len(), |points, reads| {
+            crate::transfer::bake_points(mesh, normals, caster, points, reads, options, parallel)
+        })
     }
 
     /// The part of [`Self::bake`] that holds `receivers` (a range of them, as
@@ -72,23 +63,24 @@ impl TexelAtlas {
         options: &BakeOptions<'_>,
         receivers: Range<usize>,
     ) -> Result<TransferSet, BakeError> {
-        let points = self.bake_points();
-        let lookup = |triangle: usize, u: f32, v: f32| self.receiver_at_hit(mesh, triangle, u, v);
-        let set = bake_point_range(
-            mesh,
-            normals,
-            caster,
-            &points,
-            BounceReads::Points(&lookup),
-            options,
-            receivers.clone(),
-        )?;
-        Ok(self.with_texels(set, receivers))
+        self.bake_receivers(mesh, receivers.clone(), |points, reads| {
+            bake_point_range(mesh, normals, caster, points, reads, options, receivers)
+        })
     }
 
-    /// Every receiver as a point to bake from.
-    fn bake_points(&self) -> Vec<BakePoint> {
-        self.receivers.iter().map(BakePoint::from).collect()
+    /// Runs `bake` on every receiver as a point, its bounces reading the
+    /// texel under each hit's UV, and gives the set (entries for `receivers`)
+    /// their texels.
+    fn bake_receivers(
+        &self,
+        mesh: &MeshView<'_>,
+        receivers: Range<usize>,
+        bake: impl FnOnce(&[BakePoint], BounceReads<'_>) -> Result<TransferSet, BakeError>,
+    ) -> Result<TransferSet, BakeError> {
+        let points: Vec<BakePoint> = self.receivers.iter().map(BakePoint::from).collect();
+        let lookup = |triangle: usize, u: f32, v: f32| self.receiver_at_hit(mesh, triangle, u, v);
+        let set = bake(&points, BounceReads::Points(&lookup))?;
+        Ok(self.with_texels(set, receivers))
     }
 
     /// `set` (entries for `receivers`) with those receivers' texels.

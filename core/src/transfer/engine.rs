@@ -267,13 +267,7 @@ pub fn bake_vertices<C: RayCaster + Sync + ?Sized>(
     options: &BakeOptions<'_>,
     vertices: core::ops::Range<usize>,
 ) -> Result<TransferSet, BakeError> {
-    if vertices.is_empty() || vertices.end > mesh.vertex_count() {
-        return Err(BakeError::VertexRange {
-            start: vertices.start,
-            end: vertices.end,
-            vertices: mesh.vertex_count(),
-        });
-    }
+    check_range(&vertices, mesh.vertex_count())?;
     bake_impl(
         mesh,
         normals,
@@ -357,13 +351,7 @@ pub fn bake_point_range<C: RayCaster + Sync + ?Sized>(
     options: &BakeOptions<'_>,
     kept: core::ops::Range<usize>,
 ) -> Result<TransferSet, BakeError> {
-    if kept.is_empty() || kept.end > points.len() {
-        return Err(BakeError::VertexRange {
-            start: kept.start,
-            end: kept.end,
-            vertices: points.len(),
-        });
-    }
+    check_range(&kept, points.len())?;
     check_points(points)?;
     bake_impl(
         mesh,
@@ -373,6 +361,19 @@ pub fn bake_point_range<C: RayCaster + Sync + ?Sized>(
         Targets::Points(points, reads, kept),
         cfg!(feature = "parallel"),
     )
+}
+
+/// [`BakeError::VertexRange`] unless `range` is a non-empty range of `len`
+/// vertices or points.
+fn check_range(range: &core::ops::Range<usize>, len: usize) -> Result<(), BakeError> {
+    if range.is_empty() || range.end > len {
+        return Err(BakeError::VertexRange {
+            start: range.start,
+            end: range.end,
+            vertices: len,
+        });
+    }
+    Ok(())
 }
 
 /// [`BakeError::NoVertices`], [`BakeError::TooManyVertices`] or
