@@ -95,8 +95,8 @@ impl BoxCells {
         // Cell k's center is at (2k - 31) / 32, so centers in [a, b] are
         // k in [16 a + 15.5, 16 b + 15.5].
         let cells = |l: f32, h: f32| {
-            let first = libm::ceilf(lower(l) * 16.0 + 15.5 - CELL_SLACK).max(0.0);
-            let last = libm::floorf(upper(h) * 16.0 + 15.5 + CELL_SLACK).min(31.0);
+            let first = ceil_clamped(lower(l) * 16.0 + 15.5 - CELL_SLACK);
+            let last = floor_clamped(upper(h) * 16.0 + 15.5 + CELL_SLACK);
             (first, last)
         };
         let (i0, i1) = cells(x0, x1);
@@ -196,53 +196,99 @@ impl BoxCells {
     }
 }
 
+/// `ceil(x)` clamped to `[0, 33]` (NaN to 0, reaching every column), from
+/// truncation: exact on the clamped range, and no call into `libm`.
+#[inline(always)]
+fn ceil_clamped(x: f32) -> f32 {
+    let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 33.0) };
+    let t = x as i32;
+    (t + i32::from((t as f32) < x)).max(0) as f32
+}
+
+/// `floor(x)` clamped to `[-2, 31]` (NaN to 31, reaching every column), from
+/// truncation.
+#[inline(always)]
+fn floor_clamped(x: f32) -> f32 {
+    let x = if x.is_nan() {
+        31.0
+    } else {
+        x.clamp(-2.0, 32.0)
+    };
+    let t = x as i32;
+    (t - i32::from((t as f32) > x)).min(31) as f32
+}
+
 /// Row `j`'s columns whose centers have their squared disk radius `u² + v²`
-/// in `ring` (and a few more: rounding only widens the band, by
-/// [`CELL_SLACK`]).
+/// in `ring`, and those within [`RING_UNITS`] of it. A cell center's squared
+/// radius is `((2i - 31)² + (2j - 31)²) / 1024` exactly, so the band comes
+/// from integers and a table instead of square roots: the walk asks for it on
+/// every row of every box it lists.
 #[inline(always)]
 fn ring_band(j: usize, (r0, r1): (f32, f32)) -> u32 {
-    let v = CELL_COORD[j];
-    // Row j's centers with u² in [r0 - v², r1 - v²]: |u| at most `outer`,
-    // and not below `inner`.
-    let outer_sq = r1 - v * v;
-    if outer_sq.is_nan() || outer_sq < 0.0 {
+    let row = ROW_SQUARE[j];
+    // A NaN outer radius bounds nothing in.
+    let high = r1 * 1024.0;
+    if high.is_nan() || high < 0.0 {
         return 0;
     }
-    let outer = libm::sqrtf(outer_sq) * 16.0;
-    let mut band = columns_within(15.5 - outer - CELL_SLACK, 15.5 + outer + CELL_SLACK);
-    let inner_sq = r0 - v * v;
-    if inner_sq > 0.0 {
-        // Centers with |u| < inner, strictly: not reached.
-        let inner = libm::sqrtf(inner_sq) * 16.0;
-        band &= !columns_within(15.5 - inner + CELL_SLACK, 15.5 + inner - CELL_SLACK);
+    // Truncation is the floor here (non-negative, clamped).
+    let outer = high.min(4096.0) as i32 + RING_UNITS - row;
+    if outer < 1 {
+        return 0;
+    }
+    let mut band = centered_columns(ODD_SQUARES_WITHIN[outer.min(961) as usize]);
+    let low = r0 * 1024.0;
+    if low > 0.0 {
+        let low = low.min(4096.0);
+        let floor = low as i32;
+        let ceil = floor + i32::from((floor as f32) < low);
+        // Columns with (2i - 31)² below this are strictly inside the ring.
+        let inner = ceil - RING_UNITS - row;
+        if inner > 1 {
+            band &= !centered_columns(ODD_SQUARES_WITHIN[(inner - 1).min(961) as usize]);
+        }
     }
     band
 }
 
-/// The columns `k` of `0..=31` with `lo <= k <= hi` (a NaN bound bounds
-/// nothing), without calls for the floor and ceiling: truncation is exact on
-/// the clamped range.
-#[inline(always)]
-fn columns_within(lo: f32, hi: f32) -> u32 {
-    let lo = if lo.is_nan() {
-        -1.0
-    } else {
-        lo.clamp(-1.0, 32.0)
-    };
-    let hi = if hi.is_nan() {
-        32.0
-    } else {
-        hi.clamp(-1.0, 32.0)
-    };
-    // ceil(lo) and floor(hi) from truncation toward zero.
-    let (t_lo, t_hi) = (lo as i32, hi as i32);
-    let first = (t_lo + i32::from((t_lo as f32) < lo)).max(0);
-    let last = (t_hi - i32::from((t_hi as f32) > hi)).min(31);
-    if first > last {
-        0
-    } else {
-        HemiMask::columns(first as usize, last as usize)
+/// The widening of [`ring_band`], in units of `1/1024` of the squared disk
+/// radius: a hundredth of a cell ([`CELL_SLACK`]) moves `u²` by at most
+/// `2 · 0.01 / 16 = 1.25` units.
+const RING_UNITS: i32 = 2;
+
+/// `(2j - 31)²` for row `j`: `1024 v²` of its centers.
+const ROW_SQUARE: [i32; 32] = {
+    let mut squares = [0; 32];
+    let mut j = 0;
+    while j < 32 {
+        let m = 2 * j as i32 - 31;
+        squares[j] = m * m;
+        j += 1;
     }
+    squares
+};
+
+/// How many of the odd numbers `1, 3, …, 31` (the column offsets
+/// `|2i - 31|`) have their square at most the index.
+const ODD_SQUARES_WITHIN: [u8; 962] = {
+    let mut within = [0; 962];
+    let mut x = 0;
+    while x < 962 {
+        let mut count = 0;
+        while count < 16 && (2 * count + 1) * (2 * count + 1) <= x {
+            count += 1;
+        }
+        within[x] = count as u8;
+        x += 1;
+    }
+    within
+};
+
+/// The `2c` columns nearest the disk's center, `16 - c..=15 + c`, as row bits.
+#[inline(always)]
+fn centered_columns(c: u8) -> u32 {
+    let c = u32::from(c);
+    (((1u64 << (2 * c)) - 1) << (16 - c)) as u32
 }
 
 /// At most `N` cells of the grid, as (column, row).
@@ -281,6 +327,41 @@ impl RayCell {
             i,
             j,
             inverse: Vec3::ZERO,
+        }
+    }
+}
+
+impl RayCell {
+    /// Whether the cell's center ray meets `padded`.
+    #[inline(always)]
+    pub(crate) fn meets(&self, padded: &PaddedBox) -> bool {
+        // The slabs' parameter intervals. An axis with a zero direction
+        // component and the origin on a face multiplies 0 by infinity: NaN,
+        // which min and max ignore, so that axis constrains nothing
+        // (conservative).
+        let (t0, t1) = (padded.lo * self.inverse, padded.hi * self.inverse);
+        let near = t0.min(t1).max_element();
+        let far = t0.max(t1).min_element();
+        // Not `near > far` or `far < 0` (NaN included): met.
+        !(near > far || far < 0.0)
+    }
+}
+
+/// A box widened by a pad on every side ([`ray_pad`]), relative to the
+/// center of projection: what [`RayCell::meets`] tests.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PaddedBox {
+    lo: Vec3,
+    hi: Vec3,
+}
+
+impl PaddedBox {
+    /// `bounds` widened by `pad`, relative to `origin`.
+    #[inline(always)]
+    pub(crate) fn new(bounds: &Aabb, origin: Vec3, pad: f32) -> PaddedBox {
+        PaddedBox {
+            lo: bounds.min - pad - origin,
+            hi: bounds.max + pad - origin,
         }
     }
 }
@@ -338,18 +419,10 @@ impl<const N: usize> RayCells<N> {
         mask: &HemiMask,
         out: &mut Self,
     ) -> usize {
-        let (lo, hi) = (bounds.min - pad - origin, bounds.max + pad - origin);
+        let padded = PaddedBox::new(bounds, origin, pad);
         let mut kept = 0;
         for ray in self.as_slice() {
-            // The slabs' parameter intervals. An axis with a zero direction
-            // component and the origin on a face multiplies 0 by infinity:
-            // NaN, which min and max ignore, so that axis constrains nothing
-            // (conservative).
-            let (t0, t1) = (lo * ray.inverse, hi * ray.inverse);
-            let near = t0.min(t1).max_element();
-            let far = t0.max(t1).min_element();
-            // Not `near > far` or `far < 0` (NaN included): met.
-            let met = !(near > far || far < 0.0);
+            let met = ray.meets(&padded);
             let clear = mask.rows[usize::from(ray.j)] >> ray.i & 1 == 0;
             out.cells[kept] = *ray;
             kept += usize::from(met & clear);
@@ -569,5 +642,48 @@ mod tests {
             "{rects} rectangles, {nones} none, {listed_some} short lists, \
              {missed_some} boxes setting cells whose rays miss most cells"
         );
+    }
+
+    /// The slow twin of [`ring_band`]: each cell's squared radius compared
+    /// with the ring in `f32`. The band holds every cell of the ring and no
+    /// cell farther than [`RING_UNITS`] and a unit of rounding outside it.
+    #[test]
+    fn ring_bands_hold_the_ring_and_little_more() {
+        let mut rng = Rng(0x7269_6e67);
+        let mut rings: Vec<(f32, f32)> = (0..4000)
+            .map(|_| {
+                let (a, b) = (rng.next() * 1.1 - 0.05, rng.next() * 1.1 - 0.05);
+                (a.min(b), a.max(b))
+            })
+            .collect();
+        rings.extend([
+            (0.0, 1.0),
+            (-1.0, 2.0),
+            (0.5, 0.4),
+            (f32::NAN, 0.5),
+            (0.5, f32::NAN),
+            (f32::NEG_INFINITY, f32::INFINITY),
+        ]);
+        // Exact cell radii: the integers of the docs over 1024.
+        let slack = (RING_UNITS + 1) as f32 / 1024.0;
+        for (r0, r1) in rings {
+            for j in 0..32 {
+                let band = ring_band(j, (r0, r1));
+                for i in 0..32 {
+                    let (u, v) = (CELL_COORD[i], CELL_COORD[j]);
+                    let r2 = u * u + v * v;
+                    let inside = band >> i & 1 == 1;
+                    if r0 <= r2 && r2 <= r1 {
+                        assert!(inside, "cell ({i}, {j}) of ring ({r0}, {r1})");
+                    }
+                    if inside && !r0.is_nan() && !r1.is_nan() {
+                        assert!(
+                            r0 - slack <= r2 && r2 <= r1 + slack,
+                            "cell ({i}, {j}) far outside ring ({r0}, {r1})"
+                        );
+                    }
+                }
+            }
+        }
     }
 }

@@ -25,8 +25,8 @@
 
 use glam::{Vec3, Vec4};
 
-use super::box_cells::RayCell;
-use super::clusters::{CHUNK, CHUNK_VERTICES, Chunk, TriangleClusters};
+use super::box_cells::{PaddedBox, RayCell};
+use super::clusters::{CHUNK, CHUNK_SPANS, CHUNK_VERTICES, Chunk, SPAN, TriangleClusters};
 #[cfg(feature = "std")]
 use super::cone_mask::TableCones;
 use super::cone_mask::{ConeMask, ExactCones};
@@ -35,6 +35,17 @@ use super::mask::{CELL_COORD, CELL_Z, HemiMask};
 use super::triangle::{ConesFour, classify_four};
 use super::{Accumulator, Quality, Receiver, TriangleCone, TriangleCounts};
 use crate::geom::MeshView;
+
+/// The few cells a cluster's triangles can still set, with what tests their
+/// rays against the cluster's span boxes: the center of projection and the
+/// pass's box pad ([`ray_pad`](super::box_cells::ray_pad)).
+#[derive(Clone, Copy)]
+pub(super) struct CellPath<'c> {
+    /// At most 32 cells, clear when listed.
+    pub(super) cells: &'c [RayCell],
+    pub(super) origin: Vec3,
+    pub(super) pad: f32,
+}
 
 /// One chunk's vertices moved into the receiver's frame: local positions and
 /// flags, indexed by position in the chunk's list.
@@ -81,8 +92,26 @@ pub(super) fn chunk_loop<M: ConeMask>(
     pass: &Pass<M>,
     select: Select,
     projected: &mut Projected,
-    cells: Option<&[RayCell]>,
+    cells: Option<CellPath<'_>>,
 ) {
+    // On the cell path, the cells whose rays meet each span's box: a span
+    // that none meets holds no triangle that can set one of them.
+    let mut span_cells = [0u32; CHUNK_SPANS];
+    if let Some(path) = &cells {
+        let count = (chunk.triangles.1 - chunk.triangles.0) as usize;
+        let spans = &clusters.spans[chunk.spans as usize..][..count.div_ceil(SPAN)];
+        let mut any = 0;
+        for (met, bounds) in span_cells.iter_mut().zip(spans) {
+            let padded = PaddedBox::new(bounds, path.origin, path.pad);
+            for (k, ray) in path.cells.iter().enumerate() {
+                *met |= u32::from(ray.meets(&padded)) << k;
+            }
+            any |= *met;
+        }
+        if any == 0 {
+            return;
+        }
+    }
     let vertices = &clusters.chunk_vertices[chunk.vertices.0 as usize..chunk.vertices.1 as usize];
     let all_in_range = project_chunk(view, vertices, acc, pass, select, projected);
     // The triangles taken and above the horizon: classified four at a time
@@ -113,7 +142,9 @@ pub(super) fn chunk_loop<M: ConeMask>(
         return;
     }
     let (mut skipped, mut below) = (0u32, 0u32);
-    for &corners in &clusters.corners[triangles] {
+    // Per batch entry, the cells its span's box meets (cell path only).
+    let mut picks = [0u32; CHUNK];
+    for (t, &corners) in clusters.corners[triangles].iter().enumerate() {
         let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
         let (inner, outer) = (&projected.inner, &projected.outer);
         let taken = select.takes(
@@ -121,10 +152,14 @@ pub(super) fn chunk_loop<M: ConeMask>(
             [outer[ia], outer[ib], outer[ic]],
         );
         let above = projected.above[ia] | projected.above[ib] | projected.above[ic];
+        // Triangles of spans no listed ray meets are left out uncounted, as
+        // those of a skipped cluster are.
+        let wanted = cells.is_none() || span_cells[t / SPAN] != 0;
         batch[batched] = corners;
-        batched += usize::from(taken & above);
-        skipped += u32::from(!taken);
-        below += u32::from(taken & !above);
+        picks[batched] = span_cells[t / SPAN];
+        batched += usize::from(taken & above & wanted);
+        skipped += u32::from(!taken & wanted);
+        below += u32::from(taken & !above & wanted);
     }
     acc.counts.skipped += skipped;
     acc.counts.below_horizon += below;
@@ -138,7 +173,7 @@ pub(super) fn chunk_loop<M: ConeMask>(
         ]
     };
     match cells {
-        Some(cells) => test_cells(batched, corners, cells, acc, pass),
+        Some(path) => test_cells(batched, corners, |t| picks[t], path.cells, acc, pass),
         None => classify_batch(batched, corners, acc, pass),
     }
 }
@@ -181,6 +216,7 @@ fn gather_four(
 fn test_cells<M: ConeMask>(
     count: usize,
     corners: impl Fn(usize) -> [Vec4; 3],
+    picks: impl Fn(usize) -> u32,
     cells: &[RayCell],
     acc: &mut Accumulator<'_>,
     pass: &Pass<M>,
@@ -197,8 +233,15 @@ fn test_cells<M: ConeMask>(
         let live = used & !(cones.degenerate | cones.back_facing);
         let tested = live & cones.scale_free;
         acc.counts.rasterized += tested.count_ones();
+        // The cells any of the four may set: those meeting their spans.
+        let mut pick = 0;
+        for t in start - len..start {
+            pick |= picks(t);
+        }
         if tested != 0 {
-            for cell in cells {
+            while pick != 0 {
+                let cell = &cells[pick.trailing_zeros() as usize];
+                pick &= pick - 1;
                 let (i, j) = (usize::from(cell.i), usize::from(cell.j));
                 if acc.mask.rows[j] >> i & 1 == 1 {
                     continue;
@@ -640,7 +683,18 @@ mod tests {
                 };
                 let (mut rasterized, mut tested) = (accumulator(), accumulator());
                 classify_batch(count, |t| triangles[t], &mut rasterized, &pass);
-                test_cells(count, |t| triangles[t], &every_cell, &mut tested, &pass);
+                // At most 32 cells per call (a triangle's picks are a `u32`):
+                // the mask grows from slice to slice, the counts are one call's.
+                for (k, slice) in every_cell.chunks(32).enumerate() {
+                    let mut part = accumulator();
+                    part.mask = tested.mask;
+                    let all = (u64::MAX >> (64 - slice.len())) as u32;
+                    test_cells(count, |t| triangles[t], |_| all, slice, &mut part, &pass);
+                    tested.mask = part.mask;
+                    if k == 0 {
+                        tested.counts = part.counts;
+                    }
+                }
                 assert_eq!(rasterized.mask, tested.mask, "case {case} cull {cull}");
                 assert_eq!(rasterized.counts, tested.counts, "case {case} cull {cull}");
                 differing_lanes += usize::from(tested.mask != HemiMask::EMPTY);
