@@ -667,10 +667,9 @@ mod tests {
         // Exact cell radii: the integers of the docs over 1024.
         let slack = (RING_UNITS + 1) as f32 / 1024.0;
         for (r0, r1) in rings {
-            for j in 0..32 {
+            for (j, &v) in CELL_COORD.iter().enumerate() {
                 let band = ring_band(j, (r0, r1));
-                for i in 0..32 {
-                    let (u, v) = (CELL_COORD[i], CELL_COORD[j]);
+                for (i, &u) in CELL_COORD.iter().enumerate() {
                     let r2 = u * u + v * v;
                     let inside = band >> i & 1 == 1;
                     if r0 <= r2 && r2 <= r1 {
