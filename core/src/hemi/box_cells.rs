@@ -196,17 +196,15 @@ impl BoxCells {
     }
 }
 
-/// `ceil(x)` clamped to `[0, 33]` (NaN to 0, reaching every column), from
-/// truncation: exact on the clamped range, and no call into `libm`.
+/// `ceil(x)` clamped to `[0, 33]` (NaN to 0, reaching every column), with
+/// no call into `libm`.
 #[inline(always)]
 fn ceil_clamped(x: f32) -> f32 {
     let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 33.0) };
-    let t = x as i32;
-    (t + i32::from((t as f32) < x)).max(0) as f32
+    ceil_by_truncation(x).max(0) as f32
 }
 
-/// `floor(x)` clamped to `[-2, 31]` (NaN to 31, reaching every column), from
-/// truncation.
+/// `floor(x)` clamped to `[-2, 31]` (NaN to 31, reaching every column).
 #[inline(always)]
 fn floor_clamped(x: f32) -> f32 {
     let x = if x.is_nan() {
@@ -214,8 +212,22 @@ fn floor_clamped(x: f32) -> f32 {
     } else {
         x.clamp(-2.0, 32.0)
     };
+    floor_by_truncation(x).min(31) as f32
+}
+
+/// `ceil(x)` for finite `x` well inside the range of `i32`: truncation
+/// toward zero, then one comparison (exact).
+#[inline(always)]
+fn ceil_by_truncation(x: f32) -> i32 {
     let t = x as i32;
-    (t - i32::from((t as f32) > x)).min(31) as f32
+    t + i32::from((t as f32) < x)
+}
+
+/// `floor(x)` for finite `x` well inside the range of `i32`.
+#[inline(always)]
+fn floor_by_truncation(x: f32) -> i32 {
+    let t = x as i32;
+    t - i32::from((t as f32) > x)
 }
 
 /// Row `j`'s columns whose centers have their squared disk radius `u² + v²`
@@ -231,19 +243,15 @@ fn ring_band(j: usize, (r0, r1): (f32, f32)) -> u32 {
     if high.is_nan() || high < 0.0 {
         return 0;
     }
-    // Truncation is the floor here (non-negative, clamped).
-    let outer = high.min(4096.0) as i32 + RING_UNITS - row;
+    let outer = floor_by_truncation(high.min(4096.0)) + RING_UNITS - row;
     if outer < 1 {
         return 0;
     }
     let mut band = centered_columns(ODD_SQUARES_WITHIN[outer.min(961) as usize]);
     let low = r0 * 1024.0;
     if low > 0.0 {
-        let low = low.min(4096.0);
-        let floor = low as i32;
-        let ceil = floor + i32::from((floor as f32) < low);
         // Columns with (2i - 31)² below this are strictly inside the ring.
-        let inner = ceil - RING_UNITS - row;
+        let inner = ceil_by_truncation(low.min(4096.0)) - RING_UNITS - row;
         if inner > 1 {
             band &= !centered_columns(ODD_SQUARES_WITHIN[(inner - 1).min(961) as usize]);
         }
@@ -329,9 +337,7 @@ impl RayCell {
             inverse: Vec3::ZERO,
         }
     }
-}
 
-impl RayCell {
     /// Whether the cell's center ray meets `padded`.
     #[inline(always)]
     pub(crate) fn meets(&self, padded: &PaddedBox) -> bool {

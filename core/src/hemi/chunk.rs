@@ -98,8 +98,7 @@ pub(super) fn chunk_loop<M: ConeMask>(
     // that none meets holds no triangle that can set one of them.
     let mut span_cells = [0u32; CHUNK_SPANS];
     if let Some(path) = &cells {
-        let count = (chunk.triangles.1 - chunk.triangles.0) as usize;
-        let spans = &clusters.spans[chunk.spans as usize..][..count.div_ceil(SPAN)];
+        let spans = &clusters.spans[chunk.span_range()];
         let mut any = 0;
         for (met, bounds) in span_cells.iter_mut().zip(spans) {
             let padded = PaddedBox::new(bounds, path.origin, path.pad);
@@ -120,7 +119,7 @@ pub(super) fn chunk_loop<M: ConeMask>(
     // to the batch, and the count moves only for those kept.
     let mut batch = [[0u8; 3]; CHUNK];
     let mut batched = 0;
-    let triangles = chunk.triangles.0 as usize..chunk.triangles.1 as usize;
+    let triangles = chunk.triangle_range();
     if !all_in_range {
         // A vertex at (nearly) the center of projection or extremely far:
         // one triangle at a time.

@@ -143,6 +143,21 @@ pub(super) struct Chunk {
     pub(super) spans: u32,
 }
 
+impl Chunk {
+    /// Its triangles' positions in `order` (and `corners`).
+    #[inline(always)]
+    pub(super) fn triangle_range(&self) -> core::ops::Range<usize> {
+        self.triangles.0 as usize..self.triangles.1 as usize
+    }
+
+    /// Its boxes' positions in `spans`: one per run of [`SPAN`] triangles.
+    #[inline(always)]
+    pub(super) fn span_range(&self) -> core::ops::Range<usize> {
+        let first = self.spans as usize;
+        first..first + self.triangle_range().len().div_ceil(SPAN)
+    }
+}
+
 impl TriangleClusters {
     /// Triangles per cluster of the default grouping. On the bunny and the bumpy
     /// sphere 16, 32 and 64 cost about the same (`lod_receiver_*` in
@@ -289,8 +304,8 @@ impl TriangleClusters {
         // The spans' boxes from the triangles, each cluster's the union of
         // its spans' (the same box: min and max are exact).
         for chunk in &self.chunks {
-            let triangles = &self.order[chunk.triangles.0 as usize..chunk.triangles.1 as usize];
-            let spans = &mut self.spans[chunk.spans as usize..];
+            let triangles = &self.order[chunk.triangle_range()];
+            let spans = &mut self.spans[chunk.span_range()];
             for (bounds, run) in spans.iter_mut().zip(triangles.chunks(SPAN)) {
                 let mut b = Aabb::EMPTY;
                 for &t in run {
@@ -306,8 +321,7 @@ impl TriangleClusters {
             let chunks = self.cluster_chunks[c] as usize..self.cluster_chunks[c + 1] as usize;
             let mut b = Aabb::EMPTY;
             for chunk in &self.chunks[chunks] {
-                let count = (chunk.triangles.1 - chunk.triangles.0) as usize;
-                for span in &self.spans[chunk.spans as usize..][..count.div_ceil(SPAN)] {
+                for span in &self.spans[chunk.span_range()] {
                     b.grow(span.min);
                     b.grow(span.max);
                 }
@@ -404,12 +418,12 @@ mod tests {
                 let clusters = clustered.clusters.unwrap();
                 let mut spans_seen = 0;
                 for chunk in &clusters.chunks {
-                    let triangles =
-                        &clusters.order[chunk.triangles.0 as usize..chunk.triangles.1 as usize];
+                    let triangles = &clusters.order[chunk.triangle_range()];
                     assert!(triangles.len() <= CHUNK);
-                    for (k, run) in triangles.chunks(SPAN).enumerate() {
-                        let span = clusters.spans[chunk.spans as usize + k];
-                        assert_eq!(span, bounds_of(&mesh, run), "size {size}");
+                    let spans = &clusters.spans[chunk.span_range()];
+                    assert_eq!(spans.len(), triangles.chunks(SPAN).len(), "size {size}");
+                    for (span, run) in spans.iter().zip(triangles.chunks(SPAN)) {
+                        assert_eq!(*span, bounds_of(&mesh, run), "size {size}");
                         spans_seen += 1;
                     }
                 }

@@ -22,8 +22,8 @@
 //! three edge planes of its triangles on those cells alone (`test_cells`
 //! (chunk.rs)), each run of eight triangles only on the rays that meet its
 //! own box (the clusters' span boxes): the cells no triangle of the box can
-//! set are exactly those left out, and the test is the exact mask's predicate on the same `f32` values, so
-//! the bits are the same. Inside a box of cells that the mask already covers, a
+//! set are exactly those left out, and the test is the exact mask's predicate
+//! on the same `f32` values, so the bits are the same. Inside a box of cells that the mask already covers, a
 //! cone's exact rasterization adds nothing and is skipped. The masks are
 //! identical to the unclustered loop's, bit for bit (the counts of `rasterized`
 //! triangles drop by those of the skipped nodes): the box tests evaluate the

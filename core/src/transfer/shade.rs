@@ -601,7 +601,7 @@ const BLOCK: usize = 32;
 
 /// `f(first_vertex, out_block)` over blocks of [`BLOCK`] vertices, on rayon's pool
 /// with the `parallel` feature.
-fn for_each_block<F: Fn(usize, &mut [[f32; 3]]) + Sync>(out: &mut [[f32; 3]], f: F) {
+fn for_each_block<T: Send, F: Fn(usize, &mut [T]) + Sync>(out: &mut [T], f: F) {
     #[cfg(feature = "parallel")]
     {
         use rayon::prelude::*;
@@ -660,21 +660,10 @@ fn all_taps(
     let bytes = vertices.saturating_mul(core::mem::size_of::<Option<MrtTap>>());
     let mut taps =
         crate::fallible::filled(None, vertices).map_err(|_| ShadeError::OutOfMemory { bytes })?;
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        taps.par_chunks_mut(BLOCK)
-            .enumerate()
-            .for_each(|(b, chunk)| {
-                for (i, t) in chunk.iter_mut().enumerate() {
-                    *t = mrt_tap(grid, local(b * BLOCK + i));
-                }
-            });
-    }
-    #[cfg(not(feature = "parallel"))]
-    for (v, t) in taps.iter_mut().enumerate() {
-        *t = mrt_tap(grid, local(v));
-    }
+    for_each_block(&mut taps, |first, block| {
+        let own = block_taps(grid, first, block.len(), local);
+        block.copy_from_slice(&own[..block.len()]);
+    });
     Ok(taps)
 }
 
