@@ -47,6 +47,8 @@ use obvhs::{
     triangle::Triangle,
 };
 
+mod packet;
+
 use super::{Hit, PreparedRay, Ray, RayCaster, TriangleHit, TriangleLanes};
 use crate::geom::MeshView;
 use crate::simd::{self, LaneHits8, Planes8, SlabRay};
@@ -526,6 +528,7 @@ const FAST_MAX_ORIGIN: f32 = (1u128 << 64) as f32;
 
 /// Per-ray constants of the conservative box test, in units of the query's
 /// direction for the fast test and of the unit direction for the general one.
+#[derive(Clone, Copy)]
 struct TraversalRay {
     origin: Vec3A,
     /// 1/d per axis; unused on parallel axes.
@@ -1198,6 +1201,13 @@ impl BvhScene {
         }
     }
 
+    /// [`RayCaster::occluded_many`] compiled with AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn occluded_many_avx(&self, rays: &[Ray], occluded: &mut [bool]) {
+        self.occluded_many_with::<true>(rays, occluded);
+    }
+
     #[inline(always)]
     fn closest_hit_with<const WIDE: bool>(&self, ray: &Ray) -> Option<Hit> {
         if self.triangle_count == 0 {
@@ -1228,6 +1238,23 @@ impl RayCaster for BvhScene {
             return unsafe { self.occluded_avx(ray) };
         }
         self.occluded_with::<false>(ray)
+    }
+
+    /// Traces the rays in packets of one direction octant (see the `packet`
+    /// module): the answers of [`Self::occluded`], bit for bit.
+    fn occluded_many(&self, rays: &[Ray], occluded: &mut [bool]) {
+        assert_eq!(
+            rays.len(),
+            occluded.len(),
+            "occluded_many: one answer per ray"
+        );
+        #[cfg(target_arch = "x86_64")]
+        if self.wide {
+            // SAFETY: `wide` is set only where run-time detection found AVX.
+            #[allow(unsafe_code)]
+            return unsafe { self.occluded_many_avx(rays, occluded) };
+        }
+        self.occluded_many_with::<false>(rays, occluded);
     }
 
     fn closest_hit(&self, ray: &Ray) -> Option<Hit> {

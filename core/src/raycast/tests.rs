@@ -493,6 +493,14 @@ mod bvh_against_brute_force {
         // Queries take our own traversal loop; check obvhs's `traverse!` path too
         // (whose 32-entry stack holds these trees).
         assert!(bvh.depth() <= 32);
+        // The packet search on the same kind of rays, and on fans from one point.
+        let mixed: Vec<Ray> = (0..rays.min(70)).map(|_| random_ray(rng, 2.0)).collect();
+        many_equal_each(&[&bvh, &narrow], &mixed);
+        let fan_origin = mesh.triangle(0)[0] + Vec3::splat(1e-3);
+        many_equal_each(
+            &[&bvh, &narrow],
+            &fan(rng, fan_origin, Vec3::Z, rays.min(70)),
+        );
         let mut hits = 0;
         for _ in 0..rays {
             let ray = random_ray(rng, 2.0);
@@ -896,6 +904,120 @@ mod bvh_against_brute_force {
                 );
             }
         }
+    }
+
+    /// Up to `count` rays from `origin` over the hemisphere around `normal`,
+    /// covering `(0, ∞)` like a bake's: the shared-origin packets.
+    fn fan(rng: &mut SmallRng, origin: Vec3, normal: Vec3, count: usize) -> Vec<Ray> {
+        (0..count)
+            .map(|_| {
+                let mut d = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                if d.dot(normal) < 0.0 {
+                    d = -d;
+                }
+                Ray::new(origin, d * rng.random_range(0.5..2.0), f32::INFINITY)
+            })
+            .collect()
+    }
+
+    /// `occluded_many` against `occluded`, ray by ray, on the AVX and the
+    /// portable scene; returns the rays occluded.
+    fn many_equal_each(scenes: &[&BvhScene], rays: &[Ray]) -> usize {
+        let mut occluded = alloc::vec![false; rays.len()];
+        for scene in scenes {
+            occluded.fill(false);
+            scene.occluded_many(rays, &mut occluded);
+            for (ray, &got) in rays.iter().zip(&occluded) {
+                assert_eq!(got, scene.occluded(ray), "{ray:?}");
+            }
+        }
+        occluded.iter().filter(|&&o| o).count()
+    }
+
+    /// The packet search (`occluded_many`) is the slow twin's bit: every ray
+    /// answered as `occluded` answers it alone, for bake-like fans from points
+    /// on and near the surface (the shared-origin leaf test), fans aimed exactly
+    /// at corners and edge midpoints (where that test must leave the ray to the
+    /// watertight one) and from a corner itself and from points in a
+    /// triangle's plane, and mixed packets (other origins, finite ends,
+    /// negative starts, invalid and axis-parallel rays) that take the
+    /// per-ray leaf test; partial packets of 1 to 200 rays.
+    #[test]
+    fn packets_equal_one_ray_at_a_time() {
+        let mut rng = SmallRng::seed_from_u64(41);
+        let (sphere_positions, sphere_indices) = closed_sphere(6);
+        let (soup_positions, soup_indices) = soup(&mut rng, 400);
+        let (mut occluded, mut rays_cast, mut aimed) = (0, 0, 0);
+        for (positions, indices) in [
+            (&sphere_positions, &sphere_indices),
+            (&soup_positions, &soup_indices),
+        ] {
+            let mesh = MeshView::new(positions, indices).unwrap();
+            let bvh = BvhScene::new(&mesh).unwrap();
+            let narrow = bvh.clone().with_avx(false);
+            let scenes = [&bvh, &narrow];
+            for k in 0..120 {
+                let [a, b, c] = mesh.triangle(rng.random_range(0..mesh.triangle_count()));
+                let normal = (b - a).cross(c - a).normalize_or(Vec3::Z);
+                let count = [1, 7, 64, 65, 200][k % 5];
+                let origin = match k % 4 {
+                    // A corner itself, and a point on the triangle: the
+                    // origin in the plane of the triangles around it.
+                    0 => a,
+                    1 => (a + b + c) / 3.0,
+                    // Just off the surface, as a bake starts its rays.
+                    2 => (a + b + c) / 3.0 + normal * 1e-4,
+                    _ => (a + b + c) / 3.0 + normal * rng.random_range(0.01..0.5),
+                };
+                let mut rays = fan(&mut rng, origin, normal, count);
+                if k % 3 == 0 {
+                    // Exactly at corners and edge midpoints of other triangles.
+                    for ray in rays.iter_mut().step_by(2) {
+                        let [p, q, r] = mesh.triangle(rng.random_range(0..mesh.triangle_count()));
+                        let target =
+                            [p, q, r, (p + q) / 2.0, (q + r) / 2.0][rng.random_range(0..5)];
+                        if target != origin {
+                            ray.direction = target - origin;
+                            aimed += 1;
+                        }
+                    }
+                }
+                occluded += many_equal_each(&scenes, &rays);
+                rays_cast += rays.len();
+                // The same rays mixed: no longer one origin and one interval.
+                for ray in rays.iter_mut() {
+                    match rng.random_range(0..8) {
+                        0 => ray.origin += Vec3::splat(1e-3),
+                        1 => ray.t_max = rng.random_range(0.0..1.0),
+                        2 => ray.t_min = -rng.random_range(0.0..0.5),
+                        3 => ray.direction = Vec3::new(0.0, 0.0, -1.0),
+                        4 => ray.direction = Vec3::new(f32::NAN, 1.0, 0.0),
+                        5 => ray.direction = Vec3::ZERO,
+                        _ => {}
+                    }
+                }
+                occluded += many_equal_each(&scenes, &rays);
+                rays_cast += rays.len();
+            }
+        }
+        assert!(
+            occluded > rays_cast / 10 && occluded < rays_cast * 9 / 10 && aimed > 1000,
+            "{occluded} of {rays_cast} rays occluded, {aimed} aimed at corners and edges"
+        );
+        // Hierarchies deeper than the packet's stack take rays one at a time.
+        let (positions, indices) = shrinking_books(70, 0.3, 30);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let deep = BvhScene::new(&mesh).unwrap();
+        assert!(deep.depth() > 64);
+        let rays = fan(&mut rng, Vec3::new(0.0, 0.0, -1e-3), Vec3::X, 200);
+        many_equal_each(&[&deep], &rays);
+        // And an empty scene hits nothing.
+        let empty = BvhScene::new(&MeshView::new(&[], &[]).unwrap()).unwrap();
+        assert_eq!(many_equal_each(&[&empty], &rays), 0);
     }
 
     #[test]

@@ -750,6 +750,36 @@ fn gather_n<C: RayCaster + ?Sized, const N: usize>(
     let albedo_over_pi = ctx.albedo / PI;
     // Projection of incident radiance on Y_i (uniform sampling, 2π/N).
     let w = 2.0 * PI / count;
+    // Adds one ray's incident radiance (per lighting column) to both integrals.
+    let mut accumulate = |local: Vec3, world: Vec3, contribution: &[f32; N]| {
+        // Irradiance: ∫ L cos θ dω.
+        let w_irr = match ctx.sampling {
+            Sampling::Cosine => PI / count,
+            Sampling::Uniform => 2.0 * PI * local.z / count,
+        };
+        for (e, c) in irradiance.iter_mut().zip(contribution) {
+            *e += w_irr * c;
+        }
+        let basis = match ctx.projection {
+            Projection::None => return,
+            Projection::World => eval_basis::<N>(world),
+            Projection::Local => eval_basis::<N>(local),
+        };
+        for (row, &yi) in measured.chunks_exact_mut(N).zip(&basis) {
+            let s = w * yi;
+            for (t, c) in row.iter_mut().zip(contribution) {
+                *t += s * c;
+            }
+        }
+    };
+    if ctx.pass == 0 {
+        // The lighting basis itself: column j of the transfer sees Y_j(ω).
+        for_each_unoccluded_ray(ctx, site, |cast| {
+            let world = cast.ray.direction;
+            accumulate(cast.local, world, &eval_basis::<N>(world));
+        });
+        return;
+    }
     for_each_ray(
         site.position,
         site.normal,
@@ -761,67 +791,93 @@ fn gather_n<C: RayCaster + ?Sized, const N: usize>(
         ctx.sampling,
         |cast| {
             let (world, local) = (cast.ray.direction, cast.local);
-            let contribution: [f32; N] = if ctx.pass == 0 {
-                if ctx.caster.occluded(&cast.ray) {
-                    return true;
-                }
-                // The lighting basis itself: column j of the transfer sees Y_j(ω).
-                eval_basis::<N>(world)
-            } else {
-                let Some(hit) = ctx.caster.closest_hit(&cast.ray) else {
-                    return true;
-                };
-                let [a, b, c] = ctx.mesh.triangle_indices(hit.triangle as usize);
-                let (a, b, c) = (a as usize, b as usize, c as usize);
-                let (wa, wb, wc) = (1.0 - hit.u - hit.v, hit.u, hit.v);
-                let hit_normal = wa * ctx.normals[a] + wb * ctx.normals[b] + wc * ctx.normals[c];
-                if hit_normal.dot(world) >= 0.0 {
-                    // The back of a surface: its outgoing radiance is not modelled.
-                    return true;
-                }
-                match ctx.reads {
-                    BounceReads::Vertices => {
-                        let corner = |i: usize| ctx.previous[i * N..].first_chunk::<N>();
-                        let (Some(ea), Some(eb), Some(ec)) = (corner(a), corner(b), corner(c))
-                        else {
-                            return true;
-                        };
-                        core::array::from_fn(|j| {
-                            albedo_over_pi * (wa * ea[j] + wb * eb[j] + wc * ec[j])
-                        })
-                    }
-                    BounceReads::Points(lookup) => {
-                        let Some(e) = lookup(hit.triangle as usize, hit.u, hit.v)
-                            .and_then(|p| ctx.previous.get(p * N..)?.first_chunk::<N>())
-                        else {
-                            return true;
-                        };
-                        core::array::from_fn(|j| albedo_over_pi * e[j])
-                    }
-                }
+            let Some(hit) = ctx.caster.closest_hit(&cast.ray) else {
+                return true;
             };
-            // Irradiance: ∫ L cos θ dω.
-            let w_irr = match ctx.sampling {
-                Sampling::Cosine => PI / count,
-                Sampling::Uniform => 2.0 * PI * local.z / count,
-            };
-            for (e, c) in irradiance.iter_mut().zip(&contribution) {
-                *e += w_irr * c;
+            let [a, b, c] = ctx.mesh.triangle_indices(hit.triangle as usize);
+            let (a, b, c) = (a as usize, b as usize, c as usize);
+            let (wa, wb, wc) = (1.0 - hit.u - hit.v, hit.u, hit.v);
+            let hit_normal = wa * ctx.normals[a] + wb * ctx.normals[b] + wc * ctx.normals[c];
+            if hit_normal.dot(world) >= 0.0 {
+                // The back of a surface: its outgoing radiance is not modelled.
+                return true;
             }
-            let basis = match ctx.projection {
-                Projection::None => return true,
-                Projection::World => eval_basis::<N>(world),
-                Projection::Local => eval_basis::<N>(local),
-            };
-            for (row, &yi) in measured.chunks_exact_mut(N).zip(&basis) {
-                let s = w * yi;
-                for (t, c) in row.iter_mut().zip(&contribution) {
-                    *t += s * c;
+            let contribution: [f32; N] = match ctx.reads {
+                BounceReads::Vertices => {
+                    let corner = |i: usize| ctx.previous[i * N..].first_chunk::<N>();
+                    let (Some(ea), Some(eb), Some(ec)) = (corner(a), corner(b), corner(c)) else {
+                        return true;
+                    };
+                    core::array::from_fn(|j| {
+                        albedo_over_pi * (wa * ea[j] + wb * eb[j] + wc * ec[j])
+                    })
                 }
+                BounceReads::Points(lookup) => {
+                    let Some(e) = lookup(hit.triangle as usize, hit.u, hit.v)
+                        .and_then(|p| ctx.previous.get(p * N..)?.first_chunk::<N>())
+                    else {
+                        return true;
+                    };
+                    core::array::from_fn(|j| albedo_over_pi * e[j])
+                }
+            };
+            accumulate(local, world, &contribution);
+            true
+        },
+    );
+}
+
+/// Rays of a pass-0 gather traced together through
+/// [`RayCaster::occluded_many`]: as many as one packet of the BVH holds.
+const OCCLUSION_PACKET: usize = 64;
+
+/// Calls `f`, in cast order, with each ray of `site`'s pass-0 gather that
+/// nothing occludes. The rays are traced [`OCCLUSION_PACKET`] at a time in one
+/// [`RayCaster::occluded_many`] call (rays from one point, traced together),
+/// with the answers of [`RayCaster::occluded`], so the gather's sums are the
+/// same to the bit.
+fn for_each_unoccluded_ray<C: RayCaster + ?Sized>(
+    ctx: &PassContext<'_, C>,
+    site: Site,
+    mut f: impl FnMut(&BakeRay),
+) {
+    let unused = Ray::new(Vec3::ZERO, Vec3::Z, 0.0);
+    let mut rays = [unused; OCCLUSION_PACKET];
+    let mut locals = [Vec3::Z; OCCLUSION_PACKET];
+    let mut occluded = [false; OCCLUSION_PACKET];
+    let mut count = 0;
+    let mut trace = |rays: &[Ray], locals: &[Vec3], occluded: &mut [bool]| {
+        ctx.caster.occluded_many(rays, occluded);
+        for ((ray, &local), _) in rays
+            .iter()
+            .zip(locals)
+            .zip(occluded.iter())
+            .filter(|(_, o)| !**o)
+        {
+            f(&BakeRay { ray: *ray, local });
+        }
+    };
+    for_each_ray(
+        site.position,
+        site.normal,
+        ctx.ray_offset,
+        ctx.seed,
+        site.stream,
+        ctx.pass,
+        ctx.rays,
+        ctx.sampling,
+        |cast| {
+            rays[count] = cast.ray;
+            locals[count] = cast.local;
+            count += 1;
+            if count == OCCLUSION_PACKET {
+                trace(&rays, &locals, &mut occluded);
+                count = 0;
             }
             true
         },
     );
+    trace(&rays[..count], &locals[..count], &mut occluded[..count]);
 }
 
 #[cfg(test)]

@@ -1941,3 +1941,42 @@ fn point_bakes_refuse_bad_points() {
     }
     assert!(bake(&[good]).is_ok());
 }
+
+/// Pass 0 traces each vertex's rays in packets (`RayCaster::occluded_many`);
+/// the sums must still be those of one ray at a time: a bake through the BVH
+/// (packets with the shared-origin leaf test) equals, to the bit, one through
+/// brute force (one ray at a time), for every kind, with 100 rays per vertex
+/// (one full packet and a partial one), on the ground under a box (which
+/// occludes part of every ground vertex's hemisphere).
+#[cfg(feature = "bvh")]
+#[test]
+fn packet_traced_bakes_equal_ray_by_ray_bakes_to_the_bit() {
+    let scene = ground_and_box();
+    let mesh = MeshView::new(&scene.positions, &scene.indices).unwrap();
+    let brute = BruteForceCaster::new(mesh);
+    let bvh = crate::raycast::BvhScene::new(&mesh).unwrap();
+    let brdf = PhongBrdf::new(8.0).unwrap();
+    for measurement in [
+        Measurement::Diffuse,
+        Measurement::GlossySh,
+        Measurement::Mrt {
+            grid: 4,
+            brdf: &brdf,
+        },
+    ] {
+        let opts = options(measurement, 3, 100);
+        let by_packets = bake(&mesh, &scene.normals, &bvh, &opts).unwrap();
+        let by_rays = bake(&mesh, &scene.normals, &brute, &opts).unwrap();
+        for v in 0..mesh.vertex_count() {
+            let (p, r) = (
+                by_packets.vertex_block(v).unwrap(),
+                by_rays.vertex_block(v).unwrap(),
+            );
+            assert_eq!(
+                p.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                r.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                "vertex {v}"
+            );
+        }
+    }
+}
