@@ -21,10 +21,10 @@
 //! some triangle is hit) is the bit [`BvhScene::occluded`] gives; only the
 //! order of the work differs.
 
-use glam::Vec3;
+use glam::{BVec4A, Vec3, Vec4};
 
 use super::{BvhScene, Leaf, LeafGroup, NodePlanes, STACK_GROUPS, TraversalRay, octant_order};
-use crate::raycast::{PreparedRay, Ray};
+use crate::raycast::{PreparedRay, Ray, TriangleLanes};
 use crate::simd::SlabRay;
 
 /// Rays a packet search holds at most: one bit each in a `u64` mask.
@@ -70,60 +70,59 @@ struct SharedOrigin {
 }
 
 impl SharedOrigin {
-    /// The lanes of `candidates` that may hit one of the first `count`
-    /// triangles `triangle(k)`: every other lane misses all of them, for
-    /// certain, by the watertight test too.
+    /// The lanes of `candidates` that may hit a triangle of `block`: every
+    /// other lane misses all of them, for certain, by the watertight test too.
+    /// The block's (up to four) triangles are in lanes, so a ray costs three
+    /// four-lane dot products and their comparisons.
     #[inline(always)]
-    fn may_hit(&self, candidates: u64, count: usize, triangle: impl Fn(usize) -> [Vec3; 3]) -> u64 {
+    fn may_hit(&self, candidates: u64, block: &TriangleLanes) -> u64 {
+        let origin = self.origin.to_array().map(Vec4::splat);
+        // Corners relative to the origin, `e[corner][axis]`, a triangle per lane.
+        let e: [[Vec4; 3]; 3] = block
+            .corners
+            .map(|corner| core::array::from_fn(|axis| corner[axis] - origin[axis]));
+        let norm = e.map(|[x, y, z]| x.abs() + y.abs() + z.abs());
+        let cross = |[ax, ay, az]: [Vec4; 3], [bx, by, bz]: [Vec4; 3]| {
+            [ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx]
+        };
+        let planes = [(1, 2), (2, 0), (0, 1)].map(|(i, j)| cross(e[i], e[j]));
+        let [px, py, pz] = planes[0];
+        let volume = e[0][0] * px + e[0][1] * py + e[0][2] * pz;
+        let volume_bound = Vec4::splat(VOLUME_BOUND) * norm[0] * norm[1] * norm[2];
+        // Oriented so that a hit in front has every side positive.
+        let sign = Vec4::select(volume.cmplt(Vec4::ZERO), Vec4::NEG_ONE, Vec4::ONE);
+        let planes = planes.map(|p| p.map(|c| c * sign));
+        let bounds =
+            [(1, 2), (2, 0), (0, 1)].map(|(i, j)| Vec4::splat(SIDE_BOUND) * norm[i] * norm[j]);
+        if !(volume_bound.is_finite() && bounds.iter().all(|b| b.is_finite())) {
+            // Too large to bound in f32: leave every lane to the exact test.
+            return candidates;
+        }
+        // Behind the origin only counts as a miss where the origin is surely off
+        // the triangle's plane.
+        let off_plane = volume.abs().cmpgt(volume_bound);
         let mut may_hit = 0u64;
-        for k in 0..count {
-            let [a, b, c] = triangle(k);
-            let e = [a - self.origin, b - self.origin, c - self.origin];
-            let norm = e.map(|e| e.abs().element_sum());
-            let volume = e[0].dot(e[1].cross(e[2]));
-            let volume_bound = VOLUME_BOUND * norm[0] * norm[1] * norm[2];
-            // Oriented so that a hit in front has every side positive.
-            let sign = if volume < 0.0 { -1.0 } else { 1.0 };
-            let planes = [(1, 2), (2, 0), (0, 1)].map(|(i, j)| e[i].cross(e[j]) * sign);
-            let bounds = [(1, 2), (2, 0), (0, 1)].map(|(i, j)| SIDE_BOUND * norm[i] * norm[j]);
-            if !(volume_bound.is_finite() && bounds.iter().all(|b| b.is_finite())) {
-                // Too large to bound in f32: leave every lane to the exact test.
-                return candidates;
+        let mut pending = candidates;
+        while pending != 0 {
+            let lane = pending.trailing_zeros() as usize;
+            pending &= pending - 1;
+            let (x, y, z) = (
+                Vec4::splat(self.x[lane]),
+                Vec4::splat(self.y[lane]),
+                Vec4::splat(self.z[lane]),
+            );
+            let n = Vec4::splat(self.norm[lane]);
+            let mut outside = BVec4A::splat(false);
+            let mut inside = BVec4A::splat(false);
+            for ([px, py, pz], bound) in planes.iter().zip(&bounds) {
+                let side = x * *px + y * *py + z * *pz;
+                let margin = *bound * n;
+                outside |= side.cmplt(-margin);
+                inside |= side.cmpgt(margin);
             }
-            // Behind the origin only counts as a miss where the origin is
-            // surely off the triangle's plane.
-            let off_plane = volume.abs() > volume_bound;
-            for group in 0..PACKET_RAYS / 8 {
-                let lanes = (candidates >> (8 * group)) as u8;
-                if lanes == 0 {
-                    continue;
-                }
-                let base = 8 * group;
-                let lanes_of = |values: &[f32; PACKET_RAYS]| -> [f32; 8] {
-                    core::array::from_fn(|lane| values[base + lane])
-                };
-                let (x, y, z, n) = (
-                    lanes_of(&self.x),
-                    lanes_of(&self.y),
-                    lanes_of(&self.z),
-                    lanes_of(&self.norm),
-                );
-                let mut outside = [false; 8];
-                let mut inside = [false; 8];
-                for (plane, bound) in planes.iter().zip(&bounds) {
-                    for lane in 0..8 {
-                        let side = x[lane] * plane.x + y[lane] * plane.y + z[lane] * plane.z;
-                        let margin = bound * n[lane];
-                        outside[lane] |= side < -margin;
-                        inside[lane] |= side > margin;
-                    }
-                }
-                let mut possible = 0u8;
-                for lane in 0..8 {
-                    let miss = outside[lane] & (inside[lane] | off_plane);
-                    possible |= u8::from(!miss) << lane;
-                }
-                may_hit |= u64::from(possible & lanes) << base;
+            let miss = outside & (inside | off_plane);
+            if !miss.all() {
+                may_hit |= 1 << lane;
             }
         }
         may_hit
@@ -242,6 +241,7 @@ impl BvhScene {
             }
             let node = &self.planes[nodes[depth] as usize];
             let mut entered_by = [0u64; 8];
+            let mut entered_bytes = [0u8; PACKET_RAYS];
             let mut pending = active;
             while pending != 0 {
                 let lane = pending.trailing_zeros() as usize;
@@ -258,11 +258,25 @@ impl BvhScene {
                     hit |= 1 << lane;
                     continue;
                 }
-                let mut slots = entered & (node.imask | node.leaf_mask);
-                while slots != 0 {
-                    let slot = slots.trailing_zeros() as usize;
-                    slots &= slots - 1;
-                    entered_by[slot] |= 1 << lane;
+                entered_bytes[lane] = entered as u8;
+            }
+            // The rays that entered each child, from the rays' bytes: bit `slot`
+            // of eight bytes gathered into eight bits by one multiplication.
+            let mut groups = active;
+            while groups != 0 {
+                let group = groups.trailing_zeros() as usize / 8;
+                groups &= !(0xff << (8 * group));
+                // Lanes that did not test this node hold 0.
+                let word = u64::from_le_bytes(
+                    entered_bytes[8 * group..8 * group + 8]
+                        .try_into()
+                        .unwrap_or([0; 8]),
+                );
+                for (slot, rays) in entered_by.iter_mut().enumerate() {
+                    let bits = ((word >> slot) & 0x0101_0101_0101_0101)
+                        .wrapping_mul(0x0102_0408_1020_4080)
+                        >> 56;
+                    *rays |= bits << (8 * group);
                 }
             }
             if let Some(shared) = shared {
@@ -271,10 +285,8 @@ impl BvhScene {
                     let slot = leaves.trailing_zeros() as usize;
                     let leaf = node.take_leaf(&mut leaves);
                     let rays = entered_by[slot] & !hit;
-                    if rays.count_ones() >= SHARED_MIN {
+                    if rays != 0 {
                         hit |= self.leaf_hits::<WIDE>(packet, shared, leaf, rays);
-                    } else if rays != 0 {
-                        hit |= self.leaf_hits_each::<WIDE>(packet, leaf, rays);
                     }
                 }
             }
@@ -317,32 +329,6 @@ impl BvhScene {
         false
     }
 
-    /// The rays of `rays` that hit a triangle of `leaf`, by the watertight test
-    /// alone.
-    #[inline(always)]
-    fn leaf_hits_each<const WIDE: bool>(
-        &self,
-        packet: &[Option<PacketRay>; PACKET_RAYS],
-        leaf: Leaf,
-        mut rays: u64,
-    ) -> u64 {
-        let group = LeafGroup {
-            first: leaf,
-            second: None,
-        };
-        let mut hits = 0u64;
-        while rays != 0 {
-            let lane = rays.trailing_zeros() as usize;
-            rays &= rays - 1;
-            if let Some(ray) = &packet[lane]
-                && self.any_hit_leaf::<WIDE>(&ray.prepared, &group).is_some()
-            {
-                hits |= 1 << lane;
-            }
-        }
-        hits
-    }
-
     /// The rays of `rays` that hit a triangle of `leaf`: the shared-origin
     /// test rules out the certain misses, the watertight test decides the rest.
     #[inline(always)]
@@ -353,8 +339,7 @@ impl BvhScene {
         leaf: Leaf,
         rays: u64,
     ) -> u64 {
-        let block = &self.blocks[leaf.block];
-        let mut undecided = shared.may_hit(rays, leaf.count, |k| block.triangle(k));
+        let mut undecided = shared.may_hit(rays, &self.blocks[leaf.block]);
         let mut hits = 0u64;
         let group = LeafGroup {
             first: leaf,
@@ -372,5 +357,3 @@ impl BvhScene {
         hits
     }
 }
-
-const SHARED_MIN: u32 = 8;
