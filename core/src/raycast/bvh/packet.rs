@@ -242,6 +242,8 @@ impl BvhScene {
             let node = &self.planes[nodes[depth] as usize];
             let mut entered_by = [0u64; 8];
             let mut entered_bytes = [0u8; PACKET_RAYS];
+            // The children some ray entered.
+            let mut entered_any = 0;
             let mut pending = active;
             while pending != 0 {
                 let lane = pending.trailing_zeros() as usize;
@@ -259,6 +261,7 @@ impl BvhScene {
                     continue;
                 }
                 entered_bytes[lane] = entered as u8;
+                entered_any |= entered;
             }
             // The rays that entered each child, from the rays' bytes: bit `slot`
             // of eight bytes gathered into eight bits by one multiplication.
@@ -280,7 +283,7 @@ impl BvhScene {
                 }
             }
             if let Some(shared) = shared {
-                let mut leaves = node.leaf_mask;
+                let mut leaves = node.leaf_mask & entered_any;
                 while leaves != 0 {
                     let slot = leaves.trailing_zeros() as usize;
                     let leaf = node.take_leaf(&mut leaves);
@@ -290,7 +293,7 @@ impl BvhScene {
                     }
                 }
             }
-            let mut order = octant_order(node.imask, octant);
+            let mut order = octant_order(node.imask & entered_any, octant);
             while order != 0 {
                 let top = 31 - order.leading_zeros();
                 order &= !(1 << top);
