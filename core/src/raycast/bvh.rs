@@ -315,7 +315,7 @@ impl BvhScene {
         traversal: &mut TraversalRay,
         test: impl FnMut(&LeafGroup) -> Option<f32>,
     ) -> bool {
-        self.search::<ANY_HIT, false>(&mut alloc::vec![0u64; self.depth], traversal, test)
+        self.search::<ANY_HIT, false>(0, &mut alloc::vec![0u64; self.depth], traversal, test)
     }
 
     /// Calls `visit` with the original index of every triangle whose leaf's box
@@ -829,7 +829,8 @@ impl TraversalRay {
 }
 
 impl BvhScene {
-    /// Any-hit search with a traversal loop of our own: no child ordering beyond
+    /// Any-hit search from node `root` (0: the whole tree) with a traversal loop
+    /// of our own: no child ordering beyond
     /// the ray's octant, leaves tested as soon as their node is, an early exit on
     /// the first hit, and a stack of sibling groups.
     ///
@@ -859,6 +860,7 @@ impl BvhScene {
     #[inline(always)]
     fn search<const ANY_HIT: bool, const WIDE: bool>(
         &self,
+        root: usize,
         stack: &mut [u64],
         traversal: &mut TraversalRay,
         mut test: impl FnMut(&LeafGroup) -> Option<f32>,
@@ -868,7 +870,7 @@ impl BvhScene {
             | (u32::from(traversal.negative[1]) << 1)
             | u32::from(traversal.negative[2]);
         let mut depth = 0;
-        let mut index = 0;
+        let mut index = root;
         loop {
             let node = &self.planes[index];
             let entered = if !traversal.fast {
@@ -1191,7 +1193,7 @@ impl BvhScene {
         // Two closures over one inlined body: each has a single call site, so
         // the common path's leaf test is inlined into its traversal loop.
         if self.depth <= STACK_GROUPS {
-            self.search::<true, WIDE>(&mut [0u64; STACK_GROUPS], &mut traversal, |group| {
+            self.search::<true, WIDE>(0, &mut [0u64; STACK_GROUPS], &mut traversal, |group| {
                 self.any_hit_leaf::<WIDE>(&prepared, group)
             })
         } else {
@@ -1217,7 +1219,7 @@ impl BvhScene {
         let mut traversal = TraversalRay::new(ray);
         let mut best: Option<Hit> = None;
         if self.depth <= STACK_GROUPS {
-            self.search::<false, WIDE>(&mut [0u64; STACK_GROUPS], &mut traversal, |group| {
+            self.search::<false, WIDE>(0, &mut [0u64; STACK_GROUPS], &mut traversal, |group| {
                 self.closest_hit_leaf::<WIDE>(&mut prepared, &mut best, group)
             });
         } else {
