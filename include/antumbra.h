@@ -1997,7 +1997,10 @@ void antumbra_scene_destroy(struct antumbra_scene *scene);
 /**
  * Any-hit occlusion for a batch of rays: `occluded[i] = 1` when ray i hits a
  * triangle at some `0 < t < t_max[i]` (t in units of `|directions[i]|`), else 0.
- * Triangles are two-sided; the triangle test is watertight.
+ * Triangles are two-sided; the triangle test is watertight. Consecutive rays
+ * are traced in packets of up to 64; rays that start at one point with
+ * unbounded t_max (a bake's, an ambient-occlusion probe's) go about twice as
+ * fast as one by one, with the same answers.
  *
  * @param scene the scene.
  * @param origins 3 floats per ray, finite.

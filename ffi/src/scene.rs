@@ -222,7 +222,10 @@ impl Poisonable for antumbra_scene {
 
 /// Any-hit occlusion for a batch of rays: `occluded[i] = 1` when ray i hits a
 /// triangle at some `0 < t < t_max[i]` (t in units of `|directions[i]|`), else 0.
-/// Triangles are two-sided; the triangle test is watertight.
+/// Triangles are two-sided; the triangle test is watertight. Consecutive rays
+/// are traced in packets of up to 64; rays that start at one point with
+/// unbounded t_max (a bake's, an ambient-occlusion probe's) go about twice as
+/// fast as one by one, with the same answers.
 ///
 /// @param scene the scene.
 /// @param origins 3 floats per ray, finite.
@@ -257,8 +260,20 @@ pub unsafe extern "C" fn antumbra_scene_occluded(
         let rays = unsafe { RayBatch::new(origins, directions, t_max, ray_count) }?;
         // SAFETY: caller contract forwarded.
         let out = unsafe { raw::slice_mut(occluded, ray_count, "occluded") }?;
-        for (i, flag) in out.iter_mut().enumerate() {
-            *flag = u8::from(scene.bvh.occluded(&rays.ray(i)));
+        // Up to a packet's worth at a time: rays from one point are traced
+        // together (`RayCaster::occluded_many`).
+        const CHUNK: usize = 64;
+        let mut chunk = [Ray::new(Vec3::ZERO, Vec3::Z, 0.0); CHUNK];
+        let mut answers = [false; CHUNK];
+        for (c, flags) in out.chunks_mut(CHUNK).enumerate() {
+            let (chunk, answers) = (&mut chunk[..flags.len()], &mut answers[..flags.len()]);
+            for (k, ray) in chunk.iter_mut().enumerate() {
+                *ray = rays.ray(c * CHUNK + k);
+            }
+            scene.bvh.occluded_many(chunk, answers);
+            for (flag, &answer) in flags.iter_mut().zip(answers.iter()) {
+                *flag = u8::from(answer);
+            }
         }
         Ok(())
     })
