@@ -1210,6 +1210,13 @@ impl BvhScene {
         self.occluded_many_with::<true>(rays, occluded);
     }
 
+    /// [`RayCaster::closest_hit_many`] compiled with AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn closest_hit_many_avx(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        self.closest_hit_many_with::<true>(rays, hits);
+    }
+
     #[inline(always)]
     fn closest_hit_with<const WIDE: bool>(&self, ray: &Ray) -> Option<Hit> {
         if self.triangle_count == 0 {
@@ -1267,6 +1274,23 @@ impl RayCaster for BvhScene {
             return unsafe { self.closest_hit_avx(ray) };
         }
         self.closest_hit_with::<false>(ray)
+    }
+
+    /// Traces the rays in packets as [`Self::occluded_many`] does; each hit's
+    /// `t` is [`Self::closest_hit`]'s (ties may resolve to another triangle).
+    fn closest_hit_many(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        assert_eq!(
+            rays.len(),
+            hits.len(),
+            "closest_hit_many: one answer per ray"
+        );
+        #[cfg(target_arch = "x86_64")]
+        if self.wide {
+            // SAFETY: `wide` is set only where run-time detection found AVX.
+            #[allow(unsafe_code)]
+            return unsafe { self.closest_hit_many_avx(rays, hits) };
+        }
+        self.closest_hit_many_with::<false>(rays, hits);
     }
 }
 

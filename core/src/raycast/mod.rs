@@ -116,6 +116,25 @@ pub trait RayCaster {
     /// The hit with the smallest `t` in `(t_min, t_max)`, if any. Ties between
     /// triangles at the same `t` may resolve to either.
     fn closest_hit(&self, ray: &Ray) -> Option<Hit>;
+
+    /// [`Self::closest_hit`] of each ray of `rays`, written to the same index
+    /// of `hits`, traced together as [`Self::occluded_many`] traces them. Each
+    /// hit has the `t` of [`Self::closest_hit`]; ties between triangles at the
+    /// same `t` may resolve to either, not always as one ray alone does.
+    ///
+    /// # Panics
+    ///
+    /// When the two slices differ in length.
+    fn closest_hit_many(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        assert_eq!(
+            rays.len(),
+            hits.len(),
+            "closest_hit_many: one answer per ray"
+        );
+        for (ray, out) in rays.iter().zip(hits.iter_mut()) {
+            *out = self.closest_hit(ray);
+        }
+    }
 }
 
 /// A ray prepared for many watertight triangle tests: the axis permutation and

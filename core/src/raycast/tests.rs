@@ -495,12 +495,10 @@ mod bvh_against_brute_force {
         assert!(bvh.depth() <= 32);
         // The packet search on the same kind of rays, and on fans from one point.
         let mixed: Vec<Ray> = (0..rays.min(70)).map(|_| random_ray(rng, 2.0)).collect();
-        many_equal_each(&[&bvh, &narrow], &mixed);
+        many_equal_each(&mesh, &[&bvh, &narrow], &mixed);
         let fan_origin = mesh.triangle(0)[0] + Vec3::splat(1e-3);
-        many_equal_each(
-            &[&bvh, &narrow],
-            &fan(rng, fan_origin, Vec3::Z, rays.min(70)),
-        );
+        let fan_rays = fan(rng, fan_origin, Vec3::Z, rays.min(70));
+        many_equal_each(&mesh, &[&bvh, &narrow], &fan_rays);
         let mut hits = 0;
         for _ in 0..rays {
             let ray = random_ray(rng, 2.0);
@@ -924,22 +922,38 @@ mod bvh_against_brute_force {
             .collect()
     }
 
-    /// `occluded_many` against `occluded`, ray by ray, on the AVX and the
-    /// portable scene; returns the rays occluded.
-    fn many_equal_each(scenes: &[&BvhScene], rays: &[Ray]) -> usize {
+    /// `occluded_many` against `occluded` and `closest_hit_many` against
+    /// `closest_hit`, ray by ray, on the AVX and the portable scene: the same
+    /// bit, and the same `t` with the same triangle, or another hit at exactly
+    /// that `t` (a tie). Returns the rays occluded.
+    fn many_equal_each(mesh: &MeshView<'_>, scenes: &[&BvhScene], rays: &[Ray]) -> usize {
         let mut occluded = alloc::vec![false; rays.len()];
+        let mut hits = alloc::vec![None; rays.len()];
         for scene in scenes {
             occluded.fill(false);
             scene.occluded_many(rays, &mut occluded);
-            for (ray, &got) in rays.iter().zip(&occluded) {
+            scene.closest_hit_many(rays, &mut hits);
+            for ((ray, &got), hit) in rays.iter().zip(&occluded).zip(&hits) {
                 assert_eq!(got, scene.occluded(ray), "{ray:?}");
+                let alone = scene.closest_hit(ray);
+                assert_eq!(hit.map(|h| h.t), alone.map(|h| h.t), "{ray:?}");
+                if let (Some(hit), Some(alone)) = (hit, alone)
+                    && hit.triangle != alone.triangle
+                {
+                    let [a, b, c] = mesh.triangle(hit.triangle as usize);
+                    let again = PreparedRay::new(ray).unwrap().intersect(a, b, c);
+                    assert_eq!(again.map(|h| (h.t, h.u, h.v)), Some((hit.t, hit.u, hit.v)));
+                } else {
+                    assert_eq!(*hit, alone, "{ray:?}");
+                }
             }
         }
         occluded.iter().filter(|&&o| o).count()
     }
 
-    /// The packet search (`occluded_many`) is the slow twin's bit: every ray
-    /// answered as `occluded` answers it alone, for bake-like fans from points
+    /// The packet searches (`occluded_many`, `closest_hit_many`) against their
+    /// slow twins: every ray answered as `occluded` and `closest_hit` answer it
+    /// alone, for bake-like fans from points
     /// on and near the surface (the shared-origin leaf test), fans aimed exactly
     /// at corners and edge midpoints (where that test must leave the ray to the
     /// watertight one) and from a corner itself and from points in a
@@ -947,7 +961,7 @@ mod bvh_against_brute_force {
     /// negative starts, invalid and axis-parallel rays) that take the
     /// per-ray leaf test; partial packets of 1 to 200 rays.
     #[test]
-    fn packets_equal_one_ray_at_a_time() {
+    fn packets_answer_as_one_ray_at_a_time() {
         let mut rng = SmallRng::seed_from_u64(41);
         let (sphere_positions, sphere_indices) = closed_sphere(6);
         let (soup_positions, soup_indices) = soup(&mut rng, 400);
@@ -986,7 +1000,7 @@ mod bvh_against_brute_force {
                         }
                     }
                 }
-                occluded += many_equal_each(&scenes, &rays);
+                occluded += many_equal_each(&mesh, &scenes, &rays);
                 rays_cast += rays.len();
                 // The same rays mixed: no longer one origin and one interval.
                 for ray in rays.iter_mut() {
@@ -1000,7 +1014,7 @@ mod bvh_against_brute_force {
                         _ => {}
                     }
                 }
-                occluded += many_equal_each(&scenes, &rays);
+                occluded += many_equal_each(&mesh, &scenes, &rays);
                 rays_cast += rays.len();
             }
         }
@@ -1014,10 +1028,11 @@ mod bvh_against_brute_force {
         let deep = BvhScene::new(&mesh).unwrap();
         assert!(deep.depth() > 64);
         let rays = fan(&mut rng, Vec3::new(0.0, 0.0, -1e-3), Vec3::X, 200);
-        many_equal_each(&[&deep], &rays);
+        many_equal_each(&mesh, &[&deep], &rays);
         // And an empty scene hits nothing.
-        let empty = BvhScene::new(&MeshView::new(&[], &[]).unwrap()).unwrap();
-        assert_eq!(many_equal_each(&[&empty], &rays), 0);
+        let nothing = MeshView::new(&[], &[]).unwrap();
+        let empty = BvhScene::new(&nothing).unwrap();
+        assert_eq!(many_equal_each(&nothing, &[&empty], &rays), 0);
     }
 
     #[test]

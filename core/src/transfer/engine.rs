@@ -29,7 +29,7 @@ use super::mrt::brdf_matrix;
 use super::rng::{Sampling, SplitMix64, Stratified, hemisphere_direction};
 use super::{BakeError, BakeOptions, Measurement, Payload, TransferKind, TransferSet};
 use crate::geom::{Frame, MeshView};
-use crate::raycast::{Ray, RayCaster};
+use crate::raycast::{Hit, Ray, RayCaster};
 use crate::sh::{MAX_BANDS, eval_basis};
 
 /// Largest ray count per vertex and pass.
@@ -780,59 +780,43 @@ fn gather_n<C: RayCaster + ?Sized, const N: usize>(
         });
         return;
     }
-    for_each_ray(
-        site.position,
-        site.normal,
-        ctx.ray_offset,
-        ctx.seed,
-        site.stream,
-        ctx.pass,
-        ctx.rays,
-        ctx.sampling,
-        |cast| {
-            let (world, local) = (cast.ray.direction, cast.local);
-            let Some(hit) = ctx.caster.closest_hit(&cast.ray) else {
-                return true;
-            };
-            let [a, b, c] = ctx.mesh.triangle_indices(hit.triangle as usize);
-            let (a, b, c) = (a as usize, b as usize, c as usize);
-            let (wa, wb, wc) = (1.0 - hit.u - hit.v, hit.u, hit.v);
-            let hit_normal = wa * ctx.normals[a] + wb * ctx.normals[b] + wc * ctx.normals[c];
-            if hit_normal.dot(world) >= 0.0 {
-                // The back of a surface: its outgoing radiance is not modelled.
-                return true;
+    for_each_hit(ctx, site, |cast, hit| {
+        let (world, local) = (cast.ray.direction, cast.local);
+        let [a, b, c] = ctx.mesh.triangle_indices(hit.triangle as usize);
+        let (a, b, c) = (a as usize, b as usize, c as usize);
+        let (wa, wb, wc) = (1.0 - hit.u - hit.v, hit.u, hit.v);
+        let hit_normal = wa * ctx.normals[a] + wb * ctx.normals[b] + wc * ctx.normals[c];
+        if hit_normal.dot(world) >= 0.0 {
+            // The back of a surface: its outgoing radiance is not modelled.
+            return;
+        }
+        let contribution: [f32; N] = match ctx.reads {
+            BounceReads::Vertices => {
+                let corner = |i: usize| ctx.previous[i * N..].first_chunk::<N>();
+                let (Some(ea), Some(eb), Some(ec)) = (corner(a), corner(b), corner(c)) else {
+                    return;
+                };
+                core::array::from_fn(|j| albedo_over_pi * (wa * ea[j] + wb * eb[j] + wc * ec[j]))
             }
-            let contribution: [f32; N] = match ctx.reads {
-                BounceReads::Vertices => {
-                    let corner = |i: usize| ctx.previous[i * N..].first_chunk::<N>();
-                    let (Some(ea), Some(eb), Some(ec)) = (corner(a), corner(b), corner(c)) else {
-                        return true;
-                    };
-                    core::array::from_fn(|j| {
-                        albedo_over_pi * (wa * ea[j] + wb * eb[j] + wc * ec[j])
-                    })
-                }
-                BounceReads::Points(lookup) => {
-                    let Some(e) = lookup(hit.triangle as usize, hit.u, hit.v)
-                        .and_then(|p| ctx.previous.get(p * N..)?.first_chunk::<N>())
-                    else {
-                        return true;
-                    };
-                    core::array::from_fn(|j| albedo_over_pi * e[j])
-                }
-            };
-            accumulate(local, world, &contribution);
-            true
-        },
-    );
+            BounceReads::Points(lookup) => {
+                let Some(e) = lookup(hit.triangle as usize, hit.u, hit.v)
+                    .and_then(|p| ctx.previous.get(p * N..)?.first_chunk::<N>())
+                else {
+                    return;
+                };
+                core::array::from_fn(|j| albedo_over_pi * e[j])
+            }
+        };
+        accumulate(local, world, &contribution);
+    });
 }
 
-/// Rays of a pass-0 gather traced together through
-/// [`RayCaster::occluded_many`]: as many as one packet of the BVH holds.
-const OCCLUSION_PACKET: usize = 64;
+/// Rays of a gather traced together through [`RayCaster::occluded_many`] or
+/// [`RayCaster::closest_hit_many`]: as many as one packet of the BVH holds.
+const PACKET: usize = 64;
 
 /// Calls `f`, in cast order, with each ray of `site`'s pass-0 gather that
-/// nothing occludes. The rays are traced [`OCCLUSION_PACKET`] at a time in one
+/// nothing occludes. The rays are traced [`PACKET`] at a time in one
 /// [`RayCaster::occluded_many`] call (rays from one point, traced together),
 /// with the answers of [`RayCaster::occluded`], so the gather's sums are the
 /// same to the bit.
@@ -841,12 +825,9 @@ fn for_each_unoccluded_ray<C: RayCaster + ?Sized>(
     site: Site,
     mut f: impl FnMut(&BakeRay),
 ) {
-    let unused = Ray::new(Vec3::ZERO, Vec3::Z, 0.0);
-    let mut rays = [unused; OCCLUSION_PACKET];
-    let mut locals = [Vec3::Z; OCCLUSION_PACKET];
-    let mut occluded = [false; OCCLUSION_PACKET];
-    let mut count = 0;
-    let mut trace = |rays: &[Ray], locals: &[Vec3], occluded: &mut [bool]| {
+    let mut occluded = [false; PACKET];
+    for_each_packet(ctx, site, |rays, locals| {
+        let occluded = &mut occluded[..rays.len()];
         ctx.caster.occluded_many(rays, occluded);
         for ((ray, &local), _) in rays
             .iter()
@@ -856,7 +837,42 @@ fn for_each_unoccluded_ray<C: RayCaster + ?Sized>(
         {
             f(&BakeRay { ray: *ray, local });
         }
-    };
+    });
+}
+
+/// Calls `f`, in cast order, with each ray of `site`'s bounce gather that hits
+/// a triangle and its closest hit, traced [`PACKET`] at a time in one
+/// [`RayCaster::closest_hit_many`] call. The hits are those of
+/// [`RayCaster::closest_hit`] but for ties between triangles at the same `t`,
+/// which either may take.
+fn for_each_hit<C: RayCaster + ?Sized>(
+    ctx: &PassContext<'_, C>,
+    site: Site,
+    mut f: impl FnMut(&BakeRay, &Hit),
+) {
+    let mut hits = [None; PACKET];
+    for_each_packet(ctx, site, |rays, locals| {
+        let hits = &mut hits[..rays.len()];
+        ctx.caster.closest_hit_many(rays, hits);
+        for ((ray, &local), hit) in rays.iter().zip(locals).zip(hits.iter()) {
+            if let Some(hit) = hit {
+                f(&BakeRay { ray: *ray, local }, hit);
+            }
+        }
+    });
+}
+
+/// Calls `trace` with the rays of `site`'s gather in pass `ctx.pass` and their
+/// local directions, [`PACKET`] at a time, in cast order.
+fn for_each_packet<C: RayCaster + ?Sized>(
+    ctx: &PassContext<'_, C>,
+    site: Site,
+    mut trace: impl FnMut(&[Ray], &[Vec3]),
+) {
+    let unused = Ray::new(Vec3::ZERO, Vec3::Z, 0.0);
+    let mut rays = [unused; PACKET];
+    let mut locals = [Vec3::Z; PACKET];
+    let mut count = 0;
     for_each_ray(
         site.position,
         site.normal,
@@ -870,14 +886,14 @@ fn for_each_unoccluded_ray<C: RayCaster + ?Sized>(
             rays[count] = cast.ray;
             locals[count] = cast.local;
             count += 1;
-            if count == OCCLUSION_PACKET {
-                trace(&rays, &locals, &mut occluded);
+            if count == PACKET {
+                trace(&rays, &locals);
                 count = 0;
             }
             true
         },
     );
-    trace(&rays[..count], &locals[..count], &mut occluded[..count]);
+    trace(&rays[..count], &locals[..count]);
 }
 
 #[cfg(test)]

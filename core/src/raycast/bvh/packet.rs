@@ -1,4 +1,5 @@
-//! Occlusion of many rays in one search: `RayCaster::occluded_many` of
+//! Occlusion and closest hits of many rays in one search:
+//! `RayCaster::occluded_many` and `RayCaster::closest_hit_many` of
 //! [`BvhScene`].
 //!
 //! Rays that start together (a bake's rays from one vertex) enter mostly the
@@ -21,12 +22,15 @@
 //! [`BvhScene::occluded`] on that leaf. Other packets test each ray's leaves
 //! with the watertight test directly. Either way each ray's answer (whether
 //! some triangle is hit) is the bit [`BvhScene::occluded`] gives; only the
-//! order of the work differs.
+//! order of the work differs. A closest-hit search shortens each ray at its
+//! hits as alone (a certain miss is a miss for any interval), so its hit has
+//! the `t` of [`BvhScene::closest_hit`]; where two triangles are hit at exactly
+//! that `t`, the order of the work decides which is reported.
 
 use glam::{BVec4A, Vec3, Vec4};
 
 use super::{BvhScene, Leaf, LeafGroup, NodePlanes, STACK_GROUPS, TraversalRay, octant_order};
-use crate::raycast::{PreparedRay, Ray, TriangleLanes};
+use crate::raycast::{Hit, PreparedRay, Ray, TriangleLanes};
 use crate::simd::SlabRay;
 
 /// A node reached by at most this many of a packet's rays is searched by each
@@ -161,27 +165,63 @@ impl BvhScene {
             .chunks(PACKET_RAYS)
             .zip(occluded.chunks_mut(PACKET_RAYS))
         {
-            self.occluded_chunk::<WIDE>(rays, occluded);
+            let mut best = [None; PACKET_RAYS];
+            let hits = self.chunk::<true, WIDE>(rays, &mut best);
+            for (lane, out) in occluded.iter_mut().enumerate() {
+                *out = hits & (1 << lane) != 0;
+            }
         }
     }
 
-    /// [`Self::occluded_many_with`] on at most [`PACKET_RAYS`] rays.
+    /// Writes [`RayCaster::closest_hit`](crate::raycast::RayCaster::closest_hit)
+    /// of each ray of `rays` to the same index of `hits`, tracing up to
+    /// [`PACKET_RAYS`] rays in one search. Ties between triangles at the same
+    /// `t` may resolve differently from one ray alone.
+    pub(super) fn closest_hit_many_with<const WIDE: bool>(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Option<Hit>],
+    ) {
+        for (rays, hits) in rays.chunks(PACKET_RAYS).zip(hits.chunks_mut(PACKET_RAYS)) {
+            let mut best = [None; PACKET_RAYS];
+            self.chunk::<false, WIDE>(rays, &mut best);
+            hits.copy_from_slice(&best[..hits.len()]);
+        }
+    }
+
+    /// The search of at most [`PACKET_RAYS`] rays: with `ANY_HIT`, the mask
+    /// of the occluded ones; otherwise each ray's closest hit in `best` (and
+    /// an empty mask).
     #[inline(always)]
-    fn occluded_chunk<const WIDE: bool>(&self, rays: &[Ray], occluded: &mut [bool]) {
-        debug_assert!(rays.len() <= PACKET_RAYS && rays.len() == occluded.len());
+    fn chunk<const ANY_HIT: bool, const WIDE: bool>(
+        &self,
+        rays: &[Ray],
+        best: &mut [Option<Hit>; PACKET_RAYS],
+    ) -> u64 {
+        debug_assert!(rays.len() <= PACKET_RAYS);
+        let alone = |ray: &Ray, best: &mut Option<Hit>| -> bool {
+            if ANY_HIT {
+                self.occluded_with::<WIDE>(ray)
+            } else {
+                *best = self.closest_hit_with::<WIDE>(ray);
+                false
+            }
+        };
         // Lanes outside `members` hold this ray and are never read.
         let unused = PacketRay::of(&Ray::new(Vec3::ZERO, Vec3::Z, f32::INFINITY));
         let (Some(unused), false) = (
             unused,
             self.triangle_count == 0 || self.depth > STACK_GROUPS,
         ) else {
-            for (ray, out) in rays.iter().zip(occluded.iter_mut()) {
-                *out = self.occluded_with::<WIDE>(ray);
+            let mut hits = 0u64;
+            for (lane, ray) in rays.iter().enumerate() {
+                hits |= u64::from(alone(ray, &mut best[lane])) << lane;
             }
-            return;
+            return hits;
         };
         let mut packet = [unused; PACKET_RAYS];
         let mut members = 0u64;
+        let mut hits = 0u64;
         let mut shared = SharedOrigin {
             origin: rays.first().map_or(Vec3::ZERO, |ray| ray.origin),
             x: [0.0; PACKET_RAYS],
@@ -191,15 +231,14 @@ impl BvhScene {
         };
         let mut is_shared = true;
         let mut heading = Vec3::ZERO;
-        for (lane, (ray, out)) in rays.iter().zip(occluded.iter_mut()).enumerate() {
+        for (lane, ray) in rays.iter().enumerate() {
             let Some(packet_ray) = PacketRay::of(ray) else {
-                *out = false;
                 continue;
             };
             if !packet_ray.traversal.fast {
                 // Rare rays (axis-parallel, huge or tiny directions) take the
                 // general box test of the single-ray search.
-                *out = self.occluded_with::<WIDE>(ray);
+                hits |= u64::from(alone(ray, &mut best[lane])) << lane;
                 continue;
             }
             let d = ray.direction;
@@ -219,23 +258,17 @@ impl BvhScene {
         let octant = (u32::from(heading.x < 0.0) << 2)
             | (u32::from(heading.y < 0.0) << 1)
             | u32::from(heading.z < 0.0);
-        let hits = if members == 0 {
-            0
-        } else if is_shared {
-            self.search_packet::<WIDE>(&packet, members, octant, Some(&shared))
-        } else {
-            self.search_packet::<WIDE>(&packet, members, octant, None)
-        };
-        for (lane, out) in occluded.iter_mut().enumerate() {
-            if members & (1 << lane) != 0 {
-                *out = hits & (1 << lane) != 0;
-            }
+        if members != 0 {
+            let shared = is_shared.then_some(&shared);
+            hits |= self.search_packet::<ANY_HIT, WIDE>(&mut packet, best, members, octant, shared);
         }
+        hits
     }
 
-    /// The any-hit search of the rays `members` of `packet`: the mask of those
-    /// that hit a triangle. `shared` holds their directions
-    /// where they all start at one point and cover `(0, ∞)`.
+    /// The search of the rays `members` of `packet`: with `ANY_HIT`, the mask
+    /// of those that hit a triangle; otherwise each one's closest hit in
+    /// `best` (its interval shortened at each hit, as alone). `shared` holds
+    /// their directions where they all start at one point and cover `(0, ∞)`.
     ///
     /// A stack entry is a node and the rays that entered its box. Visiting it,
     /// each of those rays not yet occluded tests the node's child boxes; then
@@ -245,9 +278,10 @@ impl BvhScene {
     /// the nearest is visited next. A node reached by at most
     /// [`SEARCHED_ALONE`] rays is left to the single-ray search of each.
     #[inline(always)]
-    fn search_packet<const WIDE: bool>(
+    fn search_packet<const ANY_HIT: bool, const WIDE: bool>(
         &self,
-        packet: &[PacketRay; PACKET_RAYS],
+        packet: &mut [PacketRay; PACKET_RAYS],
+        best: &mut [Option<Hit>; PACKET_RAYS],
         members: u64,
         octant: u32,
         shared: Option<&SharedOrigin>,
@@ -256,6 +290,7 @@ impl BvhScene {
         let mut masks = [0u64; PACKET_STACK];
         let mut depth = 1;
         masks[0] = members;
+        // The rays found occluded (any-hit searches only).
         let mut hit = 0u64;
         while depth > 0 {
             depth -= 1;
@@ -271,14 +306,23 @@ impl BvhScene {
                 while each != 0 {
                     let lane = each.trailing_zeros() as usize;
                     each &= each - 1;
-                    let ray = &packet[lane];
-                    let mut traversal = ray.traversal;
+                    let PacketRay {
+                        traversal,
+                        prepared,
+                        ..
+                    } = &mut packet[lane];
+                    let best = &mut best[lane];
                     let stack = &mut [0u64; STACK_GROUPS];
-                    if self.search::<true, WIDE>(index, stack, &mut traversal, |group| {
-                        self.any_hit_leaf::<WIDE>(&ray.prepared, group)
-                    }) {
-                        hit |= 1 << lane;
-                    }
+                    let found = if ANY_HIT {
+                        self.search::<true, WIDE>(index, stack, traversal, |group| {
+                            self.any_hit_leaf::<WIDE>(prepared, group)
+                        })
+                    } else {
+                        self.search::<false, WIDE>(index, stack, traversal, |group| {
+                            self.closest_hit_leaf::<WIDE>(prepared, best, group)
+                        })
+                    };
+                    hit |= u64::from(found) << lane;
                 }
                 continue;
             }
@@ -291,13 +335,15 @@ impl BvhScene {
             while pending != 0 {
                 let lane = pending.trailing_zeros() as usize;
                 pending &= pending - 1;
-                let ray = &packet[lane];
+                let ray = &mut packet[lane];
                 let entered = if WIDE {
                     ray.traversal.entered_wide(&node.planes, &ray.slab)
                 } else {
                     ray.traversal.entered_planes(&node.planes)
                 };
-                if shared.is_none() && self.ray_hits_leaves::<WIDE>(node, entered, ray) {
+                if shared.is_none()
+                    && self.ray_leaves::<ANY_HIT, WIDE>(node, entered, ray, &mut best[lane])
+                {
                     hit |= 1 << lane;
                     continue;
                 }
@@ -330,7 +376,7 @@ impl BvhScene {
                     let leaf = node.take_leaf(&mut leaves);
                     let rays = entered_by[slot] & !hit;
                     if rays != 0 {
-                        hit |= self.leaf_hits::<WIDE>(packet, shared, leaf, rays);
+                        hit |= self.shared_leaf::<ANY_HIT, WIDE>(packet, best, shared, leaf, rays);
                     }
                 }
             }
@@ -351,34 +397,54 @@ impl BvhScene {
         hit & members
     }
 
-    /// Whether `ray` hits a triangle of the leaves of `node` in `entered`,
-    /// tested as [`BvhScene::search`] tests them (two at a time in wide
-    /// searches).
+    /// One ray's test of one leaf group, as [`BvhScene::search`] runs it: with
+    /// `ANY_HIT`, whether a triangle is hit; otherwise the closest hit so far
+    /// kept in `best` and the ray shortened to it (and false).
     #[inline(always)]
-    fn ray_hits_leaves<const WIDE: bool>(
+    fn ray_leaf<const ANY_HIT: bool, const WIDE: bool>(
+        &self,
+        ray: &mut PacketRay,
+        best: &mut Option<Hit>,
+        group: &LeafGroup,
+    ) -> bool {
+        if ANY_HIT {
+            return self.any_hit_leaf::<WIDE>(&ray.prepared, group).is_some();
+        }
+        if let Some(t) = self.closest_hit_leaf::<WIDE>(&mut ray.prepared, best, group) {
+            ray.traversal.shorten(t);
+        }
+        false
+    }
+
+    /// [`Self::ray_leaf`] over the leaves of `node` in `entered` (two at a
+    /// time in wide searches), stopping at the first hit of an any-hit search.
+    #[inline(always)]
+    fn ray_leaves<const ANY_HIT: bool, const WIDE: bool>(
         &self,
         node: &NodePlanes,
         entered: u32,
-        ray: &PacketRay,
+        ray: &mut PacketRay,
+        best: &mut Option<Hit>,
     ) -> bool {
         let mut leaves = entered & node.leaf_mask;
         while leaves != 0 {
             let first = node.take_leaf(&mut leaves);
             let second = (WIDE && leaves != 0).then(|| node.take_leaf(&mut leaves));
-            let group = LeafGroup { first, second };
-            if self.any_hit_leaf::<WIDE>(&ray.prepared, &group).is_some() {
+            if self.ray_leaf::<ANY_HIT, WIDE>(ray, best, &LeafGroup { first, second }) {
                 return true;
             }
         }
         false
     }
 
-    /// The rays of `rays` that hit a triangle of `leaf`: the shared-origin
-    /// test rules out the certain misses, the watertight test decides the rest.
+    /// [`Self::ray_leaf`] of `leaf` for the rays `rays`, after the
+    /// shared-origin test has ruled out their certain misses: with `ANY_HIT`,
+    /// the mask of those that hit.
     #[inline(always)]
-    fn leaf_hits<const WIDE: bool>(
+    fn shared_leaf<const ANY_HIT: bool, const WIDE: bool>(
         &self,
-        packet: &[PacketRay; PACKET_RAYS],
+        packet: &mut [PacketRay; PACKET_RAYS],
+        best: &mut [Option<Hit>; PACKET_RAYS],
         shared: &SharedOrigin,
         leaf: Leaf,
         rays: u64,
@@ -392,10 +458,7 @@ impl BvhScene {
         while undecided != 0 {
             let lane = undecided.trailing_zeros() as usize;
             undecided &= undecided - 1;
-            if self
-                .any_hit_leaf::<WIDE>(&packet[lane].prepared, &group)
-                .is_some()
-            {
+            if self.ray_leaf::<ANY_HIT, WIDE>(&mut packet[lane], &mut best[lane], &group) {
                 hits |= 1 << lane;
             }
         }
