@@ -2036,6 +2036,8 @@ antumbra_result antumbra_scene_occluded(const struct antumbra_scene *scene,
  * `0 < t < t_max[i]` (t in units of `|directions[i]|`). A miss reports distance
  * +INFINITY, triangle ANTUMBRA_INVALID_INDEX and u = v = 0. Equal-distance ties
  * may report either triangle. Triangles are two-sided; the test is watertight.
+ * Consecutive rays are traced in packets of up to 64, as by
+ * antumbra_scene_occluded.
  *
  * @param scene the scene.
  * @param origins 3 floats per ray, finite.

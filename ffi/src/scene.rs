@@ -189,6 +189,20 @@ impl<'a> RayBatch<'a> {
         })
     }
 
+    /// Calls `f` with the rays [`PACKET`] at a time and the matching part of
+    /// `out` (one entry per ray): the core traces rays from one point
+    /// together (`RayCaster::occluded_many`, `closest_hit_many`).
+    fn in_packets<T>(&self, out: &mut [T], mut f: impl FnMut(&[Ray], &mut [T])) {
+        let mut chunk = [Ray::new(Vec3::ZERO, Vec3::Z, 0.0); PACKET];
+        for (c, part) in out.chunks_mut(PACKET).enumerate() {
+            let chunk = &mut chunk[..part.len()];
+            for (k, ray) in chunk.iter_mut().enumerate() {
+                *ray = self.ray(c * PACKET + k);
+            }
+            f(chunk, part);
+        }
+    }
+
     fn ray(&self, i: usize) -> Ray {
         let o = &self.origins[3 * i..3 * i + 3];
         let d = &self.directions[3 * i..3 * i + 3];
@@ -199,6 +213,9 @@ impl<'a> RayBatch<'a> {
         )
     }
 }
+
+/// Rays handed to the core per call: a packet of the BVH.
+const PACKET: usize = 64;
 
 fn non_finite(argument: &str, ray: usize, xyz: &[f32]) -> Error {
     Error::new(
@@ -260,21 +277,14 @@ pub unsafe extern "C" fn antumbra_scene_occluded(
         let rays = unsafe { RayBatch::new(origins, directions, t_max, ray_count) }?;
         // SAFETY: caller contract forwarded.
         let out = unsafe { raw::slice_mut(occluded, ray_count, "occluded") }?;
-        // Up to a packet's worth at a time: rays from one point are traced
-        // together (`RayCaster::occluded_many`).
-        const CHUNK: usize = 64;
-        let mut chunk = [Ray::new(Vec3::ZERO, Vec3::Z, 0.0); CHUNK];
-        let mut answers = [false; CHUNK];
-        for (c, flags) in out.chunks_mut(CHUNK).enumerate() {
-            let (chunk, answers) = (&mut chunk[..flags.len()], &mut answers[..flags.len()]);
-            for (k, ray) in chunk.iter_mut().enumerate() {
-                *ray = rays.ray(c * CHUNK + k);
-            }
+        let mut answers = [false; PACKET];
+        rays.in_packets(out, |chunk, flags| {
+            let answers = &mut answers[..chunk.len()];
             scene.bvh.occluded_many(chunk, answers);
             for (flag, &answer) in flags.iter_mut().zip(answers.iter()) {
                 *flag = u8::from(answer);
             }
-        }
+        });
         Ok(())
     })
 }
@@ -283,6 +293,8 @@ pub unsafe extern "C" fn antumbra_scene_occluded(
 /// `0 < t < t_max[i]` (t in units of `|directions[i]|`). A miss reports distance
 /// +INFINITY, triangle ANTUMBRA_INVALID_INDEX and u = v = 0. Equal-distance ties
 /// may report either triangle. Triangles are two-sided; the test is watertight.
+/// Consecutive rays are traced in packets of up to 64, as by
+/// antumbra_scene_occluded.
 ///
 /// @param scene the scene.
 /// @param origins 3 floats per ray, finite.
@@ -317,17 +329,19 @@ pub unsafe extern "C" fn antumbra_scene_intersect(
         let rays = unsafe { RayBatch::new(origins, directions, t_max, ray_count) }?;
         // SAFETY: caller contract forwarded.
         let out = unsafe { raw::slice_mut(hits, ray_count, "hits") }?;
-        for (i, slot) in out.iter_mut().enumerate() {
-            *slot = scene
-                .bvh
-                .closest_hit(&rays.ray(i))
-                .map_or(MISS, |hit| antumbra_hit {
+        let mut found = [None; PACKET];
+        rays.in_packets(out, |chunk, slots| {
+            let found = &mut found[..chunk.len()];
+            scene.bvh.closest_hit_many(chunk, found);
+            for (slot, hit) in slots.iter_mut().zip(found.iter()) {
+                *slot = hit.map_or(MISS, |hit| antumbra_hit {
                     distance: hit.t,
                     triangle: hit.triangle,
                     u: hit.u,
                     v: hit.v,
                 });
-        }
+            }
+        });
         Ok(())
     })
 }
