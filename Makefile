@@ -161,6 +161,7 @@ perf: pyenv
 	$(ANTUMBRA) bench hemi --scaling --receivers 300 --min-time 300
 	$(ANTUMBRA) bench ssv --frame --passes 2
 	$(ANTUMBRA) bench transfer --bands 4,5,6,7
+	$(ANTUMBRA) bench transfer --mesh tests/data/armadillo.obj --bands 4 --clusters 1
 
 clean:
 	$(CARGO) clean
