@@ -1022,6 +1022,25 @@ mod bvh_against_brute_force {
             occluded > rays_cast / 10 && occluded < rays_cast * 9 / 10 && aimed > 1000,
             "{occluded} of {rays_cast} rays occluded, {aimed} aimed at corners and edges"
         );
+        // Scenes so small or so large that the shared-origin test must leave
+        // corners nearer than 2^-40 or farther than 2^40 to the watertight one.
+        for scale in [1e-13f32, 1e-6, 4e11] {
+            let positions: Vec<[f32; 3]> = soup_positions
+                .iter()
+                .map(|p| (Vec3::from(*p) * scale).to_array())
+                .collect();
+            let mesh = MeshView::new(&positions, &soup_indices).unwrap();
+            let bvh = BvhScene::new(&mesh).unwrap();
+            let mut scale_occluded = 0;
+            for k in 0..20 {
+                let [a, b, c] = mesh.triangle(k);
+                let normal = (b - a).cross(c - a).normalize_or(Vec3::Z);
+                let origin = (a + b + c) / 3.0 + normal * (1e-3 * scale);
+                let rays = fan(&mut rng, origin, normal, 64);
+                scale_occluded += many_equal_each(&mesh, &[&bvh], &rays);
+            }
+            assert!(scale_occluded > 0, "scale {scale}: nothing occluded");
+        }
         // Hierarchies deeper than the packet's stack take rays one at a time.
         let (positions, indices) = shrinking_books(70, 0.3, 30);
         let mesh = MeshView::new(&positions, &indices).unwrap();

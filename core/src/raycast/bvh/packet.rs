@@ -63,6 +63,13 @@ const SIDE_BOUND: f32 = 256.0 * f32::EPSILON;
 /// same side of the triangle's plane in both.
 const VOLUME_BOUND: f32 = 512.0 * f32::EPSILON;
 
+/// Smallest L1 distance from the origin of a corner the shared-origin test
+/// decides for: with fast rays' directions (components in `2^-40..2^40`), every
+/// product then stays far above the subnormal range relative to its bound.
+const MIN_CORNER: f32 = 1.0 / (1u64 << 40) as f32;
+/// Largest such distance: three of them times a direction stay below `f32::MAX`.
+const MAX_CORNER: f32 = (1u64 << 40) as f32;
+
 /// One ray of a packet: its box-test and triangle-test constants.
 #[derive(Clone, Copy)]
 struct PacketRay {
@@ -121,8 +128,14 @@ impl SharedOrigin {
         let planes = planes.map(|p| p.map(|c| c * sign));
         let bounds =
             [(1, 2), (2, 0), (0, 1)].map(|(i, j)| Vec4::splat(SIDE_BOUND) * norm[i] * norm[j]);
-        if !(volume_bound.is_finite() && bounds.iter().all(|b| b.is_finite())) {
-            // Too large to bound in f32: leave every lane to the exact test.
+        // The relative bounds hold where nothing overflows and underflow's
+        // absolute errors (2^-149 each) are far below them: every corner
+        // within [2^-40, 2^40] of the origin (in L1) besides the fast rays'
+        // direction range. Other triangles are left to the watertight test.
+        let in_range = norm.iter().fold(BVec4A::splat(true), |ok, n| {
+            ok & n.cmpge(Vec4::splat(MIN_CORNER)) & n.cmple(Vec4::splat(MAX_CORNER))
+        });
+        if !in_range.any() {
             return candidates;
         }
         // Behind the origin only counts as a miss where the origin is surely off
@@ -147,7 +160,7 @@ impl SharedOrigin {
                 outside |= side.cmplt(-margin);
                 inside |= side.cmpgt(margin);
             }
-            let miss = outside & (inside | off_plane);
+            let miss = outside & (inside | off_plane) & in_range;
             if !miss.all() {
                 may_hit |= 1 << lane;
             }
