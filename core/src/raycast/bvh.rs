@@ -1249,8 +1249,8 @@ impl RayCaster for BvhScene {
         self.occluded_with::<false>(ray)
     }
 
-    /// Traces the rays in packets of one direction octant (see the `packet`
-    /// module): the answers of [`Self::occluded`], bit for bit.
+    /// Traces the rays in packets of up to 64 (see the `packet` module): the
+    /// answers of [`Self::occluded`], bit for bit.
     fn occluded_many(&self, rays: &[Ray], occluded: &mut [bool]) {
         assert_eq!(
             rays.len(),

@@ -95,7 +95,7 @@ pub trait RayCaster {
 
     /// [`Self::occluded`] of each ray of `rays`, written to the same index of
     /// `occluded`. A caster may trace the rays together (the BVH scene traces
-    /// up to 64 rays of one direction octant as one packet, fastest for rays
+    /// up to 64 rays as one packet, fastest for rays
     /// that start together, such as a bake's from one vertex); each answer is
     /// the one [`Self::occluded`] gives.
     ///

@@ -176,7 +176,7 @@ pub fn bake_rays(
     vertex: usize,
     pass: u32,
     options: &BakeOptions<'_>,
-    mut f: impl FnMut(&BakeRay),
+    f: impl FnMut(&BakeRay),
 ) -> Result<(), BakeError> {
     validate_options(options)?;
     if !unit_normal(normal) {
@@ -191,17 +191,14 @@ pub fn bake_rays(
         pass,
         options.rays,
         sampling_of(&options.measurement),
-        |r| {
-            f(r);
-            true
-        },
+        f,
     );
     Ok(())
 }
 
 /// The rays of one vertex and pass, in cast order: stratified `(u, v)` from the
 /// vertex's own stream, mapped to the hemisphere by `sampling`, then to the world
-/// by the vertex frame. `f` returning `false` stops early. The one code path of
+/// by the vertex frame. The one code path of
 /// [`bake`] (through `gather`) and [`bake_rays`].
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
@@ -214,7 +211,7 @@ fn for_each_ray(
     pass: u32,
     rays: u32,
     sampling: Sampling,
-    mut f: impl FnMut(&BakeRay) -> bool,
+    mut f: impl FnMut(&BakeRay),
 ) {
     let frame = Frame::from_normal(normal);
     let origin = position + normal * ray_offset;
@@ -223,9 +220,7 @@ fn for_each_ray(
     while let Some((u, v)) = strata.next(&mut rng) {
         let local = hemisphere_direction(sampling, u, v);
         let ray = Ray::new(origin, frame.to_world(local), f32::INFINITY);
-        if !f(&BakeRay { ray, local }) {
-            return;
-        }
+        f(&BakeRay { ray, local });
     }
 }
 
@@ -890,7 +885,6 @@ fn for_each_packet<C: RayCaster + ?Sized>(
                 trace(&rays, &locals);
                 count = 0;
             }
-            true
         },
     );
     trace(&rays[..count], &locals[..count]);
