@@ -245,6 +245,48 @@ static void test_scene_create(void)
     ++checks_run;
 }
 
+/* scene_refit on bad input: the exact code and message, and the scene still
+ * the one it was (a ray down onto the square at x = 0.25 hits it at t = 1). */
+static void test_scene_refit(void)
+{
+    antumbra_mesh_view mesh;
+    antumbra_scene *scene = NULL;
+    float positions[4 * 4];
+    const float origin[3] = {0.25f, 0.25f, 1.0f}, down[3] = {0.0f, 0.0f, -1.0f}, t_max = 10.0f;
+    antumbra_hit hit;
+
+    mesh = square_mesh();
+    expect_success("refit: create", antumbra_scene_create(&mesh, &scene));
+    expect_failure("refit: NULL scene", antumbra_scene_refit(NULL, &mesh), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_scene_refit", ": scene is NULL", (const char *)NULL);
+    expect_failure("refit: NULL mesh", antumbra_scene_refit(scene, NULL), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                   "antumbra_scene_refit", ": mesh is NULL", (const char *)NULL);
+    mesh.triangle_count = 1;
+    expect_failure("refit: another triangle count", antumbra_scene_refit(scene, &mesh),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_scene_refit", "mesh->triangle_count is 1",
+                   "the scene has 2 triangles", (const char *)NULL);
+    mesh = square_mesh();
+    memcpy(positions, square_positions, sizeof positions);
+    positions[4 + 2] = NAN;
+    mesh.positions = positions;
+    expect_failure("refit: NaN position", antumbra_scene_refit(scene, &mesh), ANTUMBRA_RESULT_NON_FINITE,
+                   "antumbra_scene_refit", "mesh->positions", (const char *)NULL);
+    positions[4 + 2] = 2e12f;
+    expect_failure("refit: coordinate out of range", antumbra_scene_refit(scene, &mesh),
+                   ANTUMBRA_RESULT_INVALID_ARGUMENT, "antumbra_scene_refit", "vertex 1", (const char *)NULL);
+    expect_success("refit: query after refused refits",
+                   antumbra_scene_intersect(scene, origin, down, &t_max, 1, &hit));
+    expect(hit.distance == 1.0f, "refit: a refused refit moved the square (hit at t = %g)", (double)hit.distance);
+    /* The square lowered by 0.5: the same ray now travels 1.5. */
+    memcpy(positions, square_positions, sizeof positions);
+    positions[2] = positions[4 + 2] = positions[8 + 2] = positions[12 + 2] = -0.5f;
+    expect_success("refit: lowered square", antumbra_scene_refit(scene, &mesh));
+    expect_success("refit: query after the refit", antumbra_scene_intersect(scene, origin, down, &t_max, 1, &hit));
+    expect(hit.distance == 1.5f, "refit: the lowered square is hit at t = %g, not 1.5", (double)hit.distance);
+    antumbra_scene_destroy(scene);
+    ++checks_run;
+}
+
 /* ------------------------------------------------------------------------- */
 /* Ray queries                                                                 */
 /* ------------------------------------------------------------------------- */
@@ -1672,6 +1714,7 @@ int main(void)
 
 #if defined(ANTUMBRA_HAS_STD)
     test_scene_create();
+    test_scene_refit();
     test_queries();
 #endif
     test_ssv_create();

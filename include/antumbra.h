@@ -318,9 +318,9 @@ typedef struct antumbra_lightmap antumbra_lightmap;
 
 #if defined(ANTUMBRA_HAS_STD)
 /**
- * An immutable ray-casting scene: a compressed wide BVH over a copy of a mesh's
- * triangles. Opaque; create with `antumbra_scene_create`, free with
- * `antumbra_scene_destroy`.
+ * A ray-casting scene: a compressed wide BVH over a copy of a mesh's
+ * triangles. Opaque; create with `antumbra_scene_create`, move its triangles
+ * with `antumbra_scene_refit`, free with `antumbra_scene_destroy`.
  */
 typedef struct antumbra_scene antumbra_scene;
 #endif
@@ -1976,6 +1976,41 @@ const char *antumbra_result_str(antumbra_result code);
 ANTUMBRA_NODISCARD
 antumbra_result antumbra_scene_create(const struct antumbra_mesh_view *mesh,
                                       struct antumbra_scene **out);
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Moves a scene's triangles to `mesh`'s current positions, keeping its
+ * hierarchy: triangle t of the scene becomes triangle t of `mesh`. For a
+ * mesh that deforms or moves every frame: linear in the triangles and about
+ * ten times cheaper than `antumbra_scene_create` (the armadillo's 52,000
+ * triangles: about 3 ms against 36 ms on one core). Every query afterwards
+ * answers as a scene created from `mesh` would (a closest hit at exactly the
+ * distance of another triangle may report either); only their speed drops
+ * as deformation distorts the hierarchy, so create a new scene after large
+ * changes of shape.
+ *
+ * @param scene the scene to move.
+ * @param mesh the moved triangles: as many as the scene's, checked as
+ *        `antumbra_scene_create` checks a mesh (usually the same indices with
+ *        new positions).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (scene, mesh, or a NULL array with
+ *         a non-zero count); INVALID_ARGUMENT (another triangle count, stride
+ *         below 12, misaligned arrays, size overflow, coordinate beyond
+ *         ±1e12); INDEX_OUT_OF_RANGE; NON_FINITE; OUT_OF_MEMORY (the refit's
+ *         scratch, 24 bytes per node, on the first refit); POISONED; PANIC.
+ *         On failure the scene is unchanged.
+ *
+ * Ownership: borrows both for the call. Thread safety: needs exclusive access
+ * to `scene`: no query or other call on it may be running.
+ *
+ * # Safety
+ * `scene` must be NULL or a live scene from `antumbra_scene_create`; `mesh`
+ * NULL or valid, its arrays valid for the counts and stride it gives.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_scene_refit(struct antumbra_scene *scene,
+                                     const struct antumbra_mesh_view *mesh);
 #endif
 
 #if defined(ANTUMBRA_HAS_STD)

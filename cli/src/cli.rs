@@ -318,7 +318,8 @@ pub struct MergeArgs {
 /// The benchmarks.
 #[derive(Debug, Subcommand)]
 pub enum BenchCommand {
-    /// Ray casting throughput: the BVH against the brute-force baseline.
+    /// Ray casting throughput: the BVH against the brute-force baseline; then a
+    /// moving mesh: refitting its scene against rebuilding it, and the rays of each.
     ///
     /// Casts the same random rays (from outside towards the mesh, and from points
     /// on the surface in random directions) with both casters, for closest-hit and

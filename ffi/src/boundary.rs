@@ -71,6 +71,36 @@ pub(crate) fn check_not_poisoned(flag: &AtomicBool, argument: &str) -> Result<()
     Ok(())
 }
 
+/// [`with_handle`] for a call that changes the handle: the export's contract
+/// lends the handle exclusively (no other call on it may run meanwhile).
+pub(crate) fn with_handle_mut<H: Poisonable>(
+    function: &'static str,
+    handle: *mut H,
+    call: impl FnOnce(&mut H) -> Result<(), Error>,
+) -> antumbra_result {
+    let mut poison: *const AtomicBool = core::ptr::null();
+    let result = guard(function, || {
+        // SAFETY: by the export's contract `handle` is NULL or a live handle
+        // that no other reference uses during the call.
+        let handle = &mut unsafe { raw::slice_mut(handle, 1, H::ARGUMENT) }.map_err(|e| {
+            if handle.is_null() {
+                Error::null(H::ARGUMENT)
+            } else {
+                e
+            }
+        })?[0];
+        check_not_poisoned(handle.poison_flag(), H::ARGUMENT)?;
+        poison = handle.poison_flag();
+        call(handle)
+    });
+    if result == ANTUMBRA_RESULT_PANIC && !poison.is_null() {
+        // SAFETY: the handle outlives the call (only destroy frees it, and the
+        // caller may not run that meanwhile); the flag is atomic.
+        unsafe { (*poison).store(true, Ordering::Release) };
+    }
+    result
+}
+
 /// Runs a call on a handle inside [`guard`]: rejects NULL and poisoned handles,
 /// and poisons the handle when the call panics.
 pub(crate) fn with_handle<H: Poisonable>(

@@ -4,10 +4,10 @@
 use std::sync::atomic::AtomicBool;
 
 use antumbra_core::raycast::{BvhError, BvhScene};
-use antumbra_core::{Ray, RayCaster};
+use antumbra_core::{MeshView, Ray, RayCaster};
 use glam::Vec3;
 
-use crate::boundary::{Poisonable, guard, with_handle};
+use crate::boundary::{Poisonable, guard, with_handle, with_handle_mut};
 use crate::error::Error;
 use crate::mesh::{antumbra_mesh_view, mesh_from_c};
 use crate::raw;
@@ -16,9 +16,9 @@ use crate::result::*;
 /// Triangle index reported by a ray that hits nothing.
 pub const ANTUMBRA_INVALID_INDEX: u32 = u32::MAX;
 
-/// An immutable ray-casting scene: a compressed wide BVH over a copy of a mesh's
-/// triangles. Opaque; create with `antumbra_scene_create`, free with
-/// `antumbra_scene_destroy`.
+/// A ray-casting scene: a compressed wide BVH over a copy of a mesh's
+/// triangles. Opaque; create with `antumbra_scene_create`, move its triangles
+/// with `antumbra_scene_refit`, free with `antumbra_scene_destroy`.
 pub struct antumbra_scene {
     bvh: BvhScene,
     poisoned: AtomicBool,
@@ -91,17 +91,7 @@ pub unsafe extern "C" fn antumbra_scene_create(
                 "mesh->triangle_count is 0: a scene needs at least one triangle",
             ));
         }
-        let bvh = BvhScene::new(&mesh).map_err(|e| match e {
-            BvhError::CoordinateOutOfRange { vertex } => Error::invalid(message!(
-                "mesh->positions: vertex {vertex} has a coordinate beyond the supported \
-                 range of ±{:e}",
-                antumbra_core::raycast::MAX_COORDINATE
-            )),
-            BvhError::OutOfMemory(e) => Error::new(
-                ANTUMBRA_RESULT_OUT_OF_MEMORY,
-                message!("no memory for {} triangles: {e}", mesh.triangle_count()),
-            ),
-        })?;
+        let bvh = BvhScene::new(&mesh).map_err(|e| scene_error(e, &mesh))?;
         let scene = Box::new(antumbra_scene {
             bvh,
             poisoned: AtomicBool::new(false),
@@ -109,6 +99,67 @@ pub unsafe extern "C" fn antumbra_scene_create(
         // SAFETY: `out` is non-NULL and, by contract, valid for a pointer write.
         unsafe { *out = Box::into_raw(scene) };
         Ok(())
+    })
+}
+
+/// A scene error, named as the C API names the mesh's fields.
+pub(crate) fn scene_error(error: BvhError, mesh: &MeshView<'_>) -> Error {
+    match error {
+        BvhError::CoordinateOutOfRange { vertex } => Error::invalid(message!(
+            "mesh->positions: vertex {vertex} has a coordinate beyond the supported \
+             range of ±{:e}",
+            antumbra_core::raycast::MAX_COORDINATE
+        )),
+        BvhError::OutOfMemory(e) => Error::new(
+            ANTUMBRA_RESULT_OUT_OF_MEMORY,
+            message!("no memory for {} triangles: {e}", mesh.triangle_count()),
+        ),
+        BvhError::TriangleCountChanged { scene, mesh } => Error::invalid(message!(
+            "mesh->triangle_count is {mesh} but the scene has {scene} triangles: a refit \
+             moves the same triangles (create a new scene for another mesh)"
+        )),
+    }
+}
+
+/// Moves a scene's triangles to `mesh`'s current positions, keeping its
+/// hierarchy: triangle t of the scene becomes triangle t of `mesh`. For a
+/// mesh that deforms or moves every frame: linear in the triangles and about
+/// ten times cheaper than `antumbra_scene_create` (the armadillo's 52,000
+/// triangles: about 3 ms against 36 ms on one core). Every query afterwards
+/// answers as a scene created from `mesh` would (a closest hit at exactly the
+/// distance of another triangle may report either); only their speed drops
+/// as deformation distorts the hierarchy, so create a new scene after large
+/// changes of shape.
+///
+/// @param scene the scene to move.
+/// @param mesh the moved triangles: as many as the scene's, checked as
+///        `antumbra_scene_create` checks a mesh (usually the same indices with
+///        new positions).
+/// @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT (scene, mesh, or a NULL array with
+///         a non-zero count); INVALID_ARGUMENT (another triangle count, stride
+///         below 12, misaligned arrays, size overflow, coordinate beyond
+///         ±1e12); INDEX_OUT_OF_RANGE; NON_FINITE; OUT_OF_MEMORY (the refit's
+///         scratch, 24 bytes per node, on the first refit); POISONED; PANIC.
+///         On failure the scene is unchanged.
+///
+/// Ownership: borrows both for the call. Thread safety: needs exclusive access
+/// to `scene`: no query or other call on it may be running.
+///
+/// # Safety
+/// `scene` must be NULL or a live scene from `antumbra_scene_create`; `mesh`
+/// NULL or valid, its arrays valid for the counts and stride it gives.
+#[must_use]
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn antumbra_scene_refit(
+    scene: *mut antumbra_scene,
+    mesh: *const antumbra_mesh_view,
+) -> antumbra_result {
+    with_handle_mut("antumbra_scene_refit", scene, |scene| {
+        // SAFETY: caller contract on `mesh`.
+        let view = unsafe { raw::reference(mesh, "mesh") }?;
+        // SAFETY: caller contract on the arrays inside `mesh`.
+        let mesh = unsafe { mesh_from_c(view, "mesh") }?;
+        scene.bvh.refit(&mesh).map_err(|e| scene_error(e, &mesh))
     })
 }
 
@@ -349,6 +400,142 @@ pub unsafe extern "C" fn antumbra_scene_intersect(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A wavy 8 × 8 grid of quads over z = `height`.
+    fn grid(height: f32, wave: f32) -> (Vec<f32>, Vec<u32>) {
+        let mut positions = Vec::new();
+        for j in 0..9 {
+            for i in 0..9 {
+                let (x, y) = (i as f32 / 8.0 - 0.5, j as f32 / 8.0 - 0.5);
+                positions.extend([x, y, height + wave * (7.0 * x).sin() * (5.0 * y).cos()]);
+            }
+        }
+        let mut indices = Vec::new();
+        for j in 0..8u32 {
+            for i in 0..8u32 {
+                let v = j * 9 + i;
+                indices.extend([v, v + 1, v + 10, v, v + 10, v + 9]);
+            }
+        }
+        (positions, indices)
+    }
+
+    fn view(positions: &[f32], indices: &[u32]) -> antumbra_mesh_view {
+        antumbra_mesh_view {
+            positions: positions.as_ptr(),
+            vertex_count: positions.len() / 3,
+            position_stride: 0,
+            indices: indices.as_ptr(),
+            triangle_count: indices.len() / 3,
+        }
+    }
+
+    /// Every ray's closest hit (through `antumbra_scene_intersect`).
+    fn hits(
+        scene: *const antumbra_scene,
+        origins: &[f32],
+        directions: &[f32],
+    ) -> Vec<antumbra_hit> {
+        let count = origins.len() / 3;
+        let t_max = vec![f32::INFINITY; count];
+        let mut out = vec![MISS; count];
+        // SAFETY: arrays of `count` rays and hits.
+        let result = unsafe {
+            antumbra_scene_intersect(
+                scene,
+                origins.as_ptr(),
+                directions.as_ptr(),
+                t_max.as_ptr(),
+                count,
+                out.as_mut_ptr(),
+            )
+        };
+        assert_eq!(result, ANTUMBRA_RESULT_OK);
+        out
+    }
+
+    #[test]
+    fn a_refitted_scene_answers_as_a_new_one_and_bad_refits_change_nothing() {
+        let (flat, indices) = grid(1.0, 0.0);
+        let (wavy, _) = grid(0.6, 0.2);
+        let mut scene = std::ptr::null_mut();
+        // SAFETY: live arrays, valid out pointer.
+        let created = unsafe { antumbra_scene_create(&view(&flat, &indices), &mut scene) };
+        assert_eq!(created, ANTUMBRA_RESULT_OK);
+        let mut fresh = std::ptr::null_mut();
+        // SAFETY: as above.
+        let created = unsafe { antumbra_scene_create(&view(&wavy, &indices), &mut fresh) };
+        assert_eq!(created, ANTUMBRA_RESULT_OK);
+        // A fan of rays up from below the grid.
+        let (mut origins, mut directions) = (Vec::new(), Vec::new());
+        for k in 0..400 {
+            let (a, b) = (k as f32 * 0.754_877_7 % 1.0, k as f32 * 0.569_840_3 % 1.0);
+            origins.extend([0.1, -0.05, 0.0]);
+            directions.extend([a - 0.5, b - 0.5, 0.7]);
+        }
+        let before = hits(scene, &origins, &directions);
+        // SAFETY: live scene (exclusive here) and arrays.
+        let refitted = unsafe { antumbra_scene_refit(scene, &view(&wavy, &indices)) };
+        assert_eq!(refitted, ANTUMBRA_RESULT_OK);
+        let after = hits(scene, &origins, &directions);
+        assert_eq!(after, hits(fresh, &origins, &directions));
+        assert_ne!(after, before, "the refit moved nothing");
+        assert!(
+            after
+                .iter()
+                .filter(|h| h.triangle != ANTUMBRA_INVALID_INDEX)
+                .count()
+                > 300
+        );
+        // Refused refits, the scene as it was.
+        let message = || {
+            // SAFETY: the library's message pointer is valid until the next call.
+            let text = unsafe { std::ffi::CStr::from_ptr(crate::antumbra_last_error_message()) };
+            text.to_str().unwrap().to_owned()
+        };
+        // SAFETY: as above; one triangle fewer.
+        let fewer =
+            unsafe { antumbra_scene_refit(scene, &view(&flat, &indices[..indices.len() - 3])) };
+        assert_eq!(fewer, ANTUMBRA_RESULT_INVALID_ARGUMENT);
+        assert!(
+            message().contains("mesh->triangle_count is 127"),
+            "{}",
+            message()
+        );
+        let mut far = flat.clone();
+        far[4] = 2e12;
+        // SAFETY: as above.
+        let out_of_range = unsafe { antumbra_scene_refit(scene, &view(&far, &indices)) };
+        assert_eq!(out_of_range, ANTUMBRA_RESULT_INVALID_ARGUMENT);
+        assert!(
+            message().contains("mesh->positions: vertex 1"),
+            "{}",
+            message()
+        );
+        // SAFETY: NULL handle and NULL mesh are refused before any use.
+        let (no_scene, no_mesh) = unsafe {
+            (
+                antumbra_scene_refit(std::ptr::null_mut(), &view(&flat, &indices)),
+                antumbra_scene_refit(scene, std::ptr::null()),
+            )
+        };
+        assert_eq!(
+            (no_scene, no_mesh),
+            (ANTUMBRA_RESULT_NULL_ARGUMENT, ANTUMBRA_RESULT_NULL_ARGUMENT)
+        );
+        assert_eq!(hits(scene, &origins, &directions), after);
+        // A panic inside a changing call poisons the scene too.
+        let result = with_handle_mut("test_refit", scene, |_| panic!("deliberate"));
+        assert_eq!(result, ANTUMBRA_RESULT_PANIC);
+        // SAFETY: live scene, refused as poisoned.
+        let later = unsafe { antumbra_scene_refit(scene, &view(&wavy, &indices)) };
+        assert_eq!(later, ANTUMBRA_RESULT_POISONED);
+        // SAFETY: from create, destroyed once.
+        unsafe {
+            antumbra_scene_destroy(scene);
+            antumbra_scene_destroy(fresh);
+        }
+    }
 
     #[test]
     fn a_panicking_query_poisons_the_scene() {

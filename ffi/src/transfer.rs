@@ -36,7 +36,7 @@ use {
     alloc::vec::Vec,
     antumbra_core::MeshView,
     antumbra_core::hemi::vertex_normals,
-    antumbra_core::raycast::{BvhError, BvhScene},
+    antumbra_core::raycast::BvhScene,
     antumbra_core::transfer::{
         self, BakeError, BakeOptions, Brdf, Measurement, PcaError, PhongBrdf, WardBrdf,
     },
@@ -639,17 +639,7 @@ pub unsafe extern "C" fn antumbra_transfer_bake(
 /// The BVH of a bake's mesh, its errors named as the C API names them.
 #[cfg(feature = "std")]
 pub(crate) fn scene_of(mesh: &MeshView<'_>) -> Result<BvhScene, Error> {
-    BvhScene::new(mesh).map_err(|e| match e {
-        BvhError::CoordinateOutOfRange { vertex } => Error::invalid(message!(
-            "mesh->positions: vertex {vertex} has a coordinate beyond the supported \
-             range of ±{:e}",
-            antumbra_core::raycast::MAX_COORDINATE
-        )),
-        BvhError::OutOfMemory(e) => Error::new(
-            ANTUMBRA_RESULT_OUT_OF_MEMORY,
-            message!("no memory for {} triangles: {e}", mesh.triangle_count()),
-        ),
-    })
+    BvhScene::new(mesh).map_err(|e| crate::scene::scene_error(e, mesh))
 }
 
 /// Runs `bake` with the core options of `options` (checked) and the caller's

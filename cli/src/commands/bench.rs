@@ -121,7 +121,101 @@ pub fn run_raycast(args: &BenchRaycastArgs) -> Result<()> {
             "warning: the casters disagree on some rays ({disagreement}); run `antumbra verify`"
         );
     }
+    moving_mesh(&mesh, args.rays as usize, min_time)
+}
+
+/// Twists of the moving-mesh table: radians of turn about the vertical axis
+/// from the bottom to the top of the mesh.
+const TWISTS: [f32; 4] = [0.0, 0.5, 1.5, 4.0];
+
+/// A moving mesh: per twist, moving the scene's triangles with
+/// `BvhScene::refit` against building a scene over the moved mesh (the
+/// fastest of several), and the occlusion throughput (one thread) of the
+/// refitted scene against the rebuilt one on rays over the moved mesh, with
+/// every answer compared.
+fn moving_mesh(mesh: &TriangleMesh, ray_count: usize, min_time: Duration) -> Result<()> {
+    let (lo, hi) = mesh.view().bounds();
+    let centre = (lo + hi) / 2.0;
+    let height = (hi.y - lo.y).max(f32::MIN_POSITIVE);
+    println!();
+    println!(
+        "moving mesh: the mesh twisted about its vertical axis, then its scene refitted (the hierarchy kept) or rebuilt; occluded rays on one thread"
+    );
+    println!(
+        "{:>8} {:>12} {:>12} {:>14} {:>16} {:>16} {:>14}",
+        "twist",
+        "rebuild",
+        "refit",
+        "refit faster",
+        "rays, rebuilt",
+        "rays, refitted",
+        "refitted / new"
+    );
+    let mut scene = BvhScene::new(&mesh.view()).expect("TriangleMesh keeps coordinates in range");
+    for twist in TWISTS {
+        let moved: Vec<[f32; 3]> = mesh
+            .positions()
+            .iter()
+            .map(|&p| {
+                let q = glam::Vec3::from(p) - centre;
+                let turn = glam::Quat::from_rotation_y(twist * (q.y / height));
+                (centre + turn * q).to_array()
+            })
+            .collect();
+        let moved = TriangleMesh::new(mesh.name(), moved, mesh.indices().to_vec())?;
+        let view = moved.view();
+        let rebuild = fastest(min_time, || {
+            black_box(BvhScene::new(&view).expect("in range"));
+        });
+        let refit = fastest(min_time, || {
+            scene.refit(&view).expect("the same triangles, in range");
+        });
+        let rebuilt = BvhScene::new(&view).expect("in range");
+        let rays: Vec<Ray> = random_rays(&moved, &RayClass::WORKLOAD, ray_count, SEED)
+            .into_iter()
+            .map(|(_, ray)| ray)
+            .collect();
+        let differ = rays
+            .iter()
+            .filter(|ray| scene.occluded(ray) != rebuilt.occluded(ray))
+            .count();
+        if differ > 0 {
+            return Err(crate::error::Error::msg(format!(
+                "twist {twist}: the refitted scene answers {differ} of {} rays unlike a new one",
+                rays.len()
+            )));
+        }
+        let fresh = measure(&rays, false, min_time, |ray| rebuilt.occluded(ray));
+        let refitted = measure(&rays, false, min_time, |ray| scene.occluded(ray));
+        println!(
+            "{:>8} {:>12} {:>12} {:>13.1}x {:>16} {:>16} {:>13.2}x",
+            format!("{twist} rad"),
+            format_duration(rebuild),
+            format_duration(refit),
+            rebuild.as_secs_f64() / refit.as_secs_f64(),
+            format_rate(fresh.rays_per_second, "rays"),
+            format_rate(refitted.rays_per_second, "rays"),
+            refitted.rays_per_second / fresh.rays_per_second
+        );
+    }
+    println!(
+        "(every refitted answer equal to the rebuilt scene's; each twist is refitted from the previous one)"
+    );
     Ok(())
+}
+
+/// The fastest run of `work` over at least `min_time` (at least three runs).
+fn fastest(min_time: Duration, mut work: impl FnMut()) -> Duration {
+    let started = Instant::now();
+    let mut best = Duration::MAX;
+    let mut runs = 0;
+    while runs < 3 || started.elapsed() < min_time {
+        let run = Instant::now();
+        work();
+        best = best.min(run.elapsed());
+        runs += 1;
+    }
+    best
 }
 
 /// Casts the whole batch repeatedly (one thread, or rayon on all cores) until

@@ -48,6 +48,7 @@ use obvhs::{
 };
 
 mod packet;
+mod refit;
 
 use super::{Hit, PreparedRay, Ray, RayCaster, TriangleHit, TriangleLanes};
 use crate::geom::MeshView;
@@ -81,6 +82,9 @@ pub struct BvhScene {
     /// Nodes on the longest root-to-leaf path: a bound on the entries
     /// [`BvhScene::search`]'s stack ever holds.
     depth: usize,
+    /// Every node's box, the scratch of [`BvhScene::refit`] (empty until the
+    /// first refit).
+    refit_bounds: Vec<[Vec3; 2]>,
     /// Whether queries use the AVX kernels of [`simd::avx`] (a node's eight
     /// child boxes in one pass, two leaves' triangles in one pass) instead of
     /// four lanes at a time: the same bits, decided once per scene by run-time
@@ -98,7 +102,7 @@ const STACK_GROUPS: usize = 32;
 
 pub use super::MAX_COORDINATE;
 
-/// Why a [`BvhScene`] could not be built.
+/// Why a [`BvhScene`] could not be built or refitted.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum BvhError {
     /// A vertex used by a triangle has a coordinate beyond ±[`MAX_COORDINATE`].
@@ -106,9 +110,17 @@ pub enum BvhError {
         /// The vertex.
         vertex: u32,
     },
-    /// The per-triangle arrays (the builder's input, the leaf blocks) could not
-    /// be reserved.
+    /// The per-triangle arrays (the builder's input, the leaf blocks) or a
+    /// refit's scratch could not be reserved.
     OutOfMemory(TryReserveError),
+    /// [`BvhScene::refit`] was given a mesh with another number of triangles
+    /// than the scene's.
+    TriangleCountChanged {
+        /// The scene's triangles.
+        scene: usize,
+        /// The mesh's triangles.
+        mesh: usize,
+    },
 }
 
 impl core::fmt::Display for BvhError {
@@ -119,6 +131,10 @@ impl core::fmt::Display for BvhError {
                 "vertex {vertex} has a coordinate beyond the supported range of ±{MAX_COORDINATE:e}"
             ),
             BvhError::OutOfMemory(e) => write!(f, "out of memory: {e}"),
+            BvhError::TriangleCountChanged { scene, mesh } => write!(
+                f,
+                "the mesh has {mesh} triangles and the scene {scene}: a refit keeps the triangles"
+            ),
         }
     }
 }
@@ -155,11 +171,7 @@ impl BvhScene {
     /// [`BvhScene::new`] with the builder's effort chosen: [`BuildQuality::Fast`]
     /// for scenes that answer few rays per build.
     pub fn with_quality(mesh: &MeshView<'_>, quality: BuildQuality) -> Result<Self, BvhError> {
-        if let Some(&vertex) = mesh
-            .indices()
-            .iter()
-            .find(|&&v| mesh.position(v as usize).abs().max_element() > MAX_COORDINATE)
-        {
+        if let Some(vertex) = out_of_range(mesh) {
             return Err(BvhError::CoordinateOutOfRange { vertex });
         }
         let count = mesh.triangle_count();
@@ -178,6 +190,7 @@ impl BvhScene {
                 #[cfg(test)]
                 original: Vec::new(),
                 planes: Vec::new(),
+                refit_bounds: Vec::new(),
                 depth: 0,
                 wide: simd::avx_available(),
             });
@@ -266,6 +279,7 @@ impl BvhScene {
             block_triangles,
             triangle_count: count,
             planes,
+            refit_bounds: Vec::new(),
             depth,
             wide: simd::avx_available(),
         })
@@ -409,6 +423,21 @@ struct NodePlanes {
     /// layout of [`CwBvhNode::child_meta`] (whose low bits are the offset of the
     /// first primitive instead); 0 for every other slot.
     leaves: [u8; 8],
+}
+
+/// The first vertex used by a triangle of `mesh` with a coordinate beyond
+/// ±[`MAX_COORDINATE`].
+fn out_of_range(mesh: &MeshView<'_>) -> Option<u32> {
+    // The mesh's bounds cover every vertex, used or not: when they are within
+    // range no index needs a look.
+    let (lo, hi) = mesh.bounds();
+    if lo.abs().max(hi.abs()).max_element() <= MAX_COORDINATE {
+        return None;
+    }
+    mesh.indices()
+        .iter()
+        .copied()
+        .find(|&v| mesh.position(v as usize).abs().max_element() > MAX_COORDINATE)
 }
 
 /// The child slots of `node` that are leaves with triangles, as a bit mask.

@@ -482,8 +482,19 @@ mod bvh_against_brute_force {
     /// Compares every ray; returns the number of hits so callers can check coverage.
     fn compare(positions: &[[f32; 3]], indices: &[u32], rays: usize, rng: &mut SmallRng) -> usize {
         let mesh = MeshView::new(positions, indices).unwrap();
-        let brute = BruteForceCaster::new(mesh);
         let bvh = BvhScene::new(&mesh).unwrap();
+        compare_scene(&mesh, &bvh, rays, rng)
+    }
+
+    /// [`compare`] for a scene already made over `mesh` (built or refitted).
+    fn compare_scene(
+        mesh: &MeshView<'_>,
+        bvh: &BvhScene,
+        rays: usize,
+        rng: &mut SmallRng,
+    ) -> usize {
+        let mesh = *mesh;
+        let brute = BruteForceCaster::new(mesh);
         assert_eq!(bvh.triangle_count(), mesh.triangle_count());
         // The portable four-lane box test (the only one off x86-64 or without
         // AVX) against the same reference.
@@ -495,10 +506,10 @@ mod bvh_against_brute_force {
         assert!(bvh.depth() <= 32);
         // The packet search on the same kind of rays, and on fans from one point.
         let mixed: Vec<Ray> = (0..rays.min(70)).map(|_| random_ray(rng, 2.0)).collect();
-        many_equal_each(&mesh, &[&bvh, &narrow], &mixed);
+        many_equal_each(&mesh, &[bvh, &narrow], &mixed);
         let fan_origin = mesh.triangle(0)[0] + Vec3::splat(1e-3);
         let fan_rays = fan(rng, fan_origin, Vec3::Z, rays.min(70));
-        many_equal_each(&mesh, &[&bvh, &narrow], &fan_rays);
+        many_equal_each(&mesh, &[bvh, &narrow], &fan_rays);
         let mut hits = 0;
         for _ in 0..rays {
             let ray = random_ray(rng, 2.0);
@@ -1052,6 +1063,95 @@ mod bvh_against_brute_force {
         let nothing = MeshView::new(&[], &[]).unwrap();
         let empty = BvhScene::new(&nothing).unwrap();
         assert_eq!(many_equal_each(&nothing, &[&empty], &rays), 0);
+    }
+
+    /// A refitted scene against brute force on the moved mesh, through every
+    /// query path (single rays AVX and portable, obvhs's traversal of the
+    /// re-quantised nodes, packets): motions that keep the hierarchy's shape
+    /// good (rigid, a twist, a shrink by 1e-6) and one that ruins it (every
+    /// vertex sent to another's place), refitted one after another; and
+    /// refits that must fail leave the scene answering as before.
+    #[test]
+    fn refitted_scenes_answer_as_built_ones() {
+        let mut rng = SmallRng::seed_from_u64(23);
+        let (sphere_positions, sphere_indices) = closed_sphere(5);
+        let (soup_positions, soup_indices) = soup(&mut rng, 300);
+        let mut hits = 0;
+        for (positions, indices) in [
+            (&sphere_positions, &sphere_indices),
+            (&soup_positions, &soup_indices),
+        ] {
+            let mesh = MeshView::new(positions, indices).unwrap();
+            let mut scene = BvhScene::new(&mesh).unwrap();
+            let count = positions.len();
+            for motion in 0..4 {
+                let moved: Vec<[f32; 3]> = (0..count)
+                    .map(|v| {
+                        let p = Vec3::from(positions[v]);
+                        match motion {
+                            0 => glam::Quat::from_rotation_y(0.7) * p + Vec3::new(0.3, -0.2, 0.1),
+                            1 => glam::Quat::from_rotation_y(1.5 * p.y) * p,
+                            2 => p * 1e-6,
+                            _ => Vec3::from(positions[(v * 7919 + 13) % count]),
+                        }
+                        .to_array()
+                    })
+                    .collect();
+                let moved_mesh = MeshView::new(&moved, indices).unwrap();
+                scene.refit(&moved_mesh).unwrap();
+                let below = scene.assert_boxes_hold(&moved_mesh, 0);
+                assert_eq!(below.len(), moved_mesh.triangle_count());
+                hits += compare_scene(&moved_mesh, &scene, 300, &mut rng);
+            }
+            // Another triangle count, a coordinate out of range: errors, and
+            // the scene still answers for the last mesh it was fitted to.
+            let last: Vec<[f32; 3]> = (0..count)
+                .map(|v| positions[(v * 7919 + 13) % count])
+                .collect();
+            let last_mesh = MeshView::new(&last, indices).unwrap();
+            let fewer = MeshView::new(&last, &indices[3..]).unwrap();
+            assert_eq!(
+                scene.refit(&fewer).unwrap_err(),
+                BvhError::TriangleCountChanged {
+                    scene: mesh.triangle_count(),
+                    mesh: mesh.triangle_count() - 1
+                }
+            );
+            let mut far = last.clone();
+            far[indices[5] as usize] = [0.0, 2e12, 0.0];
+            let far_mesh = MeshView::new(&far, indices).unwrap();
+            assert_eq!(
+                scene.refit(&far_mesh).unwrap_err(),
+                BvhError::CoordinateOutOfRange { vertex: indices[5] }
+            );
+            compare_scene(&last_mesh, &scene, 100, &mut rng);
+        }
+        assert!(hits > 500, "{hits} hits");
+        // A hierarchy deeper than the search's stack: children still follow
+        // their parents, and packets and single rays agree with brute force.
+        let (positions, indices) = shrinking_books(70, 0.3, 30);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let mut deep = BvhScene::new(&mesh).unwrap();
+        assert!(deep.depth() > 64);
+        let moved: Vec<[f32; 3]> = positions
+            .iter()
+            .map(|p| (glam::Quat::from_rotation_z(0.4) * Vec3::from(*p)).to_array())
+            .collect();
+        let moved_mesh = MeshView::new(&moved, &indices).unwrap();
+        deep.refit(&moved_mesh).unwrap();
+        assert_eq!(
+            deep.assert_boxes_hold(&moved_mesh, 0).len(),
+            indices.len() / 3
+        );
+        let brute = BruteForceCaster::new(moved_mesh);
+        let rays = fan(&mut rng, Vec3::new(0.0, 0.0, -1e-3), Vec3::X, 200);
+        many_equal_each(&moved_mesh, &[&deep], &rays);
+        for ray in &rays {
+            assert_eq!(
+                deep.closest_hit(ray).map(|h| h.t),
+                brute.closest_hit(ray).map(|h| h.t)
+            );
+        }
     }
 
     #[test]
