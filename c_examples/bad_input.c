@@ -753,6 +753,41 @@ static void test_ssv_query(void)
                stats.light_vertex_count == 4 && stats.structure == ANTUMBRA_SSV_STRUCTURE_HIERARCHY,
            "ssv statistics: %lu queries, %u samples", (unsigned long)stats.queries, (unsigned)stats.sample_count);
 
+    /* Update: refused inputs change nothing; the square moved 3 units along x
+     * then shadows (5, 0.5, -1) and not (0.5, 0.5, -1), and the statistics
+     * restart. */
+    {
+        float moved[4 * 4];
+        uint32_t bad_indices[6] = {0, 1, 2, 0, 2, 4};
+        antumbra_mesh_view bad = mesh;
+        size_t i;
+        memcpy(moved, square_positions, sizeof moved);
+        for (i = 0; i < 4; ++i) {
+            moved[4 * i] += 3.0f;
+        }
+        expect_failure("ssv update NULL handle", antumbra_ssv_update(NULL, &mesh), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                       "antumbra_ssv_update", "ssv is NULL", (const char *)NULL);
+        expect_failure("ssv update NULL occluders", antumbra_ssv_update(ssv, NULL), ANTUMBRA_RESULT_NULL_ARGUMENT,
+                       "antumbra_ssv_update", "occluders is NULL", (const char *)NULL);
+        bad.indices = bad_indices;
+        expect_failure("ssv update index out of range", antumbra_ssv_update(ssv, &bad),
+                       ANTUMBRA_RESULT_INDEX_OUT_OF_RANGE, "antumbra_ssv_update", "occluders->indices[5]",
+                       (const char *)NULL);
+        expect_success("ssv query after refused updates", antumbra_ssv_query(ssv, points, 1, bits, counts));
+        expect(bits[0] == 0, "ssv: a refused update moved the square (bits %lx)", (unsigned long)bits[0]);
+        bad = mesh;
+        bad.positions = moved;
+        expect_success("ssv update", antumbra_ssv_update(ssv, &bad));
+        points[3] = 5.0f; /* every segment to the light meets z = 0 at x in [3.37, 3.63] */
+        points[4] = 0.5f;
+        expect_success("ssv query after the update", antumbra_ssv_query(ssv, points, 2, bits, counts));
+        expect(bits[0] == 0x1f && bits[1] == 0, "ssv update: bits %lx %lx, want 1f 0", (unsigned long)bits[0],
+               (unsigned long)bits[1]);
+        expect_success("ssv statistics after the update", antumbra_ssv_get_statistics(ssv, &stats));
+        expect(stats.queries == 2, "ssv statistics after the update: %lu queries, want 2",
+               (unsigned long)stats.queries);
+    }
+
     antumbra_ssv_destroy(ssv);
 }
 

@@ -504,8 +504,22 @@ int main(int argc, char **argv)
                                 "antumbra_ssv_create (hierarchy, parallel)");
     ms_parallel = query_timed(hierarchy_parallel, points, count, &parallel, "antumbra_ssv_query (parallel)");
     threaded = new_result(count);
-    hierarchy_threads = create(&view, s, samples, ANTUMBRA_SSV_STRUCTURE_HIERARCHY, 0,
-                               "antumbra_ssv_create (hierarchy, threads)");
+    /* This handle is made for an earlier frame, the occluders 0.4 to the
+     * side, and moved into place with antumbra_ssv_update, as a moving
+     * object's handle is kept from frame to frame: its bits must still be the
+     * serial handle's. */
+    {
+        antumbra_mesh_view earlier = view;
+        float *shifted = checked_malloc(sizeof s->positions);
+        for (k = 0; k < 3 * VERTEX_COUNT; ++k) {
+            shifted[k] = s->positions[k] + (k % 3 == 0 ? 0.4f : 0.0f);
+        }
+        earlier.positions = shifted;
+        hierarchy_threads = create(&earlier, s, samples, ANTUMBRA_SSV_STRUCTURE_HIERARCHY, 0,
+                                   "antumbra_ssv_create (hierarchy, threads)");
+        check(antumbra_ssv_update(hierarchy_threads, &view), "antumbra_ssv_update");
+        free(shifted);
+    }
     ms_threads = query_threads(hierarchy_threads, points, count, &threaded);
     printf("soft_shadows: hierarchy, worker threads: %.1f ms; %d threads of ours on one handle: %.1f ms\n",
            ms_parallel, THREADS, ms_threads);

@@ -10,6 +10,11 @@
 //!   when the light or an object moved;
 //! - warm: the same queries again on the same handle (a static scene seen
 //!   again);
+//! - update: the mesh turned 10° about its vertical axis,
+//!   [`SoftShadows::update`] and every query (a moving object's frame),
+//!   compared with the turned scene's warm frame (the queries again) and its
+//!   cold frame (a structure made from the turned mesh, whose bits must be
+//!   the updated one's);
 //! - Embree: building its scene and casting every shadow ray (one core);
 //! - hemicube: the 2005-style structure's cold frame;
 //! - and, apart, the hierarchy's cold frame on every core (creation with
@@ -24,6 +29,7 @@
 use std::time::{Duration, Instant};
 
 use antumbra_core::ssv::{LightPolygon, SamplePattern, SoftShadows, SsvOptions, Structure};
+use antumbra_tests::data::Mesh;
 use antumbra_tests::oracle::try_frame;
 use antumbra_tests::scenes::{GroundScene, LightOrientation, LightSize};
 use antumbra_tests::ssv::{Comparison, compare_frame};
@@ -45,6 +51,14 @@ struct Frame {
     cold: Duration,
     /// Every query again.
     warm: Duration,
+    /// After the mesh turned ([`moved`]): `SoftShadows::update` and every
+    /// query, as a moving object's frame.
+    update: Duration,
+    /// Every query again on the updated structure (the turned scene's warm
+    /// frame, what `update` is compared with).
+    moved_warm: Duration,
+    /// A cold frame made from the turned mesh (what `update` saves on).
+    moved_cold: Duration,
     /// Bits of every receiver, receiver after receiver (from the first frame).
     bits: Vec<u64>,
     /// Candidates per query of the warm frame, on the ground.
@@ -142,9 +156,48 @@ fn frames(
         }
         let warm = started.elapsed();
         let statistics = ssv.statistics();
+        // The mesh moved: update and query, then the queries again.
+        let mut ssv = ssv;
+        let turned = moved(&scene.occluders);
+        let started = Instant::now();
+        ssv.update(&turned.view())
+            .map_err(|e| Error::msg(format!("cannot update the soft shadows: {e}")))?;
+        ssv.prepare(receivers, false);
+        let mut moved_bits = vec![0u64; receivers.len() * words];
+        for (out, &p) in moved_bits.chunks_exact_mut(words).zip(receivers) {
+            ssv.query(p, out)
+                .map_err(|e| Error::msg(format!("query failed: {e}")))?;
+        }
+        let update = started.elapsed();
+        let started = Instant::now();
+        for &p in receivers {
+            ssv.query(p, &mut scratch)
+                .map_err(|e| Error::msg(format!("query failed: {e}")))?;
+        }
+        let moved_warm = started.elapsed();
+        // A cold frame on the turned mesh, its bits the updated structure's.
+        let started = Instant::now();
+        let fresh = SoftShadows::new(&turned.view(), light.clone(), samples, options)
+            .map_err(|e| Error::msg(format!("cannot prepare the soft shadows: {e}")))?;
+        fresh.prepare(receivers, false);
+        let mut fresh_bits = vec![0u64; receivers.len() * words];
+        for (out, &p) in fresh_bits.chunks_exact_mut(words).zip(receivers) {
+            fresh
+                .query(p, out)
+                .map_err(|e| Error::msg(format!("query failed: {e}")))?;
+        }
+        let moved_cold = started.elapsed();
+        if fresh_bits != moved_bits {
+            return Err(Error::msg(
+                "the updated structure's bits differ from a new one's on the turned mesh",
+            ));
+        }
         let frame = Frame {
             cold,
             warm,
+            update,
+            moved_warm,
+            moved_cold,
             bits,
             ground_candidates: on_ground as f64 / ground.max(1) as f64,
             candidates: all as f64 / receivers.len().max(1) as f64,
@@ -156,11 +209,31 @@ fn frames(
             Some(b) => Frame {
                 cold: b.cold.min(frame.cold),
                 warm: b.warm.min(frame.warm),
+                update: b.update.min(frame.update),
+                moved_warm: b.moved_warm.min(frame.moved_warm),
+                moved_cold: b.moved_cold.min(frame.moved_cold),
                 ..b
             },
         });
     }
     Ok(best.expect("at least one pass"))
+}
+
+/// The occluders turned by 10° about the vertical axis through their centre:
+/// a moving object's next frame (the same triangles, so the reference ray's
+/// BVH is refitted).
+fn moved(occluders: &Mesh) -> Mesh {
+    let (lo, hi) = occluders.bounds();
+    let centre = (lo + hi) / 2.0;
+    let turn = glam::Quat::from_rotation_y(10f32.to_radians());
+    Mesh {
+        positions: occluders
+            .positions
+            .iter()
+            .map(|&p| (centre + turn * (Vec3::from(p) - centre)).to_array())
+            .collect(),
+        indices: occluders.indices.clone(),
+    }
 }
 
 /// Candidates per ground query of a hierarchy whose root box holds every
@@ -354,16 +427,19 @@ fn print_tables(meshes: &[TriangleMesh], rows: &[Row]) {
         println!();
         println!("{}", chunk[0].mesh);
         println!(
-            "{:>5} {:<11} | {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} | {:>9} {:>11} {:>13} | {:>10} {:>16} | {:>7} {:>8} | bits vs Embree",
+            "{:>5} {:<11} | {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} | {:>9} {:>11} {:>10} {:>11} {:>13} | {:>10} {:>16} | {:>7} {:>8} | bits vs Embree",
             "light",
             "",
             "cold ms",
             "warm ms",
+            "update ms",
             &format!("{}-thread", rayon::current_num_threads()),
             "Embree ms",
             "(build)",
             "hemicube",
             "cold/warm",
+            "update/warm",
+            "new/update",
             "Embree/cold",
             "hemicube/cold",
             "candidates",
@@ -399,16 +475,19 @@ fn print_tables(meshes: &[TriangleMesh], rows: &[Row]) {
                 (None, _) => "-".into(),
             };
             println!(
-                "{:>5} {:<11} | {:>9.1} {:>9.1} {:>9.1} {:>9} {:>9} {:>9} | {:>8.2}x {:>11} {:>13} | {:>10.1} {:>7.1} ({:>6.1}) | {:>7} {:>8} | {bits}",
+                "{:>5} {:<11} | {:>9.1} {:>9.1} {:>9.1} {:>9.1} {:>9} {:>9} {:>9} | {:>8.2}x {:>10.2}x {:>9.2}x {:>11} {:>13} | {:>10.1} {:>7.1} ({:>6.1}) | {:>7} {:>8} | {bits}",
                 r.size.name(),
                 r.orientation.name(),
                 ms(h.cold),
                 ms(h.warm),
+                ms(h.update),
                 ms(r.parallel_cold),
                 opt_ms(embree),
                 opt_ms(r.embree.map(|(b, _)| b)),
                 opt_ms(hemicube),
                 ms(h.cold) / ms(h.warm),
+                ms(h.update) / ms(h.moved_warm),
+                ms(h.moved_cold) / ms(h.update),
                 ratio(embree),
                 ratio(hemicube),
                 h.candidates,
@@ -457,6 +536,14 @@ fn print_summary(rows: &[Row]) -> Result<()> {
             .collect(),
         false,
         1.3,
+    );
+    worst(
+        "update frame (the mesh turned 10°, update, every query) / warm frame",
+        rows.iter()
+            .map(|r| (ms(r.hierarchy.update) / ms(r.hierarchy.moved_warm), r))
+            .collect(),
+        false,
+        1.15,
     );
     for (size, goal) in [(LightSize::Small, 5.0), (LightSize::Large, 1.0)] {
         worst(

@@ -180,20 +180,7 @@ impl BvhScene {
             .try_reserve_exact(count)
             .map_err(BvhError::OutOfMemory)?;
         if count == 0 {
-            return Ok(BvhScene {
-                bvh: CwBvh::default(),
-                blocks: Vec::new(),
-                block_triangles: Vec::new(),
-                triangle_count: 0,
-                #[cfg(test)]
-                corners: Vec::new(),
-                #[cfg(test)]
-                original: Vec::new(),
-                planes: Vec::new(),
-                refit_bounds: Vec::new(),
-                depth: 0,
-                wide: simd::avx_available(),
-            });
+            return Ok(BvhScene::empty());
         }
         triangles.extend(mesh.triangles().map(|[a, b, c]| Triangle {
             v0: a.into(),
@@ -283,6 +270,24 @@ impl BvhScene {
             depth,
             wide: simd::avx_available(),
         })
+    }
+
+    /// A scene without triangles (allocates nothing).
+    pub(crate) fn empty() -> Self {
+        BvhScene {
+            bvh: CwBvh::default(),
+            blocks: Vec::new(),
+            block_triangles: Vec::new(),
+            triangle_count: 0,
+            #[cfg(test)]
+            corners: Vec::new(),
+            #[cfg(test)]
+            original: Vec::new(),
+            planes: Vec::new(),
+            refit_bounds: Vec::new(),
+            depth: 0,
+            wide: simd::avx_available(),
+        }
     }
 
     /// Number of triangles in the scene.

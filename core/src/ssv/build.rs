@@ -273,6 +273,37 @@ impl SoftShadows {
         samples: &[Vec3],
         options: SsvOptions,
     ) -> Result<Self, SsvError> {
+        Self::build(occluders, light, samples, options, None)
+    }
+
+    /// Moves the occluders to `occluders` (the mesh moved or deformed, or
+    /// another mesh altogether), keeping the light, the samples and the
+    /// options: every query afterwards answers exactly as a structure made by
+    /// [`SoftShadows::new`] from `occluders` would. Cheaper than that: with the
+    /// `bvh` feature the reference ray's BVH is refitted to the new positions
+    /// when the occluders keep their number of (welded, non-degenerate)
+    /// triangles, instead of built again (the rest, which depends on where the
+    /// edges are, is made anew). The statistics restart.
+    ///
+    /// Fails as [`SoftShadows::new`] does, leaving the structure as it was.
+    pub fn update(&mut self, occluders: &MeshView<'_>) -> Result<(), SsvError> {
+        let light = self.light.clone();
+        let samples = fallible::copied(&self.samples)?;
+        let options = self.options;
+        *self = Self::build(occluders, light, &samples, options, Some(&mut self.caster))?;
+        Ok(())
+    }
+
+    /// [`SoftShadows::new`], the reference caster made from `previous` when
+    /// given ([`Caster::refitted`], after every step that can fail, so that a
+    /// failure leaves it untouched).
+    fn build(
+        occluders: &MeshView<'_>,
+        light: LightPolygon,
+        samples: &[Vec3],
+        options: SsvOptions,
+        previous: Option<&mut Caster>,
+    ) -> Result<Self, SsvError> {
         check(&light, samples, &options)?;
         let plane = LightPlane::of(&light)?;
         let sorted = SortedOccluders::new(occluders, &plane)?;
@@ -287,17 +318,21 @@ impl SoftShadows {
             normal: plane.normal,
             tolerance: plane.tolerance,
         };
-        // The reference caster and the structure, side by side on rayon's
-        // threads with `options.parallel`.
+        // A new reference caster and the structure, side by side on rayon's
+        // threads with `options.parallel`; one made from `previous` comes last.
         let structure = || structures(occluders, &light, &graph, &shape, &potential, &options);
+        let build_caster = || match previous {
+            None => Self::build_caster(&graph).map(Some),
+            Some(_) => Ok(None),
+        };
         #[cfg(feature = "parallel")]
         let (caster, structures) = if options.parallel {
-            rayon::join(|| Self::build_caster(&graph), structure)
+            rayon::join(build_caster, structure)
         } else {
-            (Self::build_caster(&graph), structure())
+            (build_caster(), structure())
         };
         #[cfg(not(feature = "parallel"))]
-        let (caster, structures) = (Self::build_caster(&graph), structure());
+        let (caster, structures) = (build_caster(), structure());
         let caster = caster?;
         let (hierarchy, hemicube) = structures?;
         let sampled = SampleOrder::new(samples, &light, &plane)?;
@@ -313,6 +348,12 @@ impl SoftShadows {
         let near_planes = fallible::collect(near_light.iter().map(AxisPlane::of))?;
         let band_planes = fallible::collect(band.iter().map(AxisPlane::of))?;
         let band_half_width = plane.band_half_width();
+        // Nothing fails after this.
+        let caster = match (caster, previous) {
+            (Some(caster), _) => caster,
+            (None, Some(previous)) => previous.refitted(&graph)?,
+            (None, None) => Self::build_caster(&graph)?,
+        };
         Ok(SoftShadows {
             occluder_box,
             insets: sampled.insets,
@@ -336,6 +377,7 @@ impl SoftShadows {
             light,
             samples: fallible::copied(samples)?,
             structure: options.structure,
+            options,
             graph,
             potential,
             near_light,

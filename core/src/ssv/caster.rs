@@ -12,6 +12,32 @@ pub(super) enum Caster {
 }
 
 impl Caster {
+    /// A caster over no triangles (a placeholder while the one it replaces
+    /// moves to its new owner).
+    #[cfg(feature = "bvh")]
+    fn empty() -> Caster {
+        Caster::Bvh(crate::raycast::BvhScene::empty())
+    }
+
+    /// The caster for `graph`, made from this one: with `bvh`, when it holds
+    /// as many triangles, refitted to the graph's positions (the hierarchy
+    /// kept, about ten times cheaper than a build, the same answers) and moved
+    /// out, leaving an empty caster; otherwise built anew, this one untouched.
+    /// On failure this one is untouched.
+    pub(super) fn refitted(&mut self, graph: &EdgeGraph) -> Result<Caster, SsvError> {
+        #[cfg(feature = "bvh")]
+        if let Caster::Bvh(scene) = self
+            && scene.triangle_count() == graph.triangles.len()
+        {
+            let positions: Vec<[f32; 3]> = graph.positions.iter().map(|p| p.to_array()).collect();
+            let indices: Vec<u32> = graph.triangles.iter().flatten().copied().collect();
+            let mesh = MeshView::new(&positions, &indices).map_err(|_| SsvError::Caster)?;
+            scene.refit(&mesh).map_err(|_| SsvError::Caster)?;
+            return Ok(core::mem::replace(self, Caster::empty()));
+        }
+        SoftShadows::build_caster(graph)
+    }
+
     pub(super) fn occluded(&self, ray: &Ray) -> bool {
         match self {
             #[cfg(feature = "bvh")]

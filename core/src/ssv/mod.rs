@@ -217,6 +217,8 @@ pub struct SoftShadows {
     light: LightPolygon,
     samples: Vec<Vec3>,
     structure: Structure,
+    /// The options it was made with, for [`SoftShadows::update`].
+    options: SsvOptions,
     graph: EdgeGraph,
     /// Potential silhouette edges (indices into `graph.edges`).
     potential: Vec<u32>,
@@ -299,6 +301,11 @@ impl SoftShadows {
     /// `ceil(N / 64)`: the `u64` words of one receiver's bits.
     pub fn words_per_receiver(&self) -> usize {
         self.samples.len().div_ceil(64)
+    }
+
+    /// The options it was made with.
+    pub fn options(&self) -> SsvOptions {
+        self.options
     }
 
     /// The structure chosen at creation.

@@ -1479,3 +1479,67 @@ fn miri_small_scene_gets_the_oracle_bits() {
         "{visible}"
     );
 }
+
+/// `update` against `new` on the moved occluders: the same bits at every
+/// receiver (and the oracle's on a subset), for every structure, through
+/// motions that keep the reference BVH's triangles (rigid, a twist: refitted)
+/// and one that changes them (a sphere added: built anew); an update that
+/// fails leaves the structure answering as before.
+#[test]
+fn updated_structures_answer_as_new_ones() {
+    let mut soup = torus(Vec3::new(0.0, 0.0, 1.0), 1.0, 0.3, 12);
+    soup.append(&cube(Vec3::new(0.3, 0.2, 1.8), 0.25));
+    let light = quad_light(Vec3::new(0.2, 0.0, 4.0), 0.9);
+    let samples = light.samples(64, SamplePattern::Jittered, 9);
+    let receivers = receivers_box(Vec3::new(-3.0, -3.0, 0.0), Vec3::new(3.0, 3.0, 0.5), 400, 4);
+    let twisted = |angle: f32, shift: Vec3| {
+        soup.transformed(|p| glam::Quat::from_rotation_z(angle * (p.z - 1.0)) * p + shift)
+    };
+    let mut bigger = twisted(0.3, Vec3::ZERO);
+    bigger.append(&sphere(Vec3::new(-0.8, 0.5, 2.2), 0.3, 6));
+    let motions = [
+        twisted(0.0, Vec3::new(0.4, -0.3, 0.2)),
+        twisted(0.8, Vec3::ZERO),
+        bigger,
+        twisted(-0.5, Vec3::new(0.0, 0.2, -0.1)),
+    ];
+    for structure in ALL {
+        let mut ss = build(&soup, &light, &samples, structure);
+        let words = ss.words_per_receiver();
+        for (m, moved) in motions.iter().enumerate() {
+            ss.update(&moved.view()).unwrap();
+            let fresh = build(moved, &light, &samples, structure);
+            let tris = moved.triangles();
+            for (r, &p) in receivers.iter().enumerate() {
+                let (mut got, mut want) = (vec![0u64; words], vec![0u64; words]);
+                ss.query(p, &mut got).unwrap();
+                fresh.query(p, &mut want).unwrap();
+                assert_eq!(
+                    got, want,
+                    "{structure:?}, motion {m}, receiver {r} at {p:?}"
+                );
+                if r % 20 == 0 {
+                    assert_eq!(got, oracle(&tris, p, &samples), "{structure:?}, motion {m}");
+                }
+            }
+        }
+        // Refused: a coordinate beyond the BVH's range (the one occluder a
+        // structure can refuse); the last scene stays.
+        if !cfg!(feature = "bvh") {
+            continue;
+        }
+        let last = motions.last().unwrap();
+        let far = last.transformed(|p| if p.z > 1.2 { p * 1e13 } else { p });
+        assert!(ss.update(&far.view()).is_err());
+        let tris = last.triangles();
+        for &p in receivers.iter().step_by(10) {
+            let mut got = vec![0u64; words];
+            ss.query(p, &mut got).unwrap();
+            assert_eq!(
+                got,
+                oracle(&tris, p, &samples),
+                "{structure:?} after a refused update"
+            );
+        }
+    }
+}
