@@ -545,8 +545,8 @@ fn creation_error(error: SsvError, triangles: usize) -> Error {
 /// positions instead of built again when the occluders keep their number of
 /// triangles (welded, without degenerate ones); the rest depends on where
 /// the edges are and is made anew. A moving object's frame (update and every
-/// query) costs about 0.9–1.0 times a new handle's (`antumbra bench ssv
-/// --frame`: the saving is the BVH's build, a tenth of a small light's frame
+/// query) costs 0.9–1.05 times a new handle's (`antumbra bench ssv --frame`:
+/// the saving, the BVH's build, is at most a tenth of a small light's frame
 /// over a 52,000-triangle mesh). The statistics restart.
 ///
 /// @param ssv the handle.
