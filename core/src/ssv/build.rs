@@ -348,7 +348,8 @@ impl SoftShadows {
         let near_planes = fallible::collect(near_light.iter().map(AxisPlane::of))?;
         let band_planes = fallible::collect(band.iter().map(AxisPlane::of))?;
         let band_half_width = plane.band_half_width();
-        // Nothing fails after this.
+        let samples = fallible::copied(samples)?;
+        // Nothing fails after the caster: `previous` is only taken then.
         let caster = match (caster, previous) {
             (Some(caster), _) => caster,
             (None, Some(previous)) => previous.refitted(&graph)?,
@@ -375,7 +376,7 @@ impl SoftShadows {
             shape_diameter: f64::from(light.diameter()),
             centroid: light.centroid(),
             light,
-            samples: fallible::copied(samples)?,
+            samples,
             structure: options.structure,
             options,
             graph,
