@@ -125,7 +125,7 @@ pub(crate) fn scene_error(error: BvhError, mesh: &MeshView<'_>) -> Error {
 /// hierarchy: triangle t of the scene becomes triangle t of `mesh`. For a
 /// mesh that deforms or moves every frame: linear in the triangles and about
 /// ten times cheaper than `antumbra_scene_create` (the armadillo's 52,000
-/// triangles: about 3 ms against 36 ms on one core). Every query afterwards
+/// triangles: about 3 ms against 33 ms on one core). Every query afterwards
 /// answers as a scene created from `mesh` would (a closest hit at exactly the
 /// distance of another triangle may report either); only their speed drops
 /// as deformation distorts the hierarchy, so create a new scene after large

@@ -8,6 +8,7 @@ use antumbra_core::raycast::BvhScene;
 use antumbra_core::{BruteForceCaster, Ray, RayCaster};
 use rayon::prelude::*;
 
+use super::hemi::time_per_call;
 use super::{format_duration, format_rate};
 use crate::builtin;
 use crate::cli::BenchRaycastArgs;
@@ -129,8 +130,8 @@ pub fn run_raycast(args: &BenchRaycastArgs) -> Result<()> {
 const TWISTS: [f32; 4] = [0.0, 0.5, 1.5, 4.0];
 
 /// A moving mesh: per twist, moving the scene's triangles with
-/// `BvhScene::refit` against building a scene over the moved mesh (the
-/// fastest of several), and the occlusion throughput (one thread) of the
+/// `BvhScene::refit` against building a scene over the moved mesh (each the
+/// mean over `min_time` after a warm-up), and the occlusion throughput (one thread) of the
 /// refitted scene against the rebuilt one on rays over the moved mesh, with
 /// every answer compared.
 fn moving_mesh(mesh: &TriangleMesh, ray_count: usize, min_time: Duration) -> Result<()> {
@@ -164,10 +165,10 @@ fn moving_mesh(mesh: &TriangleMesh, ray_count: usize, min_time: Duration) -> Res
             .collect();
         let moved = TriangleMesh::new(mesh.name(), moved, mesh.indices().to_vec())?;
         let view = moved.view();
-        let rebuild = fastest(min_time, || {
+        let rebuild = time_per_call(min_time, || {
             black_box(BvhScene::new(&view).expect("in range"));
         });
-        let refit = fastest(min_time, || {
+        let refit = time_per_call(min_time, || {
             scene.refit(&view).expect("the same triangles, in range");
         });
         let rebuilt = BvhScene::new(&view).expect("in range");
@@ -202,20 +203,6 @@ fn moving_mesh(mesh: &TriangleMesh, ray_count: usize, min_time: Duration) -> Res
         "(every refitted answer equal to the rebuilt scene's; each twist is refitted from the previous one)"
     );
     Ok(())
-}
-
-/// The fastest run of `work` over at least `min_time` (at least three runs).
-fn fastest(min_time: Duration, mut work: impl FnMut()) -> Duration {
-    let started = Instant::now();
-    let mut best = Duration::MAX;
-    let mut runs = 0;
-    while runs < 3 || started.elapsed() < min_time {
-        let run = Instant::now();
-        work();
-        best = best.min(run.elapsed());
-        runs += 1;
-    }
-    best
 }
 
 /// Casts the whole batch repeatedly (one thread, or rayon on all cores) until

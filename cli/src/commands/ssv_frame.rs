@@ -131,7 +131,7 @@ fn frames(
     let mut best: Option<Frame> = None;
     for _ in 0..passes.max(1) {
         let started = Instant::now();
-        let ssv = SoftShadows::new(&scene.occluders.view(), light.clone(), samples, options)
+        let mut ssv = SoftShadows::new(&scene.occluders.view(), light.clone(), samples, options)
             .map_err(|e| Error::msg(format!("cannot prepare the soft shadows: {e}")))?;
         let words = ssv.words_per_receiver();
         let mut bits = vec![0u64; receivers.len() * words];
@@ -157,7 +157,6 @@ fn frames(
         let warm = started.elapsed();
         let statistics = ssv.statistics();
         // The mesh moved: update and query, then the queries again.
-        let mut ssv = ssv;
         let turned = moved(&scene.occluders);
         let started = Instant::now();
         ssv.update(&turned.view())

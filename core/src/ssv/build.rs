@@ -273,7 +273,8 @@ impl SoftShadows {
         samples: &[Vec3],
         options: SsvOptions,
     ) -> Result<Self, SsvError> {
-        Self::build(occluders, light, samples, options, None)
+        check(&light, samples, &options)?;
+        Self::build(occluders, light, fallible::copied(samples)?, options, None)
     }
 
     /// Moves the occluders to `occluders` (the mesh moved or deformed, or
@@ -290,21 +291,21 @@ impl SoftShadows {
         let light = self.light.clone();
         let samples = fallible::copied(&self.samples)?;
         let options = self.options;
-        *self = Self::build(occluders, light, &samples, options, Some(&mut self.caster))?;
+        *self = Self::build(occluders, light, samples, options, Some(&mut self.caster))?;
         Ok(())
     }
 
-    /// [`SoftShadows::new`], the reference caster made from `previous` when
-    /// given ([`Caster::refitted`], after every step that can fail, so that a
-    /// failure leaves it untouched).
+    /// [`SoftShadows::new`] with the light, samples and options checked (by
+    /// [`check`]), the reference caster made from `previous` when given
+    /// ([`Caster::refitted`], after every step that can fail, so that a failure
+    /// leaves it untouched).
     fn build(
         occluders: &MeshView<'_>,
         light: LightPolygon,
-        samples: &[Vec3],
+        samples: Vec<Vec3>,
         options: SsvOptions,
         previous: Option<&mut Caster>,
     ) -> Result<Self, SsvError> {
-        check(&light, samples, &options)?;
         let plane = LightPlane::of(&light)?;
         let sorted = SortedOccluders::new(occluders, &plane)?;
         let positions: Vec<Vec3> =
@@ -335,7 +336,7 @@ impl SoftShadows {
         let (caster, structures) = (build_caster(), structure());
         let caster = caster?;
         let (hierarchy, hemicube) = structures?;
-        let sampled = SampleOrder::new(samples, &light, &plane)?;
+        let sampled = SampleOrder::new(&samples, &light, &plane)?;
         let words = samples.len().div_ceil(64);
         let SortedOccluders {
             near_light,
@@ -343,12 +344,11 @@ impl SoftShadows {
             bounds: occluder_box,
             ..
         } = sorted;
-        let near_sides = plane_sides(&near_light, samples, words)?;
-        let band_sides = plane_sides(&band, samples, words)?;
+        let near_sides = plane_sides(&near_light, &samples, words)?;
+        let band_sides = plane_sides(&band, &samples, words)?;
         let near_planes = fallible::collect(near_light.iter().map(AxisPlane::of))?;
         let band_planes = fallible::collect(band.iter().map(AxisPlane::of))?;
         let band_half_width = plane.band_half_width();
-        let samples = fallible::copied(samples)?;
         // Nothing fails after the caster: `previous` is only taken then.
         let caster = match (caster, previous) {
             (Some(caster), _) => caster,

@@ -29,8 +29,7 @@ impl Caster {
         if let Caster::Bvh(scene) = self
             && scene.triangle_count() == graph.triangles.len()
         {
-            let positions: Vec<[f32; 3]> = graph.positions.iter().map(|p| p.to_array()).collect();
-            let indices: Vec<u32> = graph.triangles.iter().flatten().copied().collect();
+            let (positions, indices) = graph_arrays(graph);
             let mesh = MeshView::new(&positions, &indices).map_err(|_| SsvError::Caster)?;
             scene.refit(&mesh).map_err(|_| SsvError::Caster)?;
             return Ok(core::mem::replace(self, Caster::empty()));
@@ -79,8 +78,7 @@ impl SoftShadows {
     pub(super) fn build_caster(graph: &EdgeGraph) -> Result<Caster, SsvError> {
         #[cfg(feature = "bvh")]
         {
-            let positions: Vec<[f32; 3]> = graph.positions.iter().map(|p| p.to_array()).collect();
-            let indices: Vec<u32> = graph.triangles.iter().flatten().copied().collect();
+            let (positions, indices) = graph_arrays(graph);
             let mesh = MeshView::new(&positions, &indices).map_err(|_| SsvError::Caster)?;
             // One reference ray per receiver: a quick build pays.
             let scene =
@@ -96,4 +94,12 @@ impl SoftShadows {
             )?))
         }
     }
+}
+
+/// The welded graph's positions and triangles as mesh arrays, for the BVH.
+#[cfg(feature = "bvh")]
+fn graph_arrays(graph: &EdgeGraph) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let positions = graph.positions.iter().map(|p| p.to_array()).collect();
+    let indices = graph.triangles.iter().flatten().copied().collect();
+    (positions, indices)
 }
