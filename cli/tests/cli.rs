@@ -590,7 +590,8 @@ fn bench_ssv_frame_reports_every_row_and_the_worst_of_each_figure() {
     }
     for needle in [
         "cold frame / warm frame: worst ",
-        "hemicube's cold frame / hierarchy's cold frame: worst ",
+        "hemicube's cold frame / hierarchy's cold frame, light 1/4: worst ",
+        "hemicube's cold frame / hierarchy's cold frame, light 4/5: worst ",
         "ground candidates / with a root fitted to the receivers: worst ",
         "against the hemicube 0 rows differ",
     ] {

@@ -502,31 +502,42 @@ fn print_tables(meshes: &[TriangleMesh], rows: &[Row]) {
 /// The worst row of each acceptance figure (issue 14), and whether it holds.
 fn print_summary(rows: &[Row]) -> Result<()> {
     println!();
-    let worst = |label: &str, values: Vec<(f64, &Row)>, higher_is_better: bool, goal: f64| {
-        let pick = values.into_iter().reduce(|a, b| {
-            let better_a = if higher_is_better {
-                a.0 < b.0
-            } else {
-                a.0 > b.0
-            };
-            if better_a { a } else { b }
-        });
-        if let Some((value, r)) = pick {
-            let holds = if higher_is_better {
-                value >= goal
-            } else {
-                value <= goal
-            };
-            println!(
-                "{label}: worst {value:.2}x ({} {} {}), goal {} {goal}x: {}",
-                r.mesh,
-                r.size.name(),
-                r.orientation.name(),
-                if higher_is_better { ">=" } else { "<=" },
-                if holds { "holds" } else { "NOT MET" }
-            );
-        }
-    };
+    // The worst row of `values`, against the goal when there is one (rows
+    // without a goal are reported only).
+    let worst =
+        |label: &str, values: Vec<(f64, &Row)>, higher_is_better: bool, goal: Option<f64>| {
+            let pick = values.into_iter().reduce(|a, b| {
+                let better_a = if higher_is_better {
+                    a.0 < b.0
+                } else {
+                    a.0 > b.0
+                };
+                if better_a { a } else { b }
+            });
+            if let Some((value, r)) = pick {
+                let verdict = match goal {
+                    None => String::from("reported"),
+                    Some(goal) => {
+                        let holds = if higher_is_better {
+                            value >= goal
+                        } else {
+                            value <= goal
+                        };
+                        format!(
+                            "goal {} {goal}x: {}",
+                            if higher_is_better { ">=" } else { "<=" },
+                            if holds { "holds" } else { "NOT MET" }
+                        )
+                    }
+                };
+                println!(
+                    "{label}: worst {value:.2}x ({} {} {}), {verdict}",
+                    r.mesh,
+                    r.size.name(),
+                    r.orientation.name(),
+                );
+            }
+        };
     let h = |r: &Row| ms(r.hierarchy.cold);
     worst(
         "cold frame / warm frame",
@@ -534,7 +545,7 @@ fn print_summary(rows: &[Row]) -> Result<()> {
             .map(|r| (ms(r.hierarchy.cold) / ms(r.hierarchy.warm), r))
             .collect(),
         false,
-        1.3,
+        Some(1.3),
     );
     worst(
         "update frame (the mesh turned 10°, update, every query) / warm frame",
@@ -542,9 +553,11 @@ fn print_summary(rows: &[Row]) -> Result<()> {
             .map(|r| (ms(r.hierarchy.update) / ms(r.hierarchy.moved_warm), r))
             .collect(),
         false,
-        1.15,
+        Some(1.15),
     );
-    for (size, goal) in [(LightSize::Small, 5.0), (LightSize::Large, 1.0)] {
+    // The goals of the soft-shadow work: against Embree per light size, and
+    // against the hemicube under the large light (reported under the small).
+    for (size, goal) in [(LightSize::Small, 8.0), (LightSize::Large, 1.5)] {
         worst(
             &format!(
                 "Embree's frame / hierarchy's cold frame, light {}",
@@ -555,17 +568,23 @@ fn print_summary(rows: &[Row]) -> Result<()> {
                 .filter_map(|r| r.embree.map(|(b, t)| (ms(b + t) / h(r), r)))
                 .collect(),
             true,
+            Some(goal),
+        );
+    }
+    for (size, goal) in [(LightSize::Small, None), (LightSize::Large, Some(1.6))] {
+        worst(
+            &format!(
+                "hemicube's cold frame / hierarchy's cold frame, light {}",
+                size.name()
+            ),
+            rows.iter()
+                .filter(|r| r.size == size)
+                .filter_map(|r| r.hemicube.as_ref().map(|f| (ms(f.cold) / h(r), r)))
+                .collect(),
+            true,
             goal,
         );
     }
-    worst(
-        "hemicube's cold frame / hierarchy's cold frame",
-        rows.iter()
-            .filter_map(|r| r.hemicube.as_ref().map(|f| (ms(f.cold) / h(r), r)))
-            .collect(),
-        true,
-        1.6,
-    );
     worst(
         "ground candidates / with a root fitted to the receivers",
         rows.iter()
@@ -577,7 +596,7 @@ fn print_summary(rows: &[Row]) -> Result<()> {
             })
             .collect(),
         false,
-        2.0,
+        Some(2.0),
     );
     let differing = rows
         .iter()
