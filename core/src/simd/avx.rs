@@ -3,14 +3,16 @@
 #![allow(unsafe_code)]
 
 use core::arch::x86_64::{
-    __m256, _CMP_EQ_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm256_add_ps, _mm256_and_ps,
-    _mm256_andnot_ps, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps, _mm256_mul_ps,
-    _mm256_or_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sub_ps,
+    __m256, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm256_add_ps,
+    _mm256_and_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_max_ps,
+    _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps, _mm256_set1_ps, _mm256_setzero_ps,
+    _mm256_sqrt_ps, _mm256_sub_ps,
 };
+
+use super::{EdgeCorners8, SetupMasks8, SweepReceiver8};
 #[cfg(feature = "bvh")]
 use core::arch::x86_64::{
-    _CMP_GE_OQ, _CMP_LE_OQ, _mm_loadu_ps, _mm256_div_ps, _mm256_max_ps, _mm256_min_ps,
-    _mm256_set_m128, _mm256_storeu_ps,
+    _mm_loadu_ps, _mm256_div_ps, _mm256_min_ps, _mm256_set_m128, _mm256_storeu_ps,
 };
 
 #[cfg(feature = "bvh")]
@@ -294,4 +296,249 @@ pub(crate) fn edge_octants8(
         keep &= !(_mm256_movemask_ps(separated) as u8);
     }
     keep
+}
+
+/// `f32` unit roundoff, `2^-24`.
+const U: f32 = f32::EPSILON / 2.0;
+
+/// Relative bound, against the permanent `Σ (|x_j e_k| + |x_k e_j|) |f_i|`,
+/// on how far [`silhouette_setup8`]'s `f32` value of `det[x, e, f]` (for
+/// `x = a - p`, `e = b - a`, `f = w - a`, each difference rounded once to
+/// `f32`) may be from the exact one: the rounded differences (`u` each, three
+/// per term), the cross product's products and difference (`2u`), the dot
+/// product's products and sums (`3u`) and the permanent's own rounding (`4u`)
+/// make about `12u`; this is `32u`.
+pub(crate) const SIDE_BOUND: f32 = 32.0 * U;
+
+/// Relative bound, against `Σ |x_i| |t_i|`, on the `f32` height `x · t` of a
+/// rounded difference `x` along a rounded unit direction `t` (about `5u`).
+const HEIGHT_BOUND: f32 = 16.0 * U;
+
+/// Added to every bound: far above what underflow to subnormal `f32` values
+/// (at most `2^-149` each) can change, so the relative bounds are what count.
+pub(crate) const FLOOR: f32 = 1e-30;
+
+/// Relative slack of the `f32` bounds on the sweep's `f64` tolerances (their
+/// own roundings are a few `u`).
+const SLACK: f32 = 1e-5;
+
+/// The set-up of [`Kernel::add_edge`](crate::ssv) for eight candidate edges at
+/// `receiver`, in `f32` lanes, each decision taken only where it is certain
+/// to be the `f64` sweep's:
+/// - the quick rejection (both endpoints behind the receiver, or both
+///   beyond the light's plane, within the sweep's slack);
+/// - the silhouette weight: the signs of `det[a - p, b - p, w - p]` for the
+///   third vertices `u` and `v`, each beyond [`SIDE_BOUND`] times its
+///   permanent (so the exact signs);
+/// - whether the plane through the receiver and the edge cuts the light grown
+///   by its tolerance (swept), and whether it passes near it (recorded): each
+///   light vertex's side against the sweep's `f64` tolerance, decided where
+///   the `f32` value and bounds put it beyond that tolerance's own bounds.
+///
+/// A lane any of whose needed decisions is not certain (an overflow to
+/// infinity or NaN included) is `undecided`; the caller gives those to the
+/// scalar set-up.
+#[target_feature(enable = "avx")]
+#[inline]
+pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners8) -> SetupMasks8 {
+    let splat = |x: f32| _mm256_set1_ps(x);
+    let zero = _mm256_setzero_ps();
+    let all = _mm256_cmp_ps::<_CMP_EQ_OQ>(zero, zero);
+    let not = |m: __m256| _mm256_andnot_ps(m, all);
+    let abs = |v: __m256| _mm256_andnot_ps(splat(-0.0), v);
+    let p = receiver.p;
+    let relative = |w: &[[f32; 8]; 3]| -> [__m256; 3] {
+        core::array::from_fn(|axis| _mm256_sub_ps(load(&w[axis]), splat(p[axis])))
+    };
+    let dot = |x: [__m256; 3], y: [__m256; 3]| {
+        _mm256_add_ps(
+            _mm256_add_ps(_mm256_mul_ps(x[0], y[0]), _mm256_mul_ps(x[1], y[1])),
+            _mm256_mul_ps(x[2], y[2]),
+        )
+    };
+    let (x, y) = (relative(&corners.a), relative(&corners.b));
+    // Differences from `a`: `det[a - p, b - p, w - p] = det[a - p, b - a,
+    // w - a]`, whose permanent (the rounding's scale) is smaller by about the
+    // edge's size over its distance, so far fewer signs are left open.
+    let from_a = |w: &[[f32; 8]; 3]| -> [__m256; 3] {
+        core::array::from_fn(|axis| _mm256_sub_ps(load(&w[axis]), load(&corners.a[axis])))
+    };
+    let e = from_a(&corners.b);
+    // `x × e` (that is `x × y`) and its permanent, and the permanent of `x × y`
+    // (the scale of the sweep's own `f64` rounding).
+    let pairs = [(1, 2), (2, 0), (0, 1)];
+    let cross: [__m256; 3] =
+        pairs.map(|(j, k)| _mm256_sub_ps(_mm256_mul_ps(x[j], e[k]), _mm256_mul_ps(x[k], e[j])));
+    let permanent: [__m256; 3] = pairs.map(|(j, k)| {
+        _mm256_add_ps(
+            abs(_mm256_mul_ps(x[j], e[k])),
+            abs(_mm256_mul_ps(x[k], e[j])),
+        )
+    });
+    let far_permanent: [__m256; 3] = pairs.map(|(j, k)| {
+        _mm256_add_ps(
+            abs(_mm256_mul_ps(x[j], y[k])),
+            abs(_mm256_mul_ps(x[k], y[j])),
+        )
+    });
+    let floor = splat(FLOOR);
+    // The weight: each third vertex's side, (certainly positive, negative).
+    let side = |w: &[[f32; 8]; 3]| {
+        let z = from_a(w);
+        let det = dot(cross, z);
+        let perm = dot(permanent, z.map(abs));
+        let margin = _mm256_add_ps(_mm256_mul_ps(splat(SIDE_BOUND), perm), floor);
+        (
+            _mm256_cmp_ps::<_CMP_GT_OQ>(det, margin),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(det, _mm256_sub_ps(zero, margin)),
+        )
+    };
+    let (u_pos, u_neg) = side(&corners.u);
+    let (v_pos, v_neg) = side(&corners.v);
+    let weighed = _mm256_and_ps(_mm256_or_ps(u_pos, u_neg), _mm256_or_ps(v_pos, v_neg));
+    let weightless = _mm256_or_ps(_mm256_and_ps(u_pos, v_neg), _mm256_and_ps(u_neg, v_pos));
+    // The quick rejection: heights along `toward` against `[-S, hc + S]`,
+    // `S` the sweep's slack (at most `1e-9` of the largest coordinate).
+    let toward = receiver.toward.map(splat);
+    let largest = |w: [__m256; 3]| _mm256_max_ps(_mm256_max_ps(abs(w[0]), abs(w[1])), abs(w[2]));
+    let slack = _mm256_mul_ps(
+        splat(2e-9),
+        _mm256_max_ps(
+            _mm256_max_ps(largest(x), largest(y)),
+            splat(receiver.cp_max),
+        ),
+    );
+    let hc = splat(receiver.hc);
+    let hc_err = _mm256_add_ps(splat(2.0 * U * receiver.hc.abs()), floor);
+    // (certainly below `-S`, possibly below; certainly above `hc + S`,
+    // possibly above) for one endpoint.
+    let height = |w: [__m256; 3]| {
+        let h = dot(w, toward);
+        let err = _mm256_add_ps(
+            _mm256_mul_ps(splat(HEIGHT_BOUND), dot(w.map(abs), toward.map(abs))),
+            floor,
+        );
+        let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(h, err), _mm256_sub_ps(zero, slack));
+        let maybe_behind = not(_mm256_cmp_ps::<_CMP_GE_OQ>(_mm256_sub_ps(h, err), zero));
+        let beyond = _mm256_cmp_ps::<_CMP_GT_OQ>(
+            _mm256_sub_ps(h, err),
+            _mm256_add_ps(_mm256_add_ps(hc, hc_err), slack),
+        );
+        let maybe_beyond = not(_mm256_cmp_ps::<_CMP_LE_OQ>(
+            _mm256_add_ps(h, err),
+            _mm256_sub_ps(hc, hc_err),
+        ));
+        (behind, maybe_behind, beyond, maybe_beyond)
+    };
+    let (a_behind, a_maybe_behind, a_beyond, a_maybe_beyond) = height(x);
+    let (b_behind, b_maybe_behind, b_beyond, b_maybe_beyond) = height(y);
+    let rejected = _mm256_or_ps(
+        _mm256_and_ps(a_behind, b_behind),
+        _mm256_and_ps(a_beyond, b_beyond),
+    );
+    let maybe_rejected = _mm256_or_ps(
+        _mm256_and_ps(a_maybe_behind, b_maybe_behind),
+        _mm256_and_ps(a_maybe_beyond, b_maybe_beyond),
+    );
+    // The plane against the light: the sweep's `f64` tolerance `err` of each
+    // light vertex lies in `[err_lo, err_hi]`, its `near` in `[near_lo,
+    // near_hi]`.
+    let length = _mm256_sqrt_ps(dot(cross, cross));
+    // The `f32` length's rounding (against the edge's own permanent) and the
+    // sweep's `f64` one (against the far permanent).
+    let sum = |v: [__m256; 3]| _mm256_add_ps(_mm256_add_ps(v[0], v[1]), v[2]);
+    let length_err = _mm256_add_ps(
+        _mm256_add_ps(
+            _mm256_mul_ps(splat(8.0 * U), sum(permanent)),
+            _mm256_mul_ps(splat(8.0 * U), length),
+        ),
+        _mm256_add_ps(_mm256_mul_ps(splat(1e-14), sum(far_permanent)), floor),
+    );
+    let length_lo = _mm256_max_ps(_mm256_sub_ps(length, length_err), zero);
+    let length_hi = _mm256_add_ps(length, length_err);
+    let (lo, hi) = (splat(1.0 - SLACK), splat(1.0 + SLACK));
+    let tolerance2 = splat(receiver.tolerance2);
+    let reach_lo = _mm256_mul_ps(_mm256_mul_ps(length_lo, tolerance2), lo);
+    let reach_hi = _mm256_mul_ps(_mm256_mul_ps(length_hi, tolerance2), hi);
+    let (mut above, mut maybe_above) = (zero, zero);
+    let (mut below, mut maybe_below) = (zero, zero);
+    let (mut near_above, mut maybe_near_above) = (zero, zero);
+    let (mut near_below, mut maybe_near_below) = (zero, zero);
+    let lights = receiver.lights[..receiver.light_count].iter();
+    for (l, &near) in lights.zip(&receiver.light_near) {
+        let l = l.map(splat);
+        let d = dot(cross, l);
+        let spread = dot(permanent, l.map(abs));
+        // The sweep's `f64` value and its tolerance's first term are within
+        // `1e-14` of the far permanent's spread (`8 · 2^-53` of it and less).
+        let far_spread = _mm256_mul_ps(splat(1e-14), dot(far_permanent, l.map(abs)));
+        let d_err = _mm256_add_ps(
+            _mm256_add_ps(_mm256_mul_ps(splat(SIDE_BOUND), spread), far_spread),
+            floor,
+        );
+        let err_lo = reach_lo;
+        let err_hi = _mm256_mul_ps(_mm256_add_ps(reach_hi, far_spread), hi);
+        let near_lo = _mm256_mul_ps(
+            _mm256_add_ps(
+                err_lo,
+                _mm256_mul_ps(splat(near * (1.0 - SLACK)), length_lo),
+            ),
+            lo,
+        );
+        let near_hi = _mm256_mul_ps(
+            _mm256_add_ps(
+                err_hi,
+                _mm256_mul_ps(splat(near * (1.0 + SLACK)), length_hi),
+            ),
+            hi,
+        );
+        let (d_lo, d_hi) = (_mm256_sub_ps(d, d_err), _mm256_add_ps(d, d_err));
+        // `d > -t` for a tolerance `t` in `[t_lo, t_hi]`: certain, possible.
+        let over = |t_lo: __m256, t_hi: __m256| {
+            (
+                _mm256_cmp_ps::<_CMP_GT_OQ>(d_lo, _mm256_sub_ps(zero, t_lo)),
+                not(_mm256_cmp_ps::<_CMP_LE_OQ>(d_hi, _mm256_sub_ps(zero, t_hi))),
+            )
+        };
+        // `d < t`: certain, possible.
+        let under = |t_lo: __m256, t_hi: __m256| {
+            (
+                _mm256_cmp_ps::<_CMP_LT_OQ>(d_hi, t_lo),
+                not(_mm256_cmp_ps::<_CMP_GE_OQ>(d_lo, t_hi)),
+            )
+        };
+        let (certain, possible) = over(err_lo, err_hi);
+        above = _mm256_or_ps(above, certain);
+        maybe_above = _mm256_or_ps(maybe_above, possible);
+        let (certain, possible) = under(err_lo, err_hi);
+        below = _mm256_or_ps(below, certain);
+        maybe_below = _mm256_or_ps(maybe_below, possible);
+        let (certain, possible) = over(near_lo, near_hi);
+        near_above = _mm256_or_ps(near_above, certain);
+        maybe_near_above = _mm256_or_ps(maybe_near_above, possible);
+        let (certain, possible) = under(near_lo, near_hi);
+        near_below = _mm256_or_ps(near_below, certain);
+        maybe_near_below = _mm256_or_ps(maybe_near_below, possible);
+    }
+    let sweep = _mm256_and_ps(above, below);
+    let maybe_sweep = _mm256_and_ps(maybe_above, maybe_below);
+    let near = _mm256_and_ps(near_above, near_below);
+    let maybe_near = _mm256_and_ps(maybe_near_above, maybe_near_below);
+    let idle = _mm256_or_ps(rejected, weightless);
+    let unsure = _mm256_or_ps(
+        _mm256_or_ps(not(weighed), _mm256_andnot_ps(rejected, maybe_rejected)),
+        _mm256_or_ps(
+            _mm256_andnot_ps(sweep, maybe_sweep),
+            _mm256_andnot_ps(near, maybe_near),
+        ),
+    );
+    let mask = |m: __m256| _mm256_movemask_ps(m) as u32;
+    let idle = mask(idle);
+    SetupMasks8 {
+        undecided: mask(unsure) & !idle,
+        idle,
+        positive: mask(u_pos),
+        near: mask(near),
+        sweep: mask(sweep),
+    }
 }

@@ -80,6 +80,59 @@ pub(crate) struct LaneHits8 {
     pub v: [f32; 8],
 }
 
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+/// Eight candidate edges of a soft-shadow sweep, by coordinate (`[axis][lane]`):
+/// each edge's endpoints `a`, `b` and the third vertices `u`, `v` of its two
+/// adjacent triangles, as [`avx::silhouette_setup8`] takes them.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(32))]
+pub(crate) struct EdgeCorners8 {
+    pub a: [[f32; 8]; 3],
+    pub b: [[f32; 8]; 3],
+    pub u: [[f32; 8]; 3],
+    pub v: [[f32; 8]; 3],
+}
+
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+/// What [`avx::silhouette_setup8`] needs of a soft-shadow receiver, in `f32`
+/// (each value rounded once from the sweep's `f64` one).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SweepReceiver8 {
+    /// The receiver.
+    pub p: [f32; 3],
+    /// The receiver's side of the light's plane, a unit direction.
+    pub toward: [f32; 3],
+    /// The light's centroid's height over the receiver along `toward`.
+    pub hc: f32,
+    /// The largest coordinate of the centroid relative to the receiver.
+    pub cp_max: f32,
+    /// The light's vertices relative to the receiver (the first
+    /// `light_count`).
+    pub lights: [[f32; 3]; crate::ssv::MAX_LIGHT_VERTICES],
+    /// Per light vertex, its distance from the receiver times `2 NEAR_ANGLE`.
+    pub light_near: [f32; crate::ssv::MAX_LIGHT_VERTICES],
+    pub light_count: usize,
+    /// Twice the light's tolerance.
+    pub tolerance2: f32,
+}
+
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+/// Per candidate (bit `i` for lane `i`), what [`avx::silhouette_setup8`]
+/// decided.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct SetupMasks8 {
+    /// Left to the scalar set-up (a sign or comparison within its bound).
+    pub undecided: u32,
+    /// Certainly no silhouette at the receiver, or out of reach.
+    pub idle: u32,
+    /// Of the others (silhouettes, weight ±2): the weight is positive.
+    pub positive: u32,
+    /// Of the silhouettes: recorded as near the light.
+    pub near: u32,
+    /// Of the silhouettes: their plane cuts the light, so they are swept.
+    pub sweep: u32,
+}
+
 /// The eight octants of a soft-shadow hierarchy node, as the eight-lane edge
 /// tests of `ssv::edge_bounds` (portable) and [`avx::edge_octants8`] take
 /// them: lane `i` is octant `i` (bit 0 of `i`: upper half in x, 1: in y, 2:

@@ -147,6 +147,7 @@ mod options;
 pub mod predicates;
 mod query;
 mod reference;
+mod silhouette_lanes;
 mod statistics;
 mod sweep;
 mod wedge;

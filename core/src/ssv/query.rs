@@ -2,6 +2,7 @@
 //! silhouette weights into depth complexity, the reference decision, and the
 //! batch of receivers on or off the pool.
 
+use super::silhouette_lanes::LANES;
 use super::*;
 
 /// Points per rayon task of [`SoftShadows::query_batch`]: one query costs tens
@@ -138,12 +139,34 @@ impl SoftShadows {
         counters: &mut [i32],
         info: &mut QueryInfo,
     ) {
+        let receiver = self.sweep_receiver(&kernel);
+        if receiver.is_none() {
+            self.for_each_candidate(kernel.p, |e: u32| {
+                info.candidates += 1;
+                if kernel.add_edge(self, e, counters) {
+                    info.silhouettes += 1;
+                }
+            });
+            return;
+        }
+        // Candidates in groups of LANES through the set-up in lanes; the
+        // rest one by one.
+        let mut batch = [0u32; LANES];
+        let mut held = 0;
         self.for_each_candidate(kernel.p, |e: u32| {
             info.candidates += 1;
+            batch[held] = e;
+            held += 1;
+            if held == LANES {
+                held = 0;
+                info.silhouettes += self.sweep_candidates(&mut kernel, &receiver, &batch, counters);
+            }
+        });
+        for &e in &batch[..held] {
             if kernel.add_edge(self, e, counters) {
                 info.silhouettes += 1;
             }
-        });
+        }
     }
 
     /// The structure's candidate edges for receiver `p`.

@@ -45,6 +45,32 @@ pub(super) struct Kernel<'a> {
     pub(super) silhouettes: &'a mut Silhouettes,
 }
 
+/// What the set-up decided for a silhouette edge (weight not zero) at a
+/// receiver ([`Kernel::add_silhouette`]).
+#[derive(Clone, Copy)]
+pub(super) struct DecidedSilhouette {
+    /// The weight, `±1` or `±2`.
+    pub(super) weight: i32,
+    /// Its plane passes within [`NEAR_ANGLE`] of the light: recorded for the
+    /// reference sample.
+    pub(super) near: bool,
+    /// Its plane cuts the light (grown by its tolerance): swept.
+    pub(super) sweep: bool,
+}
+
+/// `a' × b'` for endpoints `aw`, `bw` relative to the receiver, its
+/// permanent (`|x₁ y₂| + |x₂ y₁|` per component) and its length.
+#[inline(always)]
+pub(super) fn edge_normal(aw: DVec3, bw: DVec3) -> (DVec3, DVec3, f64) {
+    let nrm = aw.cross(bw);
+    let nperm = DVec3::new(
+        (aw.y * bw.z).abs() + (aw.z * bw.y).abs(),
+        (aw.z * bw.x).abs() + (aw.x * bw.z).abs(),
+        (aw.x * bw.y).abs() + (aw.y * bw.x).abs(),
+    );
+    (nrm, nperm, nrm.length())
+}
+
 #[inline]
 pub(super) fn wide(v: Vec3) -> [f64; 3] {
     [f64::from(v.x), f64::from(v.y), f64::from(v.z)]
@@ -127,13 +153,7 @@ impl<'a> Kernel<'a> {
         if weight == 0 {
             return false;
         }
-        let nrm = aw.cross(bw);
-        let nperm = DVec3::new(
-            (aw.y * bw.z).abs() + (aw.z * bw.y).abs(),
-            (aw.z * bw.x).abs() + (aw.x * bw.z).abs(),
-            (aw.x * bw.y).abs() + (aw.y * bw.x).abs(),
-        );
-        let nrm_length = nrm.length();
+        let (nrm, nperm, nrm_length) = edge_normal(aw, bw);
         // The plane (p, a, b) must cut the light (grown by its tolerance) for
         // the edge to change a counter, and come within [`NEAR_ANGLE`] of it
         // (seen from p) for a reference segment to pass near the edge.
@@ -150,12 +170,39 @@ impl<'a> Kernel<'a> {
             near_above |= d > -near;
             near_below |= d < near;
         }
-        if near_above && near_below {
+        let silhouette = DecidedSilhouette {
+            weight,
+            near: near_above && near_below,
+            sweep: above && below,
+        };
+        self.add_silhouette(ss, e, silhouette, counters);
+        true
+    }
+
+    /// The rest of [`Kernel::add_edge`] for a silhouette edge (weight not
+    /// zero) whose set-up is decided: recorded when near the light, swept
+    /// over the samples when its plane cuts the light.
+    #[inline(always)]
+    pub(super) fn add_silhouette(
+        &mut self,
+        ss: &SoftShadows,
+        e: u32,
+        silhouette: DecidedSilhouette,
+        counters: &mut [i32],
+    ) {
+        let g = &ss.graph;
+        let edge = &g.edges[e as usize];
+        let (a, b) = (g.positions[edge.a as usize], g.positions[edge.b as usize]);
+        let (aw, bw) = (a.as_dvec3() - self.pw, b.as_dvec3() - self.pw);
+        let (nrm, nperm, nrm_length) = edge_normal(aw, bw);
+        let weight = silhouette.weight;
+        if silhouette.near {
             self.silhouettes.record(e, nrm / nrm_length);
         }
-        if !(above && below) {
-            return true;
+        if !silhouette.sweep {
+            return;
         }
+        let (a3, b3) = (aw.to_array(), bw.to_array());
         // Side of the centroid, its ties broken by the centroid's
         // infinitesimal move (module docs).
         let cw = self.cp.to_array();
@@ -235,7 +282,6 @@ impl<'a> Kernel<'a> {
             }
         }
         self.unsure += unsure;
-        true
     }
 
     /// Adds the edge's contribution to the samples `lo..hi` (angular order)

@@ -1543,3 +1543,98 @@ fn updated_structures_answer_as_new_ones() {
         }
     }
 }
+
+/// The set-up in `f32` lanes against the scalar set-up, candidate by
+/// candidate: the same counters, silhouette count and recorded silhouettes at
+/// every receiver, on an ordinary scene and on one built so that decisions
+/// sit exactly on their bounds (light vertices on the planes through the
+/// receiver and an edge, receivers on triangles' planes and on edges'
+/// lines), where the lanes must leave them to the scalar set-up. Also that the
+/// lanes decide most candidates where the processor runs AVX. Under Miri
+/// (`make miri`, for the lanes' unsafe loads) on a few receivers only.
+#[test]
+fn miri_lanes_set_up_equals_the_scalar_one() {
+    // Edges along x at height 1; with the receiver at the origin, the light's
+    // corners at y = ±0.5, z = 2 lie on the planes through two of them.
+    let mut soup = Soup::default();
+    for k in 0..6 {
+        let y = -0.375 + 0.125 * k as f32;
+        soup.push([
+            Vec3::new(-1.0, y, 1.0),
+            Vec3::new(1.0, y, 1.0),
+            Vec3::new(0.0, y - 0.0625, 1.0 + 0.25 * (k % 2) as f32),
+        ]);
+    }
+    soup.append(&sphere(Vec3::new(0.3, 0.2, 1.2), 0.2, 8));
+    soup.append(&torus(Vec3::new(-0.4, -0.3, 1.1), 0.25, 0.08, 8));
+    let light = LightPolygon::new(&[
+        Vec3::new(-1.0, -0.5, 2.0),
+        Vec3::new(1.0, -0.5, 2.0),
+        Vec3::new(1.0, 0.5, 2.0),
+        Vec3::new(-1.0, 0.5, 2.0),
+    ])
+    .unwrap();
+    let samples = light.samples(64, SamplePattern::Jittered, 5);
+    let ss = build(&soup, &light, &samples, Structure::BruteForce);
+    let mut receivers = vec![Vec3::ZERO];
+    receivers.extend(receivers_box(
+        Vec3::new(-1.5, -1.5, -0.5),
+        Vec3::new(1.5, 1.5, 0.9),
+        120,
+        17,
+    ));
+    // On triangles' planes and on edges' lines (rounded to f32).
+    let mut rng = SplitMix64::new(23);
+    for t in soup.triangles().iter().step_by(7) {
+        let (s, r) = (rng.next_f64() as f32, rng.next_f64() as f32);
+        receivers.push(t[0] + 2.0 * s * (t[1] - t[0]) + 2.0 * r * (t[2] - t[0]));
+        receivers.push(t[0] + (3.0 * s - 1.0) * (t[1] - t[0]));
+    }
+    let potential: Vec<u32> = ss.potential.clone();
+    let (mut decided, mut lanes) = (0usize, 0usize);
+    let tried = if cfg!(miri) { 2 } else { receivers.len() };
+    for &p in &receivers[..tried] {
+        let n = samples.len();
+        let mut scalar_silhouettes = Silhouettes::new();
+        let mut scalar = Kernel::new(&ss, p, &mut scalar_silhouettes);
+        let mut scalar_counters = vec![0i32; n];
+        let mut scalar_count = 0u32;
+        for &e in &potential {
+            scalar_count += u32::from(scalar.add_edge(&ss, e, &mut scalar_counters));
+        }
+        let mut lane_silhouettes = Silhouettes::new();
+        let mut lane = Kernel::new(&ss, p, &mut lane_silhouettes);
+        let receiver = ss.sweep_receiver(&lane);
+        let mut lane_counters = vec![0i32; n];
+        let mut lane_count = 0u32;
+        let mut chunks = potential.chunks_exact(silhouette_lanes::LANES);
+        for chunk in &mut chunks {
+            let edges: [u32; silhouette_lanes::LANES] = chunk.try_into().unwrap();
+            if let Some(d) = ss.setup_masks(&receiver, &edges) {
+                decided += (!d.undecided & 0xFF).count_ones() as usize;
+                lanes += silhouette_lanes::LANES;
+            }
+            lane_count += ss.sweep_candidates(&mut lane, &receiver, &edges, &mut lane_counters);
+        }
+        for &e in chunks.remainder() {
+            lane_count += u32::from(lane.add_edge(&ss, e, &mut lane_counters));
+        }
+        assert_eq!(lane_counters, scalar_counters, "counters at {p:?}");
+        assert_eq!(lane_count, scalar_count, "silhouettes at {p:?}");
+        let recorded = |s: &Silhouettes| s.recorded().collect::<Vec<_>>();
+        assert_eq!(
+            recorded(&lane_silhouettes),
+            recorded(&scalar_silhouettes),
+            "recorded silhouettes at {p:?}"
+        );
+        assert_eq!(lane_silhouettes.overflow, scalar_silhouettes.overflow);
+    }
+    #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    if crate::simd::avx_available() {
+        assert!(
+            decided * 4 > lanes * 3,
+            "the lanes decided {decided} of {lanes} candidates"
+        );
+    }
+    let _ = (decided, lanes);
+}

@@ -1,0 +1,174 @@
+//! The sweep's per-edge set-up for eight candidate edges at once, in `f32`
+//! lanes ([`crate::simd::avx::silhouette_setup8`]), where the processor runs
+//! AVX.
+//!
+//! A query spends most of its time on the set-up of each candidate: the quick
+//! rejection, the silhouette weight from both third vertices, and the plane
+//! through the receiver and the edge against each light vertex, in `f64` one
+//! edge at a time. The lanes take those decisions for eight candidates at
+//! once, each only where the `f32` value is beyond a bound on its distance
+//! from the `f64` one (and, for the weight, from the exact sign): so every
+//! decision the lanes take is the one [`Kernel::add_edge`] takes. A candidate
+//! with any decision left open (a value within its bound, an edge without
+//! exactly two adjacent triangles) goes through [`Kernel::add_edge`] whole;
+//! a decided silhouette goes on to [`Kernel::add_silhouette`], the same code
+//! as the scalar path's. So the counters, the statistics and the recorded
+//! silhouettes are the scalar sweep's, candidate by candidate, in order.
+
+use super::sweep::DecidedSilhouette;
+use super::*;
+
+/// Candidates set up at once.
+pub(super) const LANES: usize = 8;
+
+/// A receiver as the lanes take it.
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+pub(super) type LaneReceiver = crate::simd::SweepReceiver8;
+/// No lanes here: never made.
+#[cfg(not(all(target_arch = "x86_64", feature = "std")))]
+pub(super) type LaneReceiver = core::convert::Infallible;
+
+/// Per candidate (bit `i` for lane `i`), what the lanes decided.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Decisions {
+    /// Left to [`Kernel::add_edge`] (a value within its bound, or an edge
+    /// without exactly two adjacent triangles).
+    pub(super) undecided: u32,
+    /// Not a silhouette from the receiver, or out of reach: nothing to do.
+    pub(super) idle: u32,
+    /// Of the others (silhouettes of weight ±2), the positive ones.
+    pub(super) positive: u32,
+    /// Of the silhouettes, those recorded as near the light.
+    pub(super) near: u32,
+    /// Of the silhouettes, those swept over the samples.
+    pub(super) sweep: u32,
+}
+
+impl SoftShadows {
+    /// Sweeps the candidate `edges` for `kernel`'s receiver as
+    /// [`Kernel::add_edge`] would one by one, in order; returns how many are
+    /// silhouettes. Without AVX, one by one.
+    pub(super) fn sweep_candidates(
+        &self,
+        kernel: &mut Kernel<'_>,
+        receiver: &Option<LaneReceiver>,
+        edges: &[u32; LANES],
+        counters: &mut [i32],
+    ) -> u32 {
+        if let Some(masks) = self.setup_masks(receiver, edges) {
+            let mut silhouettes = 0;
+            for (i, &e) in edges.iter().enumerate() {
+                let bit = 1 << i;
+                if masks.undecided & bit != 0 {
+                    silhouettes += u32::from(kernel.add_edge(self, e, counters));
+                } else if masks.idle & bit == 0 {
+                    silhouettes += 1;
+                    let silhouette = DecidedSilhouette {
+                        weight: if masks.positive & bit != 0 { 2 } else { -2 },
+                        near: masks.near & bit != 0,
+                        sweep: masks.sweep & bit != 0,
+                    };
+                    kernel.add_silhouette(self, e, silhouette, counters);
+                }
+            }
+            return silhouettes;
+        }
+        edges
+            .iter()
+            .map(|&e| u32::from(kernel.add_edge(self, e, counters)))
+            .sum()
+    }
+
+    /// The lanes' decisions for `edges` at `receiver` (with edges not
+    /// bordered by exactly two triangles undecided), or `None` without a
+    /// receiver (no AVX).
+    pub(super) fn setup_masks(
+        &self,
+        receiver: &Option<LaneReceiver>,
+        edges: &[u32; LANES],
+    ) -> Option<Decisions> {
+        #[cfg(all(target_arch = "x86_64", feature = "std"))]
+        if let Some(receiver) = receiver {
+            let g = &self.graph;
+            let mut corners = crate::simd::EdgeCorners8::default();
+            // Lanes whose edge has not exactly two adjacent triangles.
+            let mut irregular = 0u32;
+            let at = |v: u32| g.positions[v as usize].to_array();
+            for (i, &e) in edges.iter().enumerate() {
+                let edge = &g.edges[e as usize];
+                let (u, v) = match g.third_of(edge) {
+                    &[u, v] => (u, v),
+                    _ => {
+                        irregular |= 1 << i;
+                        (edge.a, edge.b)
+                    }
+                };
+                for (lanes, w) in [
+                    (&mut corners.a, edge.a),
+                    (&mut corners.b, edge.b),
+                    (&mut corners.u, u),
+                    (&mut corners.v, v),
+                ] {
+                    let q = at(w);
+                    for axis in 0..3 {
+                        lanes[axis][i] = q[axis];
+                    }
+                }
+            }
+            #[allow(unsafe_code)]
+            // SAFETY: a receiver is only made where the processor runs AVX
+            // ([`SoftShadows::sweep_receiver`]).
+            let masks = unsafe { crate::simd::avx::silhouette_setup8(receiver, &corners) };
+            let idle = masks.idle & !irregular;
+            return Some(Decisions {
+                undecided: (masks.undecided | irregular) & !idle,
+                idle,
+                positive: masks.positive,
+                near: masks.near,
+                sweep: masks.sweep,
+            });
+        }
+        let _ = (receiver, edges);
+        None
+    }
+
+    /// `kernel`'s receiver for the lanes, or `None` where they do not run (no
+    /// AVX, the slow twin, or values beyond the lanes' range).
+    pub(super) fn sweep_receiver(&self, kernel: &Kernel<'_>) -> Option<LaneReceiver> {
+        #[cfg(all(target_arch = "x86_64", feature = "std"))]
+        {
+            if kernel.slow || !crate::simd::avx_available() {
+                return None;
+            }
+            let f = |v: DVec3| v.as_vec3().to_array();
+            let mut lights = [[0.0; 3]; MAX_LIGHT_VERTICES];
+            let mut light_near = [0.0; MAX_LIGHT_VERTICES];
+            for i in 0..kernel.light_count {
+                lights[i] = f(kernel.lights[i]);
+                light_near[i] = kernel.light_near[i] as f32;
+            }
+            let receiver = crate::simd::SweepReceiver8 {
+                p: kernel.p.to_array(),
+                toward: f(kernel.toward),
+                hc: kernel.hc as f32,
+                cp_max: kernel.cp.abs().max_element() as f32,
+                lights,
+                light_near,
+                light_count: kernel.light_count,
+                tolerance2: (self.shape.tolerance * 2.0) as f32,
+            };
+            // Everything finite in f32 (the bounds need it).
+            let finite = receiver.hc.is_finite()
+                && receiver.cp_max.is_finite()
+                && receiver.tolerance2.is_finite()
+                && receiver.lights.iter().flatten().all(|x| x.is_finite())
+                && receiver.light_near.iter().all(|x| x.is_finite());
+            finite.then_some(receiver)
+        }
+        #[cfg(not(all(target_arch = "x86_64", feature = "std")))]
+        {
+            let _ = kernel;
+            None
+        }
+    }
+}
