@@ -460,10 +460,9 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
     let tolerance2 = splat(receiver.tolerance2);
     let reach_lo = _mm256_mul_ps(_mm256_mul_ps(length_lo, tolerance2), lo);
     let reach_hi = _mm256_mul_ps(_mm256_mul_ps(length_hi, tolerance2), hi);
-    let (mut above, mut maybe_above) = (zero, zero);
-    let (mut below, mut maybe_below) = (zero, zero);
-    let (mut near_above, mut maybe_near_above) = (zero, zero);
-    let (mut near_below, mut maybe_near_below) = (zero, zero);
+    // Over the light's vertices, (certain, possible) for: some vertex above
+    // the plane, some below, some above within the near band, some below it.
+    let mut flags = [(zero, zero); 4];
     let lights = receiver.lights[..receiver.light_count].iter();
     for (l, &near) in lights.zip(&receiver.light_near) {
         let l = l.map(splat);
@@ -507,23 +506,22 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
                 not(_mm256_cmp_ps::<_CMP_GE_OQ>(d_lo, t_hi)),
             )
         };
-        let (certain, possible) = over(err_lo, err_hi);
-        above = _mm256_or_ps(above, certain);
-        maybe_above = _mm256_or_ps(maybe_above, possible);
-        let (certain, possible) = under(err_lo, err_hi);
-        below = _mm256_or_ps(below, certain);
-        maybe_below = _mm256_or_ps(maybe_below, possible);
-        let (certain, possible) = over(near_lo, near_hi);
-        near_above = _mm256_or_ps(near_above, certain);
-        maybe_near_above = _mm256_or_ps(maybe_near_above, possible);
-        let (certain, possible) = under(near_lo, near_hi);
-        near_below = _mm256_or_ps(near_below, certain);
-        maybe_near_below = _mm256_or_ps(maybe_near_below, possible);
+        let tests = [
+            over(err_lo, err_hi),
+            under(err_lo, err_hi),
+            over(near_lo, near_hi),
+            under(near_lo, near_hi),
+        ];
+        for ((certain, possible), (is, may)) in flags.iter_mut().zip(tests) {
+            *certain = _mm256_or_ps(*certain, is);
+            *possible = _mm256_or_ps(*possible, may);
+        }
     }
-    let sweep = _mm256_and_ps(above, below);
-    let maybe_sweep = _mm256_and_ps(maybe_above, maybe_below);
-    let near = _mm256_and_ps(near_above, near_below);
-    let maybe_near = _mm256_and_ps(maybe_near_above, maybe_near_below);
+    let [above, below, near_above, near_below] = flags;
+    let sweep = _mm256_and_ps(above.0, below.0);
+    let maybe_sweep = _mm256_and_ps(above.1, below.1);
+    let near = _mm256_and_ps(near_above.0, near_below.0);
+    let maybe_near = _mm256_and_ps(near_above.1, near_below.1);
     let idle = _mm256_or_ps(rejected, weightless);
     let unsure = _mm256_or_ps(
         _mm256_or_ps(not(weighed), _mm256_andnot_ps(rejected, maybe_rejected)),

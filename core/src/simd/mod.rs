@@ -116,12 +116,12 @@ pub(crate) struct SweepReceiver8 {
     pub tolerance2: f32,
 }
 
-#[cfg(all(target_arch = "x86_64", feature = "std"))]
-/// Per candidate (bit `i` for lane `i`), what [`avx::silhouette_setup8`]
-/// decided.
+/// Per candidate (bit `i` for lane `i`), what the soft-shadow sweep's
+/// set-up in lanes decided (`avx::silhouette_setup8`, where AVX runs).
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct SetupMasks8 {
-    /// Left to the scalar set-up (a sign or comparison within its bound).
+    /// Left to the scalar set-up (a sign or comparison within its bound, or
+    /// an edge without exactly two adjacent triangles).
     pub undecided: u32,
     /// Certainly no silhouette at the receiver, or out of reach.
     pub idle: u32,

@@ -139,18 +139,9 @@ impl SoftShadows {
         counters: &mut [i32],
         info: &mut QueryInfo,
     ) {
+        // Candidates in groups of LANES through the set-up in lanes (one by
+        // one where there are none); the rest one by one.
         let receiver = self.sweep_receiver(&kernel);
-        if receiver.is_none() {
-            self.for_each_candidate(kernel.p, |e: u32| {
-                info.candidates += 1;
-                if kernel.add_edge(self, e, counters) {
-                    info.silhouettes += 1;
-                }
-            });
-            return;
-        }
-        // Candidates in groups of LANES through the set-up in lanes; the
-        // rest one by one.
         let mut batch = [0u32; LANES];
         let mut held = 0;
         self.for_each_candidate(kernel.p, |e: u32| {

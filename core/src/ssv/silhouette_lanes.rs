@@ -15,8 +15,9 @@
 //! as the scalar path's. So the counters, the statistics and the recorded
 //! silhouettes are the scalar sweep's, candidate by candidate, in order.
 
-use super::sweep::DecidedSilhouette;
+use super::sweep::{DecidedSilhouette, EdgeAt};
 use super::*;
+use crate::simd::SetupMasks8;
 
 /// Candidates set up at once.
 pub(super) const LANES: usize = 8;
@@ -27,22 +28,6 @@ pub(super) type LaneReceiver = crate::simd::SweepReceiver8;
 /// No lanes here: never made.
 #[cfg(not(all(target_arch = "x86_64", feature = "std")))]
 pub(super) type LaneReceiver = core::convert::Infallible;
-
-/// Per candidate (bit `i` for lane `i`), what the lanes decided.
-#[derive(Clone, Copy, Debug, Default)]
-pub(super) struct Decisions {
-    /// Left to [`Kernel::add_edge`] (a value within its bound, or an edge
-    /// without exactly two adjacent triangles).
-    pub(super) undecided: u32,
-    /// Not a silhouette from the receiver, or out of reach: nothing to do.
-    pub(super) idle: u32,
-    /// Of the others (silhouettes of weight ±2), the positive ones.
-    pub(super) positive: u32,
-    /// Of the silhouettes, those recorded as near the light.
-    pub(super) near: u32,
-    /// Of the silhouettes, those swept over the samples.
-    pub(super) sweep: u32,
-}
 
 impl SoftShadows {
     /// Sweeps the candidate `edges` for `kernel`'s receiver as
@@ -68,7 +53,13 @@ impl SoftShadows {
                         near: masks.near & bit != 0,
                         sweep: masks.sweep & bit != 0,
                     };
-                    kernel.add_silhouette(self, e, silhouette, counters);
+                    let edge = &self.graph.edges[e as usize];
+                    let at = EdgeAt::new(
+                        self.graph.positions[edge.a as usize],
+                        self.graph.positions[edge.b as usize],
+                        kernel.pw,
+                    );
+                    kernel.add_silhouette(self, e, &at, silhouette, counters);
                 }
             }
             return silhouettes;
@@ -86,7 +77,7 @@ impl SoftShadows {
         &self,
         receiver: &Option<LaneReceiver>,
         edges: &[u32; LANES],
-    ) -> Option<Decisions> {
+    ) -> Option<SetupMasks8> {
         #[cfg(all(target_arch = "x86_64", feature = "std"))]
         if let Some(receiver) = receiver {
             let g = &self.graph;
@@ -120,12 +111,10 @@ impl SoftShadows {
             // ([`SoftShadows::sweep_receiver`]).
             let masks = unsafe { crate::simd::avx::silhouette_setup8(receiver, &corners) };
             let idle = masks.idle & !irregular;
-            return Some(Decisions {
+            return Some(SetupMasks8 {
                 undecided: (masks.undecided | irregular) & !idle,
                 idle,
-                positive: masks.positive,
-                near: masks.near,
-                sweep: masks.sweep,
+                ..masks
             });
         }
         let _ = (receiver, edges);

@@ -58,17 +58,40 @@ pub(super) struct DecidedSilhouette {
     pub(super) sweep: bool,
 }
 
-/// `a' × b'` for endpoints `aw`, `bw` relative to the receiver, its
-/// permanent (`|x₁ y₂| + |x₂ y₁|` per component) and its length.
-#[inline(always)]
-pub(super) fn edge_normal(aw: DVec3, bw: DVec3) -> (DVec3, DVec3, f64) {
-    let nrm = aw.cross(bw);
-    let nperm = DVec3::new(
-        (aw.y * bw.z).abs() + (aw.z * bw.y).abs(),
-        (aw.z * bw.x).abs() + (aw.x * bw.z).abs(),
-        (aw.x * bw.y).abs() + (aw.y * bw.x).abs(),
-    );
-    (nrm, nperm, nrm.length())
+/// An edge seen from the receiver: its endpoints, them relative to the
+/// receiver, `a' × b'`, that product's permanent (`|x₁ y₂| + |x₂ y₁|` per
+/// component) and its length.
+pub(super) struct EdgeAt {
+    pub(super) a: Vec3,
+    pub(super) b: Vec3,
+    pub(super) aw: DVec3,
+    pub(super) bw: DVec3,
+    pub(super) nrm: DVec3,
+    pub(super) nperm: DVec3,
+    pub(super) nrm_length: f64,
+}
+
+impl EdgeAt {
+    /// Edge `a b` seen from `pw`.
+    #[inline(always)]
+    pub(super) fn new(a: Vec3, b: Vec3, pw: DVec3) -> Self {
+        let (aw, bw) = (a.as_dvec3() - pw, b.as_dvec3() - pw);
+        let nrm = aw.cross(bw);
+        let nperm = DVec3::new(
+            (aw.y * bw.z).abs() + (aw.z * bw.y).abs(),
+            (aw.z * bw.x).abs() + (aw.x * bw.z).abs(),
+            (aw.x * bw.y).abs() + (aw.y * bw.x).abs(),
+        );
+        EdgeAt {
+            a,
+            b,
+            aw,
+            bw,
+            nrm,
+            nperm,
+            nrm_length: nrm.length(),
+        }
+    }
 }
 
 #[inline]
@@ -153,7 +176,8 @@ impl<'a> Kernel<'a> {
         if weight == 0 {
             return false;
         }
-        let (nrm, nperm, nrm_length) = edge_normal(aw, bw);
+        let at = EdgeAt::new(a, b, self.pw);
+        let (nrm, nperm, nrm_length) = (at.nrm, at.nperm, at.nrm_length);
         // The plane (p, a, b) must cut the light (grown by its tolerance) for
         // the edge to change a counter, and come within [`NEAR_ANGLE`] of it
         // (seen from p) for a reference segment to pass near the edge.
@@ -175,26 +199,32 @@ impl<'a> Kernel<'a> {
             near: near_above && near_below,
             sweep: above && below,
         };
-        self.add_silhouette(ss, e, silhouette, counters);
+        self.add_silhouette(ss, e, &at, silhouette, counters);
         true
     }
 
-    /// The rest of [`Kernel::add_edge`] for a silhouette edge (weight not
-    /// zero) whose set-up is decided: recorded when near the light, swept
-    /// over the samples when its plane cuts the light.
+    /// The rest of [`Kernel::add_edge`] for silhouette edge `e` (weight not
+    /// zero), seen from the receiver as `at`, whose set-up is decided:
+    /// recorded when near the light, swept over the samples when its plane
+    /// cuts the light.
     #[inline(always)]
     pub(super) fn add_silhouette(
         &mut self,
         ss: &SoftShadows,
         e: u32,
+        at: &EdgeAt,
         silhouette: DecidedSilhouette,
         counters: &mut [i32],
     ) {
-        let g = &ss.graph;
-        let edge = &g.edges[e as usize];
-        let (a, b) = (g.positions[edge.a as usize], g.positions[edge.b as usize]);
-        let (aw, bw) = (a.as_dvec3() - self.pw, b.as_dvec3() - self.pw);
-        let (nrm, nperm, nrm_length) = edge_normal(aw, bw);
+        let &EdgeAt {
+            a,
+            b,
+            aw,
+            bw,
+            nrm,
+            nperm,
+            nrm_length,
+        } = at;
         let weight = silhouette.weight;
         if silhouette.near {
             self.silhouettes.record(e, nrm / nrm_length);

@@ -843,15 +843,11 @@ fn hemicube_lists_every_relevant_edge() {
     assert!(listed > 0);
 }
 
-/// The branch-free sample pass against its slow twin (every sample through the
-/// per-sample certified test): equal counters, on a scene built so that many
-/// samples lie exactly on a projected silhouette edge (the plane through the
-/// receiver and the edge holds them), where the float filters cannot decide
-/// and the exact path must; and on an ordinary scene.
-#[test]
-fn branch_free_sample_pass_equals_the_per_sample_test() {
-    // Receivers at the origin-ish, edges at height 1 along x, samples on the
-    // light at height 2 exactly on the lines the edges project to (y' = 2 y).
+/// Six triangles whose edges run along x at height 1 (at `y = -0.375 +
+/// 0.125 k`), so that from the origin they project onto the plane `z = 2` at
+/// `y = 2 y_k`, and a small sphere beside them: a scene whose decisions can be
+/// put exactly on their bounds.
+fn edges_along_x() -> Soup {
     let mut soup = Soup::default();
     for k in 0..6 {
         let y = -0.375 + 0.125 * k as f32;
@@ -862,6 +858,19 @@ fn branch_free_sample_pass_equals_the_per_sample_test() {
         ]);
     }
     soup.append(&sphere(Vec3::new(0.3, 0.2, 1.2), 0.2, 8));
+    soup
+}
+
+/// The branch-free sample pass against its slow twin (every sample through the
+/// per-sample certified test): equal counters, on a scene built so that many
+/// samples lie exactly on a projected silhouette edge (the plane through the
+/// receiver and the edge holds them), where the float filters cannot decide
+/// and the exact path must; and on an ordinary scene.
+#[test]
+fn branch_free_sample_pass_equals_the_per_sample_test() {
+    // Receivers at the origin-ish, edges at height 1 along x, samples on the
+    // light at height 2 exactly on the lines the edges project to (y' = 2 y).
+    let soup = edges_along_x();
     let light = LightPolygon::new(&[
         Vec3::new(-1.0, -0.9, 2.0),
         Vec3::new(1.0, -0.9, 2.0),
@@ -1556,16 +1565,7 @@ fn updated_structures_answer_as_new_ones() {
 fn miri_lanes_set_up_equals_the_scalar_one() {
     // Edges along x at height 1; with the receiver at the origin, the light's
     // corners at y = ±0.5, z = 2 lie on the planes through two of them.
-    let mut soup = Soup::default();
-    for k in 0..6 {
-        let y = -0.375 + 0.125 * k as f32;
-        soup.push([
-            Vec3::new(-1.0, y, 1.0),
-            Vec3::new(1.0, y, 1.0),
-            Vec3::new(0.0, y - 0.0625, 1.0 + 0.25 * (k % 2) as f32),
-        ]);
-    }
-    soup.append(&sphere(Vec3::new(0.3, 0.2, 1.2), 0.2, 8));
+    let mut soup = edges_along_x();
     soup.append(&torus(Vec3::new(-0.4, -0.3, 1.1), 0.25, 0.08, 8));
     let light = LightPolygon::new(&[
         Vec3::new(-1.0, -0.5, 2.0),
