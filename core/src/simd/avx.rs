@@ -4,16 +4,15 @@
 
 use core::arch::x86_64::{
     __m256, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm256_add_ps,
-    _mm256_and_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_max_ps,
-    _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps, _mm256_set1_ps, _mm256_setzero_ps,
-    _mm256_sqrt_ps, _mm256_sub_ps,
+    _mm256_and_ps, _mm256_andnot_ps, _mm256_blendv_ps, _mm256_cmp_ps, _mm256_div_ps,
+    _mm256_loadu_ps, _mm256_max_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps,
+    _mm256_set1_ps, _mm256_setzero_ps, _mm256_sqrt_ps, _mm256_storeu_ps, _mm256_sub_ps,
+    _mm256_xor_ps,
 };
 
-use super::{EdgeCorners8, SetupMasks8, SweepReceiver8};
+use super::{EdgeCorners8, EdgePlanes8, SetupMasks8, SweepPlanes8, SweepReceiver8};
 #[cfg(feature = "bvh")]
-use core::arch::x86_64::{
-    _mm_loadu_ps, _mm256_div_ps, _mm256_min_ps, _mm256_set_m128, _mm256_storeu_ps,
-};
+use core::arch::x86_64::{_mm_loadu_ps, _mm256_min_ps, _mm256_set_m128};
 
 #[cfg(feature = "bvh")]
 use glam::Vec4;
@@ -538,5 +537,307 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
         positive: mask(u_pos),
         near: mask(near),
         sweep: mask(sweep),
+    }
+}
+
+/// Magnitude above which [`silhouette_planes8`] leaves a lane undecided: with
+/// every difference below it, no product of three overflows and an underflow
+/// changes a value by far less than [`FLOOR`].
+const PLANE_RANGE: f32 = 1e8;
+
+/// Relative bound, against the computed `|det| + |vs| + |va| + |vb|`, on the
+/// rounding of [`crossings8`]'s three-term sum (about `3u`).
+const SUM_BOUND: f32 = 8.0 * U;
+
+/// The rest of the sweep's set-up ([`Kernel::add_silhouette`](crate::ssv))
+/// for eight silhouette edges at `receiver`, in `f32` lanes: the planes of
+/// the per-sample crossing test and the side of the light's centroid `c`,
+/// and the arc of samples the edge may cross.
+///
+/// The planes are `(a - p) × (b - a)`, `(a - p) × (c - a)` and
+/// `(b - p) × (c - b)`, which equal `(a - p) × (b - p)`, `(a - p) × (c - p)`
+/// and `(b - p) × (c - p)` exactly; each value `v · s'` (for any sample's
+/// rounded `s'`) is within [`SIDE_BOUND`] times its permanent, bounded with
+/// the samples' largest `|s'|`, of the exact determinant (the roundings are
+/// those of [`SIDE_BOUND`]'s determinant). A lane is `decided` when its
+/// values are in range and the centroid's side is certain.
+///
+/// The arc: each endpoint projected from the receiver onto the light's plane
+/// and taken in its axes, with a bound `e` on each coordinate's distance from
+/// the exact projection (the heights' relative error, then about `6u` more
+/// per operation, doubled). It is used only where both endpoints are above
+/// the receiver by `10⁻³` of the centroid's height beyond their error, each
+/// projection is at least `64 e` from the centroid (so its angle is within
+/// `1.5 e / r` radians, as a pseudo-angle changes by at most one unit per
+/// radian) and the sign of the cross product of the two projections is
+/// certain (so the short way round is the exact one). The margin is twice
+/// the angles' bounds, the samples' shift off the plane, and `4 · 10⁻⁶` for
+/// the pseudo-angles' own rounding (under `10⁻⁶` each).
+#[target_feature(enable = "avx")]
+#[inline]
+pub(crate) fn silhouette_planes8(
+    receiver: &SweepReceiver8,
+    corners: &EdgeCorners8,
+) -> SweepPlanes8 {
+    let splat = |x: f32| _mm256_set1_ps(x);
+    let zero = _mm256_setzero_ps();
+    let abs = |v: __m256| _mm256_andnot_ps(splat(-0.0), v);
+    let floor = splat(FLOOR);
+    let dot = |x: [__m256; 3], y: [__m256; 3]| {
+        _mm256_add_ps(
+            _mm256_add_ps(_mm256_mul_ps(x[0], y[0]), _mm256_mul_ps(x[1], y[1])),
+            _mm256_mul_ps(x[2], y[2]),
+        )
+    };
+    let sum = |v: [__m256; 3]| _mm256_add_ps(_mm256_add_ps(v[0], v[1]), v[2]);
+    let lanes = |w: &[[f32; 8]; 3]| -> [__m256; 3] { core::array::from_fn(|i| load(&w[i])) };
+    let minus = |x: [__m256; 3], y: [__m256; 3]| -> [__m256; 3] {
+        core::array::from_fn(|i| _mm256_sub_ps(x[i], y[i]))
+    };
+    let (a, b) = (lanes(&corners.a), lanes(&corners.b));
+    let p = receiver.p.map(splat);
+    let c = receiver.centroid.map(splat);
+    let (x, y) = (minus(a, p), minus(b, p));
+    let (e, ca, cb) = (minus(b, a), minus(c, a), minus(c, b));
+    let pairs = [(1, 2), (2, 0), (0, 1)];
+    let cross = |x: [__m256; 3], y: [__m256; 3]| {
+        pairs.map(|(j, k)| _mm256_sub_ps(_mm256_mul_ps(x[j], y[k]), _mm256_mul_ps(x[k], y[j])))
+    };
+    let permanent = |x: [__m256; 3], y: [__m256; 3]| {
+        pairs.map(|(j, k)| {
+            _mm256_add_ps(
+                abs(_mm256_mul_ps(x[j], y[k])),
+                abs(_mm256_mul_ps(x[k], y[j])),
+            )
+        })
+    };
+    let (nrm, amat, bmat) = (cross(x, e), cross(x, ca), cross(y, cb));
+    let nperm = permanent(x, e);
+    let smax = receiver.smax.map(splat);
+    let bound = |perm: __m256| _mm256_add_ps(_mm256_mul_ps(splat(SIDE_BOUND), perm), floor);
+    let det = dot(nrm, ca);
+    let err_c = bound(dot(nperm, ca.map(abs)));
+    let errs = [
+        bound(dot(nperm, smax)),
+        bound(dot(permanent(x, ca), smax)),
+        bound(dot(permanent(y, cb), smax)),
+        err_c,
+    ];
+    let largest = |w: [__m256; 3]| _mm256_max_ps(_mm256_max_ps(abs(w[0]), abs(w[1])), abs(w[2]));
+    let range = [x, y, e, ca, cb]
+        .into_iter()
+        .fold(zero, |m, w| _mm256_max_ps(m, largest(w)));
+    // NaN compares false: such a lane is out of range too.
+    let in_range = _mm256_cmp_ps::<_CMP_LT_OQ>(range, splat(PLANE_RANGE));
+    let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(det, err_c);
+    let negative = _mm256_cmp_ps::<_CMP_LT_OQ>(det, _mm256_sub_ps(zero, err_c));
+    let decided = _mm256_and_ps(in_range, _mm256_or_ps(positive, negative));
+    let mask = |m: __m256| _mm256_movemask_ps(m) as u32;
+    let mut out = SweepPlanes8 {
+        decided: mask(decided),
+        centroid_positive: mask(positive),
+        ..SweepPlanes8::default()
+    };
+    let store = |to: &mut [f32; 8], v: __m256| {
+        // SAFETY: `to` is eight writable, contiguous `f32`; the store is
+        // unaligned.
+        unsafe { _mm256_storeu_ps(to.as_mut_ptr(), v) }
+    };
+    for axis in 0..3 {
+        store(&mut out.nrm[axis], nrm[axis]);
+        store(&mut out.amat[axis], amat[axis]);
+        store(&mut out.bmat[axis], bmat[axis]);
+    }
+    store(&mut out.det, det);
+    for (to, v) in out.errs.iter_mut().zip(errs) {
+        store(to, v);
+    }
+    let Some(shift_margin) = receiver.shift_margin else {
+        return out;
+    };
+    // The arc.
+    let toward = receiver.toward.map(splat);
+    let (hc, cp) = (splat(receiver.hc), receiver.cp.map(splat));
+    let (u_axis, v_axis) = (receiver.u_axis.map(splat), receiver.v_axis.map(splat));
+    let cp_norm = sum(cp.map(abs));
+    let u = splat(U);
+    // Per endpoint: the projection's coordinates, their bound, the lower
+    // bound of the distance from the centroid, and whether it is usable.
+    let project = |w: [__m256; 3]| {
+        let h = dot(w, toward);
+        let h_err = _mm256_add_ps(
+            _mm256_mul_ps(splat(HEIGHT_BOUND), dot(w.map(abs), toward.map(abs))),
+            floor,
+        );
+        let h_lo = _mm256_sub_ps(h, h_err);
+        let above = _mm256_cmp_ps::<_CMP_GT_OQ>(h_lo, _mm256_mul_ps(splat(1e-3), hc));
+        let relative = _mm256_div_ps(h_err, h_lo);
+        let scale = _mm256_div_ps(hc, h);
+        let q: [__m256; 3] =
+            core::array::from_fn(|i| _mm256_sub_ps(_mm256_mul_ps(w[i], scale), cp[i]));
+        let (qx, qy) = (dot(q, u_axis), dot(q, v_axis));
+        let err = _mm256_add_ps(
+            _mm256_mul_ps(
+                splat(2.0),
+                _mm256_add_ps(
+                    _mm256_mul_ps(
+                        _mm256_add_ps(relative, _mm256_mul_ps(splat(8.0), u)),
+                        _mm256_mul_ps(scale, sum(w.map(abs))),
+                    ),
+                    _mm256_mul_ps(
+                        _mm256_mul_ps(splat(8.0), u),
+                        _mm256_add_ps(cp_norm, sum(q.map(abs))),
+                    ),
+                ),
+            ),
+            floor,
+        );
+        let r = _mm256_sub_ps(_mm256_max_ps(abs(qx), abs(qy)), err);
+        let far = _mm256_cmp_ps::<_CMP_GE_OQ>(r, _mm256_mul_ps(splat(64.0), err));
+        // The pseudo-angle, branch-free.
+        let t = _mm256_div_ps(qy, _mm256_add_ps(abs(qx), abs(qy)));
+        let x_neg = _mm256_cmp_ps::<_CMP_LT_OQ>(qx, zero);
+        let t_neg = _mm256_cmp_ps::<_CMP_LT_OQ>(t, zero);
+        let right = _mm256_blendv_ps(t, _mm256_add_ps(splat(4.0), t), t_neg);
+        let angle = _mm256_blendv_ps(right, _mm256_sub_ps(splat(2.0), t), x_neg);
+        (qx, qy, err, r, _mm256_and_ps(above, far), angle)
+    };
+    let (xa, ya, ea, ra, usable_a, pa) = project(x);
+    let (xb, yb, eb, rb, usable_b, pb) = project(y);
+    let turn = _mm256_sub_ps(_mm256_mul_ps(xa, yb), _mm256_mul_ps(ya, xb));
+    let turn_err = _mm256_mul_ps(
+        splat(2.0),
+        _mm256_add_ps(
+            _mm256_add_ps(
+                _mm256_mul_ps(ea, _mm256_add_ps(_mm256_add_ps(abs(xb), abs(yb)), eb)),
+                _mm256_mul_ps(eb, _mm256_add_ps(_mm256_add_ps(abs(xa), abs(ya)), ea)),
+            ),
+            _mm256_mul_ps(
+                _mm256_mul_ps(splat(3.0), u),
+                _mm256_add_ps(abs(_mm256_mul_ps(xa, yb)), abs(_mm256_mul_ps(ya, xb))),
+            ),
+        ),
+    );
+    let certain_turn = _mm256_cmp_ps::<_CMP_GT_OQ>(abs(turn), turn_err);
+    let margin = _mm256_add_ps(
+        _mm256_mul_ps(
+            splat(2.0),
+            _mm256_add_ps(_mm256_div_ps(ea, ra), _mm256_div_ps(eb, rb)),
+        ),
+        splat(shift_margin + 4e-6),
+    );
+    // Counter-clockwise from the first to the second is the short way.
+    let counter_clockwise = _mm256_cmp_ps::<_CMP_GT_OQ>(turn, zero);
+    let from = _mm256_blendv_ps(pb, pa, counter_clockwise);
+    let to = _mm256_blendv_ps(pa, pb, counter_clockwise);
+    let wrap = |t: __m256| {
+        let low = _mm256_cmp_ps::<_CMP_LT_OQ>(t, zero);
+        let high = _mm256_cmp_ps::<_CMP_GE_OQ>(t, splat(4.0));
+        let t = _mm256_blendv_ps(t, _mm256_add_ps(t, splat(4.0)), low);
+        _mm256_blendv_ps(t, _mm256_sub_ps(t, splat(4.0)), high)
+    };
+    store(&mut out.lo, wrap(_mm256_sub_ps(from, margin)));
+    store(&mut out.hi, wrap(_mm256_add_ps(to, margin)));
+    // A margin of a quarter turn or more (or NaN) is no arc worth taking.
+    let narrow = _mm256_cmp_ps::<_CMP_LT_OQ>(margin, splat(1.0));
+    let arc = _mm256_and_ps(
+        _mm256_and_ps(usable_a, usable_b),
+        _mm256_and_ps(certain_turn, narrow),
+    );
+    out.arc = mask(arc) & out.decided;
+    out
+}
+
+/// The per-sample pass of the sweep ([`Kernel::run`](crate::ssv)'s
+/// classification) for one edge over the samples `lo..hi` of `soa` (their
+/// coordinates by axis, padded with readable entries to a multiple of eight),
+/// eight samples at a time in `f32`: `visit(i, true)` for every sample `i`
+/// the edge certainly crosses, `visit(i, false)` for every one the `f32`
+/// signs leave unsure (none is certainly not crossed and some sign is within
+/// its bound); nothing for the others. Each sign is taken only beyond
+/// `edge`'s bound on its distance from the exact value
+/// ([`silhouette_planes8`]), the sum's with [`SUM_BOUND`] more, so a sample
+/// said crossed is crossed exactly and one said not is not.
+#[target_feature(enable = "avx")]
+#[inline]
+pub(crate) fn crossings8(
+    edge: &EdgePlanes8,
+    p: [f32; 3],
+    soa: [&[f32]; 3],
+    lo: usize,
+    hi: usize,
+    mut visit: impl FnMut(usize, bool),
+) {
+    let splat = |x: f32| _mm256_set1_ps(x);
+    let zero = _mm256_setzero_ps();
+    let abs = |v: __m256| _mm256_andnot_ps(splat(-0.0), v);
+    let dot = |x: [__m256; 3], y: [__m256; 3]| {
+        _mm256_add_ps(
+            _mm256_add_ps(_mm256_mul_ps(x[0], y[0]), _mm256_mul_ps(x[1], y[1])),
+            _mm256_mul_ps(x[2], y[2]),
+        )
+    };
+    let (nrm, amat, bmat) = (
+        edge.nrm.map(splat),
+        edge.amat.map(splat),
+        edge.bmat.map(splat),
+    );
+    let det = splat(edge.det);
+    let det_abs = splat(edge.det.abs());
+    let [err_n, err_a, err_b, err_base] = edge.errs.map(splat);
+    let (neg_n, neg_a, neg_b) = (
+        _mm256_sub_ps(zero, err_n),
+        _mm256_sub_ps(zero, err_a),
+        _mm256_sub_ps(zero, err_b),
+    );
+    // The wanted side made positive by flipping signs.
+    let flip = splat(if edge.want { 0.0 } else { -0.0 });
+    let p = p.map(splat);
+    let mut base = lo & !7;
+    while base < hi {
+        let at = |axis: usize| -> __m256 {
+            let eight: &[f32; 8] = soa[axis][base..base + 8]
+                .try_into()
+                .expect("eight coordinates");
+            _mm256_sub_ps(load(eight), p[axis])
+        };
+        let s = [at(0), at(1), at(2)];
+        let (vs, va, vb) = (dot(nrm, s), dot(amat, s), dot(bmat, s));
+        let vo = _mm256_sub_ps(_mm256_add_ps(_mm256_sub_ps(det, vs), va), vb);
+        let err_o = _mm256_add_ps(
+            err_base,
+            _mm256_mul_ps(
+                splat(SUM_BOUND),
+                _mm256_add_ps(
+                    _mm256_add_ps(det_abs, abs(vs)),
+                    _mm256_add_ps(abs(va), abs(vb)),
+                ),
+            ),
+        );
+        let (sg, og) = (_mm256_xor_ps(vs, flip), _mm256_xor_ps(vo, flip));
+        let gt = |v: __m256, t: __m256| _mm256_cmp_ps::<_CMP_GT_OQ>(v, t);
+        let lt = |v: __m256, t: __m256| _mm256_cmp_ps::<_CMP_LT_OQ>(v, t);
+        let (a_pos, a_neg) = (gt(va, err_a), lt(va, neg_a));
+        let (b_pos, b_neg) = (gt(vb, err_b), lt(vb, neg_b));
+        let apart = _mm256_or_ps(_mm256_and_ps(a_pos, b_neg), _mm256_and_ps(a_neg, b_pos));
+        let together = _mm256_or_ps(_mm256_and_ps(a_pos, b_pos), _mm256_and_ps(a_neg, b_neg));
+        let hit = _mm256_and_ps(_mm256_and_ps(gt(sg, err_n), gt(og, err_o)), apart);
+        let reject = _mm256_or_ps(
+            _mm256_or_ps(lt(sg, neg_n), lt(og, _mm256_sub_ps(zero, err_o))),
+            together,
+        );
+        // Lanes of `lo..hi` only.
+        let first = lo.saturating_sub(base);
+        let past = (hi - base).min(8);
+        let inside = (0xFFu32 << first) & (0xFFu32 >> (8 - past));
+        let hits = _mm256_movemask_ps(hit) as u32 & inside;
+        let unsure = !(_mm256_movemask_ps(_mm256_or_ps(hit, reject)) as u32) & inside;
+        let mut bits = hits | unsure;
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            visit(base + i, hits >> i & 1 == 1);
+            bits &= bits - 1;
+        }
+        base += 8;
     }
 }

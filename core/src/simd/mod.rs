@@ -1,7 +1,9 @@
 //! The only place for hand-written intrinsics. Each kernel here computes, lane by
 //! lane, exactly the `f32` operations of a portable twin elsewhere in the crate
-//! (named in its docs) and is tested against it bit for bit; callers pick a kernel
-//! here only after [`avx_available`] said the processor runs it.
+//! (named in its docs) and is tested against it bit for bit, or (the soft-shadow
+//! sweep's kernels) takes only the decisions a bound on its rounding certifies
+//! and is tested against the exact path; callers pick a kernel here only after
+//! [`avx_available`] said the processor runs it.
 
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
 pub(crate) mod avx;
@@ -114,10 +116,87 @@ pub(crate) struct SweepReceiver8 {
     pub light_count: usize,
     /// Twice the light's tolerance.
     pub tolerance2: f32,
+    /// The light's centroid (the sweep's `f32` one, exactly).
+    pub centroid: [f32; 3],
+    /// The centroid relative to the receiver.
+    pub cp: [f32; 3],
+    /// The light plane's in-plane axes (pseudo-angles are taken in them).
+    pub u_axis: [f32; 3],
+    pub v_axis: [f32; 3],
+    /// Per axis, the largest `|s - p|` over the samples, each difference
+    /// rounded to `f32` (so a bound on every rounded difference).
+    pub smax: [f32; 3],
+    /// The arc's margin for samples off the light's plane (at least the
+    /// sweep's `f64` one), or `None` where the sweep uses no arcs.
+    pub shift_margin: Option<f32>,
+}
+
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+/// What [`avx::silhouette_planes8`] found for eight silhouette edges: the
+/// planes of each edge's per-sample crossing test in `f32` with bounds on
+/// their distance from the exact values, and the arc of samples to test.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(32))]
+pub(crate) struct SweepPlanes8 {
+    /// `(a - p) × (b - p)`, `(a - p) × (c - p)`, `(b - p) × (c - p)` per
+    /// axis and lane.
+    pub nrm: [[f32; 8]; 3],
+    pub amat: [[f32; 8]; 3],
+    pub bmat: [[f32; 8]; 3],
+    /// `det[a - p, b - p, c - p]` per lane.
+    pub det: [f32; 8],
+    /// Bounds on the distance of `nrm · s'`, `amat · s'`, `bmat · s'` (any
+    /// sample's rounded `s' = s - p`) and of `det` from their exact values.
+    pub errs: [[f32; 8]; 4],
+    /// The arc's pseudo-angle range `[lo, hi]` (cyclic), where `arc` says so.
+    pub lo: [f32; 8],
+    pub hi: [f32; 8],
+    /// Lanes whose planes are finite and whose centroid side is certain.
+    pub decided: u32,
+    /// Of those, the centroid is on the positive side of the plane `(p, a, b)`.
+    pub centroid_positive: u32,
+    /// Lanes whose arc is certain to hold every sample the edge may cross.
+    pub arc: u32,
+}
+
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+/// One silhouette edge's planes from [`SweepPlanes8`], as the per-sample pass
+/// [`avx::crossings8`] takes them.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct EdgePlanes8 {
+    pub nrm: [f32; 3],
+    pub amat: [f32; 3],
+    pub bmat: [f32; 3],
+    pub det: f32,
+    /// The bounds of `nrm · s'`, `amat · s'`, `bmat · s'`, and the sum of
+    /// those three and `det`'s.
+    pub errs: [f32; 4],
+    /// The wanted side (opposite the centroid's) is the positive one.
+    pub want: bool,
+}
+
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+impl SweepPlanes8 {
+    /// Lane `i`'s planes.
+    #[inline]
+    pub(crate) fn lane(&self, i: usize) -> EdgePlanes8 {
+        let [en, ea, eb, ec] = self.errs.map(|e| e[i]);
+        EdgePlanes8 {
+            nrm: self.nrm.map(|v| v[i]),
+            amat: self.amat.map(|v| v[i]),
+            bmat: self.bmat.map(|v| v[i]),
+            det: self.det[i],
+            // Four positive terms: their rounded sum is within `2u` of the
+            // exact one, far inside the bounds' own slack.
+            errs: [en, ea, eb, (ec + en + ea + eb) * (1.0 + 4.0 * f32::EPSILON)],
+            want: self.centroid_positive >> i & 1 == 0,
+        }
+    }
 }
 
 /// Per candidate (bit `i` for lane `i`), what the soft-shadow sweep's
 /// set-up in lanes decided (`avx::silhouette_setup8`, where AVX runs).
+#[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct SetupMasks8 {
     /// Left to the scalar set-up (a sign or comparison within its bound, or

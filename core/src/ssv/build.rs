@@ -180,6 +180,8 @@ struct SampleOrder {
     insets: Vec<f64>,
     /// x, y and z of the samples in `order`.
     soa: [Vec<f64>; 3],
+    /// The same in `f32`, padded to a multiple of eight.
+    soa32: [Vec<f32>; 3],
     /// The samples' bounding box.
     bounds: (DVec3, DVec3),
 }
@@ -234,6 +236,13 @@ impl SampleOrder {
             fallible::collect(order.iter().map(|&o| f64::from(samples[o as usize][axis])))
         };
         let soa = [axis(0)?, axis(1)?, axis(2)?];
+        let padded = order.len().next_multiple_of(8);
+        let axis32 = |axis: usize| {
+            fallible::collect(
+                (0..padded).map(|k| order.get(k).map_or(0.0, |&o| samples[o as usize][axis])),
+            )
+        };
+        let soa32 = [axis32(0)?, axis32(1)?, axis32(2)?];
         let bounds = samples.iter().fold(
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), s| (lo.min(s.as_dvec3()), hi.max(s.as_dvec3())),
@@ -251,6 +260,7 @@ impl SampleOrder {
             offset,
             insets,
             soa,
+            soa32,
             bounds,
         })
     }
@@ -359,6 +369,7 @@ impl SoftShadows {
             occluder_box,
             insets: sampled.insets,
             soa: sampled.soa,
+            soa32: sampled.soa32,
             near_sides,
             band_sides,
             near_planes,

@@ -12,11 +12,18 @@
 //! with any decision left open (a value within its bound, an edge without
 //! exactly two adjacent triangles) goes through [`Kernel::add_edge`] whole;
 //! a decided silhouette goes on to [`Kernel::add_silhouette`], the same code
-//! as the scalar path's. So the counters, the statistics and the recorded
-//! silhouettes are the scalar sweep's, candidate by candidate, in order.
+//! as the scalar path's, or, where the lanes decide its planes too
+//! ([`crate::simd::avx::silhouette_planes8`]: the planes of the per-sample
+//! test, the centroid's side and the arc, each with a bound on its rounding),
+//! to [`Kernel::add_lane_silhouette`], whose `f32` sample pass counts exactly
+//! the samples [`Kernel::crosses`] would. So the counters, the statistics and
+//! the recorded silhouettes are the scalar sweep's, candidate by candidate,
+//! in order.
 
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
 use super::sweep::{DecidedSilhouette, EdgeAt};
 use super::*;
+#[cfg(any(test, all(target_arch = "x86_64", feature = "std")))]
 use crate::simd::SetupMasks8;
 
 /// Candidates set up at once.
@@ -40,30 +47,50 @@ impl SoftShadows {
         edges: &[u32; LANES],
         counters: &mut [i32],
     ) -> u32 {
-        if let Some(masks) = self.setup_masks(receiver, edges) {
+        #[cfg(all(target_arch = "x86_64", feature = "std"))]
+        if let Some(receiver) = receiver {
+            let corners = self.lane_corners(edges);
+            let masks = lane_masks(receiver, &corners);
+            // The swept silhouettes' planes and arcs in lanes too.
+            let swept = masks.sweep & !masks.undecided & !masks.idle;
+            #[allow(unsafe_code)]
+            // SAFETY: a receiver is only made where the processor runs AVX
+            // ([`SoftShadows::sweep_receiver`]).
+            let planes = (swept != 0)
+                .then(|| unsafe { crate::simd::avx::silhouette_planes8(receiver, &corners.0) });
             let mut silhouettes = 0;
             for (i, &e) in edges.iter().enumerate() {
                 let bit = 1 << i;
                 if masks.undecided & bit != 0 {
                     silhouettes += u32::from(kernel.add_edge(self, e, counters));
-                } else if masks.idle & bit == 0 {
-                    silhouettes += 1;
-                    let silhouette = DecidedSilhouette {
-                        weight: if masks.positive & bit != 0 { 2 } else { -2 },
-                        near: masks.near & bit != 0,
-                        sweep: masks.sweep & bit != 0,
-                    };
-                    let edge = &self.graph.edges[e as usize];
-                    let at = EdgeAt::new(
-                        self.graph.positions[edge.a as usize],
-                        self.graph.positions[edge.b as usize],
-                        kernel.pw,
-                    );
-                    kernel.add_silhouette(self, e, &at, silhouette, counters);
+                    continue;
                 }
+                if masks.idle & bit != 0 {
+                    continue;
+                }
+                silhouettes += 1;
+                let silhouette = DecidedSilhouette {
+                    weight: if masks.positive & bit != 0 { 2 } else { -2 },
+                    near: masks.near & bit != 0,
+                    sweep: masks.sweep & bit != 0,
+                };
+                if let Some(planes) = &planes
+                    && planes.decided & swept & bit != 0
+                {
+                    kernel.add_lane_silhouette(self, e, silhouette, planes, i, counters);
+                    continue;
+                }
+                let edge = &self.graph.edges[e as usize];
+                let at = EdgeAt::new(
+                    self.graph.positions[edge.a as usize],
+                    self.graph.positions[edge.b as usize],
+                    kernel.pw,
+                );
+                kernel.add_silhouette(self, e, &at, silhouette, counters);
             }
             return silhouettes;
         }
+        let _ = receiver;
         edges
             .iter()
             .map(|&e| u32::from(kernel.add_edge(self, e, counters)))
@@ -73,6 +100,7 @@ impl SoftShadows {
     /// The lanes' decisions for `edges` at `receiver` (with edges not
     /// bordered by exactly two triangles undecided), or `None` without a
     /// receiver (no AVX).
+    #[cfg(test)]
     pub(super) fn setup_masks(
         &self,
         receiver: &Option<LaneReceiver>,
@@ -80,45 +108,43 @@ impl SoftShadows {
     ) -> Option<SetupMasks8> {
         #[cfg(all(target_arch = "x86_64", feature = "std"))]
         if let Some(receiver) = receiver {
-            let g = &self.graph;
-            let mut corners = crate::simd::EdgeCorners8::default();
-            // Lanes whose edge has not exactly two adjacent triangles.
-            let mut irregular = 0u32;
-            let at = |v: u32| g.positions[v as usize].to_array();
-            for (i, &e) in edges.iter().enumerate() {
-                let edge = &g.edges[e as usize];
-                let (u, v) = match g.third_of(edge) {
-                    &[u, v] => (u, v),
-                    _ => {
-                        irregular |= 1 << i;
-                        (edge.a, edge.b)
-                    }
-                };
-                for (lanes, w) in [
-                    (&mut corners.a, edge.a),
-                    (&mut corners.b, edge.b),
-                    (&mut corners.u, u),
-                    (&mut corners.v, v),
-                ] {
-                    let q = at(w);
-                    for axis in 0..3 {
-                        lanes[axis][i] = q[axis];
-                    }
-                }
-            }
-            #[allow(unsafe_code)]
-            // SAFETY: a receiver is only made where the processor runs AVX
-            // ([`SoftShadows::sweep_receiver`]).
-            let masks = unsafe { crate::simd::avx::silhouette_setup8(receiver, &corners) };
-            let idle = masks.idle & !irregular;
-            return Some(SetupMasks8 {
-                undecided: (masks.undecided | irregular) & !idle,
-                idle,
-                ..masks
-            });
+            return Some(lane_masks(receiver, &self.lane_corners(edges)));
         }
         let _ = (receiver, edges);
         None
+    }
+
+    /// The corners of `edges` by lane, and the lanes whose edge has not
+    /// exactly two adjacent triangles (their third vertices are the edge's
+    /// own endpoints).
+    #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    pub(super) fn lane_corners(&self, edges: &[u32; LANES]) -> (crate::simd::EdgeCorners8, u32) {
+        let g = &self.graph;
+        let mut corners = crate::simd::EdgeCorners8::default();
+        let mut irregular = 0u32;
+        let at = |v: u32| g.positions[v as usize].to_array();
+        for (i, &e) in edges.iter().enumerate() {
+            let edge = &g.edges[e as usize];
+            let (u, v) = match g.third_of(edge) {
+                &[u, v] => (u, v),
+                _ => {
+                    irregular |= 1 << i;
+                    (edge.a, edge.b)
+                }
+            };
+            for (lanes, w) in [
+                (&mut corners.a, edge.a),
+                (&mut corners.b, edge.b),
+                (&mut corners.u, u),
+                (&mut corners.v, v),
+            ] {
+                let q = at(w);
+                for axis in 0..3 {
+                    lanes[axis][i] = q[axis];
+                }
+            }
+        }
+        (corners, irregular)
     }
 
     /// `kernel`'s receiver for the lanes, or `None` where they do not run (no
@@ -145,13 +171,29 @@ impl SoftShadows {
                 light_near,
                 light_count: kernel.light_count,
                 tolerance2: (self.shape.tolerance * 2.0) as f32,
+                centroid: self.centroid.to_array(),
+                cp: f(kernel.cp),
+                u_axis: f(self.u_axis),
+                v_axis: f(self.v_axis),
+                // Rounding is monotone: the largest rounded difference is at
+                // the samples' bounds.
+                smax: {
+                    let (lo, hi) = (self.sample_lo.as_vec3(), self.sample_hi.as_vec3());
+                    ((lo - kernel.p).abs().max((hi - kernel.p).abs())).to_array()
+                },
+                // Rounded up past the `f64` margin.
+                shift_margin: kernel.shift_margin.map(|m| m as f32 * (1.0 + 1e-6)),
             };
             // Everything finite in f32 (the bounds need it).
             let finite = receiver.hc.is_finite()
                 && receiver.cp_max.is_finite()
                 && receiver.tolerance2.is_finite()
                 && receiver.lights.iter().flatten().all(|x| x.is_finite())
-                && receiver.light_near.iter().all(|x| x.is_finite());
+                && receiver.light_near.iter().all(|x| x.is_finite())
+                && [receiver.cp, receiver.smax]
+                    .iter()
+                    .flatten()
+                    .all(|x| x.is_finite());
             finite.then_some(receiver)
         }
         #[cfg(not(all(target_arch = "x86_64", feature = "std")))]
@@ -159,5 +201,24 @@ impl SoftShadows {
             let _ = kernel;
             None
         }
+    }
+}
+
+/// The set-up's decisions in lanes for `corners` (with its irregular lanes
+/// undecided).
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+fn lane_masks(
+    receiver: &LaneReceiver,
+    (corners, irregular): &(crate::simd::EdgeCorners8, u32),
+) -> SetupMasks8 {
+    #[allow(unsafe_code)]
+    // SAFETY: a receiver is only made where the processor runs AVX
+    // ([`SoftShadows::sweep_receiver`]).
+    let masks = unsafe { crate::simd::avx::silhouette_setup8(receiver, corners) };
+    let idle = masks.idle & !irregular;
+    SetupMasks8 {
+        undecided: (masks.undecided | irregular) & !idle,
+        idle,
+        ..masks
     }
 }

@@ -40,6 +40,12 @@ pub(super) struct Kernel<'a> {
     pub(super) slow: bool,
     /// Tests only: samples the fast pass left unsure so far.
     pub(super) unsure: u32,
+    /// Tests only: silhouettes swept with the lanes' planes, and of those
+    /// the ones with the lanes' arc.
+    #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
+    pub(super) lane_swept: u32,
+    #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
+    pub(super) lane_arcs: u32,
     /// Where the silhouette edges met are recorded (for the choice of the
     /// reference sample).
     pub(super) silhouettes: &'a mut Silhouettes,
@@ -123,6 +129,8 @@ impl<'a> Kernel<'a> {
             shift_margin: None,
             slow: false,
             unsure: 0,
+            lane_swept: 0,
+            lane_arcs: 0,
             silhouettes,
         };
         k.hc = k.cp.dot(k.toward);
@@ -216,6 +224,97 @@ impl<'a> Kernel<'a> {
         silhouette: DecidedSilhouette,
         counters: &mut [i32],
     ) {
+        if silhouette.near {
+            self.silhouettes.record(e, at.nrm / at.nrm_length);
+        }
+        if !silhouette.sweep {
+            return;
+        }
+        let planes = self.edge_planes(ss, at, silhouette.weight);
+        // The slow twin tests every sample: it checks the arc and its bucket
+        // range as well as the fast pass.
+        let arc = if self.slow {
+            None
+        } else {
+            self.arc(ss, at.aw, at.bw)
+        };
+        let mut unsure = 0;
+        for (lo, hi) in ss.arc_ranges(arc) {
+            if lo < hi {
+                unsure += self.run(ss, &planes, lo, hi, counters);
+            }
+        }
+        self.unsure += unsure;
+    }
+
+    /// [`Kernel::add_silhouette`] for a silhouette edge whose planes, centroid
+    /// side and (where `planes.arc` says so) arc the lanes decided (lane
+    /// `lane` of `planes`): the same samples get the same contribution, those
+    /// the `f32` pass leaves unsure through [`Kernel::crosses`] with the `f64`
+    /// planes.
+    #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    pub(super) fn add_lane_silhouette(
+        &mut self,
+        ss: &SoftShadows,
+        e: u32,
+        silhouette: DecidedSilhouette,
+        planes: &crate::simd::SweepPlanes8,
+        lane: usize,
+        counters: &mut [i32],
+    ) {
+        let g = &ss.graph;
+        let edge = &g.edges[e as usize];
+        let (a, b) = (g.positions[edge.a as usize], g.positions[edge.b as usize]);
+        if silhouette.near {
+            let at = EdgeAt::new(a, b, self.pw);
+            self.silhouettes.record(e, at.nrm / at.nrm_length);
+        }
+        let lane_arc = planes.arc >> lane & 1;
+        self.lane_swept += 1;
+        self.lane_arcs += lane_arc;
+        let arc = if lane_arc == 1 {
+            Some((f64::from(planes.lo[lane]), f64::from(planes.hi[lane])))
+        } else {
+            self.arc(ss, a.as_dvec3() - self.pw, b.as_dvec3() - self.pw)
+        };
+        let edge_planes = planes.lane(lane);
+        let weight = silhouette.weight;
+        let contribution = if edge_planes.want { weight } else { -weight };
+        let soa = [&ss.soa32[0][..], &ss.soa32[1][..], &ss.soa32[2][..]];
+        // The `f64` planes, made for the first unsure sample only.
+        let mut exact: Option<EdgePlanes> = None;
+        let mut unsure = 0;
+        let this = &*self;
+        for (lo, hi) in ss.arc_ranges(arc) {
+            if lo >= hi {
+                continue;
+            }
+            let visit = |i: usize, certain: bool| {
+                if certain {
+                    counters[i] += contribution;
+                    return;
+                }
+                unsure += 1;
+                let exact = exact.get_or_insert_with(|| {
+                    this.edge_planes(ss, &EdgeAt::new(a, b, this.pw), weight)
+                });
+                if this.crosses(ss, exact, i) {
+                    counters[i] += contribution;
+                }
+            };
+            #[allow(unsafe_code)]
+            // SAFETY: lanes' planes are only made where the processor runs
+            // AVX ([`SoftShadows::sweep_receiver`]).
+            unsafe {
+                crate::simd::avx::crossings8(&edge_planes, this.p.to_array(), soa, lo, hi, visit)
+            };
+        }
+        self.unsure += unsure;
+    }
+
+    /// The `f64` planes of silhouette edge `at` (weight `weight`) for the
+    /// per-sample crossing test.
+    pub(super) fn edge_planes(&self, ss: &SoftShadows, at: &EdgeAt, weight: i32) -> EdgePlanes {
         let &EdgeAt {
             a,
             b,
@@ -223,15 +322,8 @@ impl<'a> Kernel<'a> {
             bw,
             nrm,
             nperm,
-            nrm_length,
+            ..
         } = at;
-        let weight = silhouette.weight;
-        if silhouette.near {
-            self.silhouettes.record(e, nrm / nrm_length);
-        }
-        if !silhouette.sweep {
-            return;
-        }
         let (a3, b3) = (aw.to_array(), bw.to_array());
         // Side of the centroid, its ties broken by the centroid's
         // infinitesimal move (module docs).
@@ -261,7 +353,7 @@ impl<'a> Kernel<'a> {
         let err_c = ORIENT_BOUND * perm;
         // The crossing test is spelled out at `EdgePlanes`.
         let want = !c_pos;
-        let planes = EdgePlanes {
+        EdgePlanes {
             a,
             b,
             nrm,
@@ -273,45 +365,7 @@ impl<'a> Kernel<'a> {
             g: if want { 1.0 } else { -1.0 },
             want,
             contribution: if want { weight } else { -weight },
-        };
-        let n = counters.len();
-        let mut unsure = 0;
-        // The slow twin tests every sample: it checks the arc and its bucket
-        // range as well as the fast pass.
-        let arc = if self.slow {
-            None
-        } else {
-            self.arc(ss, aw, bw)
-        };
-        match arc {
-            None => unsure += self.run(ss, &planes, 0, n, counters),
-            Some((lo, hi)) => {
-                // Samples by pseudo-angle about the centroid: those in the arc
-                // (a cyclic range), then those too close to the centroid for an
-                // angle (always tested). The buckets holding `lo` and `hi`
-                // (exact: the scale is a power of two) widen the range to
-                // whole buckets: extra samples only get tested, none is left
-                // out.
-                let angled = ss.angles.len();
-                let bucket = |t: f64| ((t * ANGLE_SCALE) as usize).min(ANGLE_BUCKETS - 1);
-                let first = ss.angle_starts[bucket(lo)] as usize;
-                let last = ss.angle_starts[bucket(hi) + 1] as usize;
-                if lo <= hi {
-                    unsure += self.run(ss, &planes, first, last, counters);
-                } else if first < last {
-                    // A wrapped range whose widened ends overlap: every
-                    // sample (once).
-                    unsure += self.run(ss, &planes, 0, angled, counters);
-                } else {
-                    unsure += self.run(ss, &planes, first, angled, counters);
-                    unsure += self.run(ss, &planes, 0, last, counters);
-                }
-                if angled < n {
-                    unsure += self.run(ss, &planes, angled, n, counters);
-                }
-            }
         }
-        self.unsure += unsure;
     }
 
     /// Adds the edge's contribution to the samples `lo..hi` (angular order)
@@ -521,6 +575,34 @@ impl<'a> Kernel<'a> {
             }
         };
         Some((wrap(from - margin), wrap(to + margin)))
+    }
+}
+
+impl SoftShadows {
+    /// The sample ranges (angular order, some possibly empty) an edge's arc
+    /// asks to test: the samples whose pseudo-angle is in the arc (a cyclic
+    /// range), then those too close to the centroid for an angle (always
+    /// tested); every sample without an arc. The buckets holding the arc's
+    /// ends (exact: the scale is a power of two) widen the range to whole
+    /// buckets: extra samples only get tested, none is left out.
+    pub(super) fn arc_ranges(&self, arc: Option<(f64, f64)>) -> [(usize, usize); 3] {
+        let n = self.samples.len();
+        let Some((lo, hi)) = arc else {
+            return [(0, n), (0, 0), (0, 0)];
+        };
+        let angled = self.angles.len();
+        let bucket = |t: f64| ((t * ANGLE_SCALE) as usize).min(ANGLE_BUCKETS - 1);
+        let first = self.angle_starts[bucket(lo)] as usize;
+        let last = self.angle_starts[bucket(hi) + 1] as usize;
+        let central = (angled, n);
+        if lo <= hi {
+            [(first, last), central, (0, 0)]
+        } else if first < last {
+            // A wrapped range whose widened ends overlap: every sample (once).
+            [(0, angled), central, (0, 0)]
+        } else {
+            [(first, angled), (0, last), central]
+        }
     }
 }
 

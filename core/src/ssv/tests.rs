@@ -917,6 +917,106 @@ fn branch_free_sample_pass_equals_the_per_sample_test() {
     assert!(unsure >= 20, "{unsure} unsure samples");
 }
 
+/// The same scene through the sweep with its lanes (where AVX runs): the
+/// planes, arcs and `f32` sample pass of the lanes give the slow twin's
+/// counters, samples exactly on projected edges included.
+#[test]
+fn lane_sample_pass_equals_the_per_sample_test() {
+    let soup = edges_along_x();
+    let light = LightPolygon::new(&[
+        Vec3::new(-1.0, -0.9, 2.0),
+        Vec3::new(1.0, -0.9, 2.0),
+        Vec3::new(1.0, 1.1, 2.0),
+        Vec3::new(-1.0, 1.1, 2.0),
+    ])
+    .unwrap();
+    let mut samples = light.samples(64, SamplePattern::Jittered, 5);
+    // On the lines the origin's edges project to, and a few units of
+    // rounding beside them (where a bound too small takes the wrong side).
+    for k in 0..6 {
+        for j in 0..5 {
+            let on = Vec3::new(
+                -0.8 + 0.375 * j as f32,
+                2.0 * (-0.375 + 0.125 * k as f32),
+                2.0,
+            );
+            samples.push(on);
+            for ulps in [-3i32, -1, 1, 3] {
+                let step = if on.y == 0.0 {
+                    1e-9
+                } else {
+                    on.y.abs() * f32::EPSILON
+                };
+                let y = on.y + ulps as f32 * step;
+                samples.push(Vec3::new(on.x, y, 2.0));
+            }
+        }
+    }
+    // Samples within rounding of the planes through a probe receiver and an
+    // edge, or the receiver, an endpoint and the centroid: the projections
+    // of edge points from the probe onto the light, rounded to `f32`.
+    let probes = receivers_box(Vec3::new(-0.8, -0.8, -0.5), Vec3::new(0.8, 0.8, 0.5), 6, 31);
+    let first = build(&soup, &light, &samples, Structure::BruteForce);
+    let centroid = light.centroid();
+    for &p0 in &probes {
+        for &e in first.potential.iter().step_by(5) {
+            let edge = &first.graph.edges[e as usize];
+            let [a, b] = [edge.a, edge.b].map(|v| first.graph.positions[v as usize]);
+            let onto_light = |w: Vec3| p0 + (w - p0) * ((2.0 - p0.z) / (w.z - p0.z));
+            let ends = [
+                onto_light(0.5 * (a + b)),
+                centroid + 0.7 * (onto_light(a) - centroid),
+            ];
+            for s in ends {
+                let inside = s.x.abs() < 0.99 && s.y > -0.89 && s.y < 1.09;
+                if a.z < 1.9 && b.z < 1.9 && inside && samples.len() < 900 {
+                    samples.push(Vec3::new(s.x, s.y, 2.0));
+                }
+            }
+        }
+    }
+    let ss = build(&soup, &light, &samples, Structure::BruteForce);
+    let n = samples.len();
+    let (mut unsure, mut swept, mut arcs) = (0, 0, 0);
+    let receivers = probes.into_iter().chain([Vec3::ZERO]).chain(receivers_box(
+        Vec3::new(-1.5, -1.5, -0.5),
+        Vec3::new(1.5, 1.5, 0.5),
+        40,
+        9,
+    ));
+    for p in receivers {
+        let (mut lanes, mut slow) = (vec![0i32; n], vec![0i32; n]);
+        let mut silhouettes = Silhouettes::new();
+        let mut k = Kernel::new(&ss, p, &mut silhouettes);
+        let receiver = ss.sweep_receiver(&k);
+        let mut chunks = ss.potential.chunks_exact(silhouette_lanes::LANES);
+        for chunk in &mut chunks {
+            let edges: [u32; silhouette_lanes::LANES] = chunk.try_into().unwrap();
+            ss.sweep_candidates(&mut k, &receiver, &edges, &mut lanes);
+        }
+        for &e in chunks.remainder() {
+            k.add_edge(&ss, e, &mut lanes);
+        }
+        (unsure, swept, arcs) = (unsure + k.unsure, swept + k.lane_swept, arcs + k.lane_arcs);
+        let mut silhouettes = Silhouettes::new();
+        let mut k = Kernel::new(&ss, p, &mut silhouettes);
+        k.slow = true;
+        ss.sweep_with(k, &mut slow, &mut QueryInfo::default());
+        assert_eq!(lanes, slow, "receiver {p:?}");
+    }
+    #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    if crate::simd::avx_available() {
+        // The lanes swept most silhouettes, with their arcs, and the exact
+        // path took the samples on the projected edges.
+        assert!(
+            swept > 500 && arcs * 4 > swept * 3,
+            "{arcs} arcs of {swept}"
+        );
+        assert!(unsure >= 20, "{unsure} unsure samples");
+    }
+    let _ = (unsure, swept, arcs);
+}
+
 /// Near-light triangles (planes piercing the light) go through the
 /// precomputed-side path: receivers on each side of their planes, exactly in
 /// them, and in the light's band, with samples on both sides of each plane and
@@ -1591,7 +1691,7 @@ fn miri_lanes_set_up_equals_the_scalar_one() {
         receivers.push(t[0] + (3.0 * s - 1.0) * (t[1] - t[0]));
     }
     let potential: Vec<u32> = ss.potential.clone();
-    let (mut decided, mut lanes) = (0usize, 0usize);
+    let (mut decided, mut lanes, mut swept) = (0usize, 0usize, 0u32);
     let tried = if cfg!(miri) { 2 } else { receivers.len() };
     for &p in &receivers[..tried] {
         let n = samples.len();
@@ -1619,6 +1719,7 @@ fn miri_lanes_set_up_equals_the_scalar_one() {
         for &e in chunks.remainder() {
             lane_count += u32::from(lane.add_edge(&ss, e, &mut lane_counters));
         }
+        swept += lane.lane_swept;
         assert_eq!(lane_counters, scalar_counters, "counters at {p:?}");
         assert_eq!(lane_count, scalar_count, "silhouettes at {p:?}");
         let recorded = |s: &Silhouettes| s.recorded().collect::<Vec<_>>();
@@ -1635,6 +1736,75 @@ fn miri_lanes_set_up_equals_the_scalar_one() {
             decided * 4 > lanes * 3,
             "the lanes decided {decided} of {lanes} candidates"
         );
+        // Their planes, arcs and sample pass ran (under Miri too).
+        assert!(swept > 0, "no silhouette swept in lanes");
     }
-    let _ = (decided, lanes);
+    let _ = (decided, lanes, swept);
+}
+
+/// The lanes' arcs hold the exact pseudo-angles of both endpoints'
+/// projections (the `f64` projection, whose rounding is far below the
+/// lanes'), the short way round: a margin below the lanes' rounding leaves
+/// some outside.
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+#[test]
+fn lane_arcs_hold_the_exact_endpoint_angles() {
+    if !crate::simd::avx_available() {
+        return;
+    }
+    let soup = torus(Vec3::new(0.1, -0.2, 1.0), 0.5, 0.15, 24);
+    let light = LightPolygon::new(&[
+        Vec3::new(-1.0, -0.9, 2.0),
+        Vec3::new(1.0, -0.9, 2.0),
+        Vec3::new(1.0, 1.1, 2.0),
+        Vec3::new(-1.0, 1.1, 2.0),
+    ])
+    .unwrap();
+    let samples = light.samples(64, SamplePattern::Jittered, 5);
+    let ss = build(&soup, &light, &samples, Structure::BruteForce);
+    let mut checked = 0;
+    let receivers = receivers_box(Vec3::new(-1.5, -1.5, -0.5), Vec3::new(1.5, 1.5, 0.8), 60, 3);
+    for p in receivers {
+        let mut silhouettes = Silhouettes::new();
+        let kernel = Kernel::new(&ss, p, &mut silhouettes);
+        let Some(receiver) = ss.sweep_receiver(&kernel) else {
+            continue;
+        };
+        for chunk in ss.potential.chunks_exact(silhouette_lanes::LANES) {
+            let edges: [u32; silhouette_lanes::LANES] = chunk.try_into().unwrap();
+            let (corners, _) = ss.lane_corners(&edges);
+            #[allow(unsafe_code)]
+            // SAFETY: AVX runs (checked above).
+            let planes = unsafe { crate::simd::avx::silhouette_planes8(&receiver, &corners) };
+            for (i, &e) in edges.iter().enumerate() {
+                if planes.arc >> i & 1 == 0 {
+                    continue;
+                }
+                let edge = &ss.graph.edges[e as usize];
+                let angle = |v: u32| {
+                    let w = ss.graph.positions[v as usize].as_dvec3() - kernel.pw;
+                    let q = w * (kernel.hc / w.dot(kernel.toward)) - kernel.cp;
+                    pseudo_angle(q.dot(ss.u_axis), q.dot(ss.v_axis))
+                };
+                let (lo, hi) = (f64::from(planes.lo[i]), f64::from(planes.hi[i]));
+                let inside = |t: f64| {
+                    if lo <= hi {
+                        lo <= t && t <= hi
+                    } else {
+                        t >= lo || t <= hi
+                    }
+                };
+                let (ta, tb) = (angle(edge.a), angle(edge.b));
+                assert!(
+                    inside(ta) && inside(tb),
+                    "{ta} {tb} outside [{lo}, {hi}] at {p:?}"
+                );
+                // The short way: the arc is under a half turn plus margins.
+                let length = if lo <= hi { hi - lo } else { hi + 4.0 - lo };
+                assert!(length < 2.5, "arc of {length} at {p:?}");
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 1000, "{checked} arcs checked");
 }
