@@ -541,8 +541,9 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
 }
 
 /// Magnitude above which [`silhouette_planes8`] leaves a lane undecided: with
-/// every difference below it, no product of three overflows and an underflow
-/// changes a value by far less than [`FLOOR`].
+/// every difference (the samples' from the receiver included) below it, no
+/// product of three overflows and an underflow (at most `2^-149` a product,
+/// times at most this) changes a value by far less than [`FLOOR`].
 const PLANE_RANGE: f32 = 1e8;
 
 /// Relative bound, against the computed `|det| + |vs| + |va| + |vb|`, on the
@@ -624,7 +625,8 @@ pub(crate) fn silhouette_planes8(
         err_c,
     ];
     let largest = |w: [__m256; 3]| _mm256_max_ps(_mm256_max_ps(abs(w[0]), abs(w[1])), abs(w[2]));
-    let range = [x, y, e, ca, cb]
+    // The samples' `|s - p|` too: they scale each plane's underflow.
+    let range = [x, y, e, ca, cb, smax]
         .into_iter()
         .fold(zero, |m, w| _mm256_max_ps(m, largest(w)));
     // NaN compares false: such a lane is out of range too.
