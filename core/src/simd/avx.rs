@@ -321,6 +321,59 @@ pub(crate) const FLOOR: f32 = 1e-30;
 /// own roundings are a few `u`).
 const SLACK: f32 = 1e-5;
 
+/// `|v|` per lane.
+#[target_feature(enable = "avx")]
+#[inline]
+fn abs8(v: __m256) -> __m256 {
+    _mm256_andnot_ps(_mm256_set1_ps(-0.0), v)
+}
+
+/// `x · y` per lane, `(x₀ y₀ + x₁ y₁) + x₂ y₂`.
+#[target_feature(enable = "avx")]
+#[inline]
+fn dot3(x: [__m256; 3], y: [__m256; 3]) -> __m256 {
+    _mm256_add_ps(
+        _mm256_add_ps(_mm256_mul_ps(x[0], y[0]), _mm256_mul_ps(x[1], y[1])),
+        _mm256_mul_ps(x[2], y[2]),
+    )
+}
+
+/// `(v₀ + v₁) + v₂` per lane.
+#[target_feature(enable = "avx")]
+#[inline]
+fn sum3(v: [__m256; 3]) -> __m256 {
+    _mm256_add_ps(_mm256_add_ps(v[0], v[1]), v[2])
+}
+
+/// The largest `|v_i|` per lane.
+#[target_feature(enable = "avx")]
+#[inline]
+fn largest3(v: [__m256; 3]) -> __m256 {
+    _mm256_max_ps(_mm256_max_ps(abs8(v[0]), abs8(v[1])), abs8(v[2]))
+}
+
+/// Component pairs of a cross product: component `i` is `x_j y_k - x_k y_j`.
+const CROSS_PAIRS: [(usize, usize); 3] = [(1, 2), (2, 0), (0, 1)];
+
+/// `x × y` per lane.
+#[target_feature(enable = "avx")]
+#[inline]
+fn cross3(x: [__m256; 3], y: [__m256; 3]) -> [__m256; 3] {
+    CROSS_PAIRS.map(|(j, k)| _mm256_sub_ps(_mm256_mul_ps(x[j], y[k]), _mm256_mul_ps(x[k], y[j])))
+}
+
+/// The permanent of `x × y` per lane: `|x_j y_k| + |x_k y_j|` per component.
+#[target_feature(enable = "avx")]
+#[inline]
+fn permanent3(x: [__m256; 3], y: [__m256; 3]) -> [__m256; 3] {
+    CROSS_PAIRS.map(|(j, k)| {
+        _mm256_add_ps(
+            abs8(_mm256_mul_ps(x[j], y[k])),
+            abs8(_mm256_mul_ps(x[k], y[j])),
+        )
+    })
+}
+
 /// The set-up of [`Kernel::add_edge`](crate::ssv) for eight candidate edges at
 /// `receiver`, in `f32` lanes, each decision taken only where it is certain
 /// to be the `f64` sweep's:
@@ -344,16 +397,9 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
     let zero = _mm256_setzero_ps();
     let all = _mm256_cmp_ps::<_CMP_EQ_OQ>(zero, zero);
     let not = |m: __m256| _mm256_andnot_ps(m, all);
-    let abs = |v: __m256| _mm256_andnot_ps(splat(-0.0), v);
     let p = receiver.p;
     let relative = |w: &[[f32; 8]; 3]| -> [__m256; 3] {
         core::array::from_fn(|axis| _mm256_sub_ps(load(&w[axis]), splat(p[axis])))
-    };
-    let dot = |x: [__m256; 3], y: [__m256; 3]| {
-        _mm256_add_ps(
-            _mm256_add_ps(_mm256_mul_ps(x[0], y[0]), _mm256_mul_ps(x[1], y[1])),
-            _mm256_mul_ps(x[2], y[2]),
-        )
     };
     let (x, y) = (relative(&corners.a), relative(&corners.b));
     // Differences from `a`: `det[a - p, b - p, w - p] = det[a - p, b - a,
@@ -365,27 +411,13 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
     let e = from_a(&corners.b);
     // `x × e` (that is `x × y`) and its permanent, and the permanent of `x × y`
     // (the scale of the sweep's own `f64` rounding).
-    let pairs = [(1, 2), (2, 0), (0, 1)];
-    let cross: [__m256; 3] =
-        pairs.map(|(j, k)| _mm256_sub_ps(_mm256_mul_ps(x[j], e[k]), _mm256_mul_ps(x[k], e[j])));
-    let permanent: [__m256; 3] = pairs.map(|(j, k)| {
-        _mm256_add_ps(
-            abs(_mm256_mul_ps(x[j], e[k])),
-            abs(_mm256_mul_ps(x[k], e[j])),
-        )
-    });
-    let far_permanent: [__m256; 3] = pairs.map(|(j, k)| {
-        _mm256_add_ps(
-            abs(_mm256_mul_ps(x[j], y[k])),
-            abs(_mm256_mul_ps(x[k], y[j])),
-        )
-    });
+    let (cross, permanent, far_permanent) = (cross3(x, e), permanent3(x, e), permanent3(x, y));
     let floor = splat(FLOOR);
     // The weight: each third vertex's side, (certainly positive, negative).
     let side = |w: &[[f32; 8]; 3]| {
         let z = from_a(w);
-        let det = dot(cross, z);
-        let perm = dot(permanent, z.map(abs));
+        let det = dot3(cross, z);
+        let perm = dot3(permanent, z.map(|v| abs8(v)));
         let margin = _mm256_add_ps(_mm256_mul_ps(splat(SIDE_BOUND), perm), floor);
         (
             _mm256_cmp_ps::<_CMP_GT_OQ>(det, margin),
@@ -399,11 +431,10 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
     // The quick rejection: heights along `toward` against `[-S, hc + S]`,
     // `S` the sweep's slack (at most `1e-9` of the largest coordinate).
     let toward = receiver.toward.map(splat);
-    let largest = |w: [__m256; 3]| _mm256_max_ps(_mm256_max_ps(abs(w[0]), abs(w[1])), abs(w[2]));
     let slack = _mm256_mul_ps(
         splat(2e-9),
         _mm256_max_ps(
-            _mm256_max_ps(largest(x), largest(y)),
+            _mm256_max_ps(largest3(x), largest3(y)),
             splat(receiver.cp_max),
         ),
     );
@@ -412,9 +443,12 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
     // (certainly below `-S`, possibly below; certainly above `hc + S`,
     // possibly above) for one endpoint.
     let height = |w: [__m256; 3]| {
-        let h = dot(w, toward);
+        let h = dot3(w, toward);
         let err = _mm256_add_ps(
-            _mm256_mul_ps(splat(HEIGHT_BOUND), dot(w.map(abs), toward.map(abs))),
+            _mm256_mul_ps(
+                splat(HEIGHT_BOUND),
+                dot3(w.map(|v| abs8(v)), toward.map(|v| abs8(v))),
+            ),
             floor,
         );
         let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(h, err), _mm256_sub_ps(zero, slack));
@@ -442,16 +476,15 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
     // The plane against the light: the sweep's `f64` tolerance `err` of each
     // light vertex lies in `[err_lo, err_hi]`, its `near` in `[near_lo,
     // near_hi]`.
-    let length = _mm256_sqrt_ps(dot(cross, cross));
+    let length = _mm256_sqrt_ps(dot3(cross, cross));
     // The `f32` length's rounding (against the edge's own permanent) and the
     // sweep's `f64` one (against the far permanent).
-    let sum = |v: [__m256; 3]| _mm256_add_ps(_mm256_add_ps(v[0], v[1]), v[2]);
     let length_err = _mm256_add_ps(
         _mm256_add_ps(
-            _mm256_mul_ps(splat(8.0 * U), sum(permanent)),
+            _mm256_mul_ps(splat(8.0 * U), sum3(permanent)),
             _mm256_mul_ps(splat(8.0 * U), length),
         ),
-        _mm256_add_ps(_mm256_mul_ps(splat(1e-14), sum(far_permanent)), floor),
+        _mm256_add_ps(_mm256_mul_ps(splat(1e-14), sum3(far_permanent)), floor),
     );
     let length_lo = _mm256_max_ps(_mm256_sub_ps(length, length_err), zero);
     let length_hi = _mm256_add_ps(length, length_err);
@@ -465,11 +498,11 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
     let lights = receiver.lights[..receiver.light_count].iter();
     for (l, &near) in lights.zip(&receiver.light_near) {
         let l = l.map(splat);
-        let d = dot(cross, l);
-        let spread = dot(permanent, l.map(abs));
+        let d = dot3(cross, l);
+        let spread = dot3(permanent, l.map(|v| abs8(v)));
         // The sweep's `f64` value and its tolerance's first term are within
         // `1e-14` of the far permanent's spread (`8 · 2^-53` of it and less).
-        let far_spread = _mm256_mul_ps(splat(1e-14), dot(far_permanent, l.map(abs)));
+        let far_spread = _mm256_mul_ps(splat(1e-14), dot3(far_permanent, l.map(|v| abs8(v))));
         let d_err = _mm256_add_ps(
             _mm256_add_ps(_mm256_mul_ps(splat(SIDE_BOUND), spread), far_spread),
             floor,
@@ -582,15 +615,7 @@ pub(crate) fn silhouette_planes8(
 ) -> SweepPlanes8 {
     let splat = |x: f32| _mm256_set1_ps(x);
     let zero = _mm256_setzero_ps();
-    let abs = |v: __m256| _mm256_andnot_ps(splat(-0.0), v);
     let floor = splat(FLOOR);
-    let dot = |x: [__m256; 3], y: [__m256; 3]| {
-        _mm256_add_ps(
-            _mm256_add_ps(_mm256_mul_ps(x[0], y[0]), _mm256_mul_ps(x[1], y[1])),
-            _mm256_mul_ps(x[2], y[2]),
-        )
-    };
-    let sum = |v: [__m256; 3]| _mm256_add_ps(_mm256_add_ps(v[0], v[1]), v[2]);
     let lanes = |w: &[[f32; 8]; 3]| -> [__m256; 3] { core::array::from_fn(|i| load(&w[i])) };
     let minus = |x: [__m256; 3], y: [__m256; 3]| -> [__m256; 3] {
         core::array::from_fn(|i| _mm256_sub_ps(x[i], y[i]))
@@ -600,35 +625,22 @@ pub(crate) fn silhouette_planes8(
     let c = receiver.centroid.map(splat);
     let (x, y) = (minus(a, p), minus(b, p));
     let (e, ca, cb) = (minus(b, a), minus(c, a), minus(c, b));
-    let pairs = [(1, 2), (2, 0), (0, 1)];
-    let cross = |x: [__m256; 3], y: [__m256; 3]| {
-        pairs.map(|(j, k)| _mm256_sub_ps(_mm256_mul_ps(x[j], y[k]), _mm256_mul_ps(x[k], y[j])))
-    };
-    let permanent = |x: [__m256; 3], y: [__m256; 3]| {
-        pairs.map(|(j, k)| {
-            _mm256_add_ps(
-                abs(_mm256_mul_ps(x[j], y[k])),
-                abs(_mm256_mul_ps(x[k], y[j])),
-            )
-        })
-    };
-    let (nrm, amat, bmat) = (cross(x, e), cross(x, ca), cross(y, cb));
-    let nperm = permanent(x, e);
+    let (nrm, amat, bmat) = (cross3(x, e), cross3(x, ca), cross3(y, cb));
+    let nperm = permanent3(x, e);
     let smax = receiver.smax.map(splat);
     let bound = |perm: __m256| _mm256_add_ps(_mm256_mul_ps(splat(SIDE_BOUND), perm), floor);
-    let det = dot(nrm, ca);
-    let err_c = bound(dot(nperm, ca.map(abs)));
+    let det = dot3(nrm, ca);
+    let err_c = bound(dot3(nperm, ca.map(|v| abs8(v))));
     let errs = [
-        bound(dot(nperm, smax)),
-        bound(dot(permanent(x, ca), smax)),
-        bound(dot(permanent(y, cb), smax)),
+        bound(dot3(nperm, smax)),
+        bound(dot3(permanent3(x, ca), smax)),
+        bound(dot3(permanent3(y, cb), smax)),
         err_c,
     ];
-    let largest = |w: [__m256; 3]| _mm256_max_ps(_mm256_max_ps(abs(w[0]), abs(w[1])), abs(w[2]));
     // The samples' `|s - p|` too: they scale each plane's underflow.
     let range = [x, y, e, ca, cb, smax]
         .into_iter()
-        .fold(zero, |m, w| _mm256_max_ps(m, largest(w)));
+        .fold(zero, |m, w| _mm256_max_ps(m, largest3(w)));
     // NaN compares false: such a lane is out of range too.
     let in_range = _mm256_cmp_ps::<_CMP_LT_OQ>(range, splat(PLANE_RANGE));
     let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(det, err_c);
@@ -661,14 +673,17 @@ pub(crate) fn silhouette_planes8(
     let toward = receiver.toward.map(splat);
     let (hc, cp) = (splat(receiver.hc), receiver.cp.map(splat));
     let (u_axis, v_axis) = (receiver.u_axis.map(splat), receiver.v_axis.map(splat));
-    let cp_norm = sum(cp.map(abs));
+    let cp_norm = sum3(cp.map(|v| abs8(v)));
     let u = splat(U);
     // Per endpoint: the projection's coordinates, their bound, the lower
     // bound of the distance from the centroid, and whether it is usable.
     let project = |w: [__m256; 3]| {
-        let h = dot(w, toward);
+        let h = dot3(w, toward);
         let h_err = _mm256_add_ps(
-            _mm256_mul_ps(splat(HEIGHT_BOUND), dot(w.map(abs), toward.map(abs))),
+            _mm256_mul_ps(
+                splat(HEIGHT_BOUND),
+                dot3(w.map(|v| abs8(v)), toward.map(|v| abs8(v))),
+            ),
             floor,
         );
         let h_lo = _mm256_sub_ps(h, h_err);
@@ -677,27 +692,27 @@ pub(crate) fn silhouette_planes8(
         let scale = _mm256_div_ps(hc, h);
         let q: [__m256; 3] =
             core::array::from_fn(|i| _mm256_sub_ps(_mm256_mul_ps(w[i], scale), cp[i]));
-        let (qx, qy) = (dot(q, u_axis), dot(q, v_axis));
+        let (qx, qy) = (dot3(q, u_axis), dot3(q, v_axis));
         let err = _mm256_add_ps(
             _mm256_mul_ps(
                 splat(2.0),
                 _mm256_add_ps(
                     _mm256_mul_ps(
                         _mm256_add_ps(relative, _mm256_mul_ps(splat(8.0), u)),
-                        _mm256_mul_ps(scale, sum(w.map(abs))),
+                        _mm256_mul_ps(scale, sum3(w.map(|v| abs8(v)))),
                     ),
                     _mm256_mul_ps(
                         _mm256_mul_ps(splat(8.0), u),
-                        _mm256_add_ps(cp_norm, sum(q.map(abs))),
+                        _mm256_add_ps(cp_norm, sum3(q.map(|v| abs8(v)))),
                     ),
                 ),
             ),
             floor,
         );
-        let r = _mm256_sub_ps(_mm256_max_ps(abs(qx), abs(qy)), err);
+        let r = _mm256_sub_ps(_mm256_max_ps(abs8(qx), abs8(qy)), err);
         let far = _mm256_cmp_ps::<_CMP_GE_OQ>(r, _mm256_mul_ps(splat(64.0), err));
         // The pseudo-angle, branch-free.
-        let t = _mm256_div_ps(qy, _mm256_add_ps(abs(qx), abs(qy)));
+        let t = _mm256_div_ps(qy, _mm256_add_ps(abs8(qx), abs8(qy)));
         let x_neg = _mm256_cmp_ps::<_CMP_LT_OQ>(qx, zero);
         let t_neg = _mm256_cmp_ps::<_CMP_LT_OQ>(t, zero);
         let right = _mm256_blendv_ps(t, _mm256_add_ps(splat(4.0), t), t_neg);
@@ -711,16 +726,16 @@ pub(crate) fn silhouette_planes8(
         splat(2.0),
         _mm256_add_ps(
             _mm256_add_ps(
-                _mm256_mul_ps(ea, _mm256_add_ps(_mm256_add_ps(abs(xb), abs(yb)), eb)),
-                _mm256_mul_ps(eb, _mm256_add_ps(_mm256_add_ps(abs(xa), abs(ya)), ea)),
+                _mm256_mul_ps(ea, _mm256_add_ps(_mm256_add_ps(abs8(xb), abs8(yb)), eb)),
+                _mm256_mul_ps(eb, _mm256_add_ps(_mm256_add_ps(abs8(xa), abs8(ya)), ea)),
             ),
             _mm256_mul_ps(
                 _mm256_mul_ps(splat(3.0), u),
-                _mm256_add_ps(abs(_mm256_mul_ps(xa, yb)), abs(_mm256_mul_ps(ya, xb))),
+                _mm256_add_ps(abs8(_mm256_mul_ps(xa, yb)), abs8(_mm256_mul_ps(ya, xb))),
             ),
         ),
     );
-    let certain_turn = _mm256_cmp_ps::<_CMP_GT_OQ>(abs(turn), turn_err);
+    let certain_turn = _mm256_cmp_ps::<_CMP_GT_OQ>(abs8(turn), turn_err);
     let margin = _mm256_add_ps(
         _mm256_mul_ps(
             splat(2.0),
@@ -772,13 +787,6 @@ pub(crate) fn crossings8(
 ) {
     let splat = |x: f32| _mm256_set1_ps(x);
     let zero = _mm256_setzero_ps();
-    let abs = |v: __m256| _mm256_andnot_ps(splat(-0.0), v);
-    let dot = |x: [__m256; 3], y: [__m256; 3]| {
-        _mm256_add_ps(
-            _mm256_add_ps(_mm256_mul_ps(x[0], y[0]), _mm256_mul_ps(x[1], y[1])),
-            _mm256_mul_ps(x[2], y[2]),
-        )
-    };
     let (nrm, amat, bmat) = (
         edge.nrm.map(splat),
         edge.amat.map(splat),
@@ -804,15 +812,15 @@ pub(crate) fn crossings8(
             _mm256_sub_ps(load(eight), p[axis])
         };
         let s = [at(0), at(1), at(2)];
-        let (vs, va, vb) = (dot(nrm, s), dot(amat, s), dot(bmat, s));
+        let (vs, va, vb) = (dot3(nrm, s), dot3(amat, s), dot3(bmat, s));
         let vo = _mm256_sub_ps(_mm256_add_ps(_mm256_sub_ps(det, vs), va), vb);
         let err_o = _mm256_add_ps(
             err_base,
             _mm256_mul_ps(
                 splat(SUM_BOUND),
                 _mm256_add_ps(
-                    _mm256_add_ps(det_abs, abs(vs)),
-                    _mm256_add_ps(abs(va), abs(vb)),
+                    _mm256_add_ps(det_abs, abs8(vs)),
+                    _mm256_add_ps(abs8(va), abs8(vb)),
                 ),
             ),
         );

@@ -83,11 +83,7 @@ impl EdgeAt {
     pub(super) fn new(a: Vec3, b: Vec3, pw: DVec3) -> Self {
         let (aw, bw) = (a.as_dvec3() - pw, b.as_dvec3() - pw);
         let nrm = aw.cross(bw);
-        let nperm = DVec3::new(
-            (aw.y * bw.z).abs() + (aw.z * bw.y).abs(),
-            (aw.z * bw.x).abs() + (aw.x * bw.z).abs(),
-            (aw.x * bw.y).abs() + (aw.y * bw.x).abs(),
-        );
+        let nperm = cross_permanent(aw, bw);
         EdgeAt {
             a,
             b,
@@ -98,6 +94,17 @@ impl EdgeAt {
             nrm_length: nrm.length(),
         }
     }
+}
+
+/// The permanent of `x × y`: `|x₁ y₂| + |x₂ y₁|` per component, the scale of
+/// that product's rounding.
+#[inline(always)]
+pub(super) fn cross_permanent(x: DVec3, y: DVec3) -> DVec3 {
+    DVec3::new(
+        (x.y * y.z).abs() + (x.z * y.y).abs(),
+        (x.z * y.x).abs() + (x.x * y.z).abs(),
+        (x.x * y.y).abs() + (x.y * y.x).abs(),
+    )
 }
 
 #[inline]
@@ -340,16 +347,9 @@ impl<'a> Kernel<'a> {
         };
         let amat = aw.cross(self.cp);
         let bmat = bw.cross(self.cp);
-        let perm_of = |x: DVec3, y: DVec3| {
-            DVec3::new(
-                (x.y * y.z).abs() + (x.z * y.y).abs(),
-                (x.z * y.x).abs() + (x.x * y.z).abs(),
-                (x.x * y.y).abs() + (x.y * y.x).abs(),
-            )
-        };
         let err_n = ORIENT_BOUND * nperm.dot(self.smax);
-        let err_a = ORIENT_BOUND * perm_of(aw, self.cp).dot(self.smax);
-        let err_b = ORIENT_BOUND * perm_of(bw, self.cp).dot(self.smax);
+        let err_a = ORIENT_BOUND * cross_permanent(aw, self.cp).dot(self.smax);
+        let err_b = ORIENT_BOUND * cross_permanent(bw, self.cp).dot(self.smax);
         let err_c = ORIENT_BOUND * perm;
         // The crossing test is spelled out at `EdgePlanes`.
         let want = !c_pos;

@@ -847,6 +847,31 @@ fn hemicube_lists_every_relevant_edge() {
 /// 0.125 k`), so that from the origin they project onto the plane `z = 2` at
 /// `y = 2 y_k`, and a small sphere beside them: a scene whose decisions can be
 /// put exactly on their bounds.
+/// A quad light at height 2 over [`edges_along_x`].
+fn light_over_edges_along_x() -> LightPolygon {
+    LightPolygon::new(&[
+        Vec3::new(-1.0, -0.9, 2.0),
+        Vec3::new(1.0, -0.9, 2.0),
+        Vec3::new(1.0, 1.1, 2.0),
+        Vec3::new(-1.0, 1.1, 2.0),
+    ])
+    .unwrap()
+}
+
+/// Points of [`light_over_edges_along_x`] exactly on the lines its edges
+/// project to from the origin (`y' = 2 y`).
+fn on_projected_edges() -> impl Iterator<Item = Vec3> {
+    (0..6).flat_map(|k| {
+        (0..5).map(move |j| {
+            Vec3::new(
+                -0.8 + 0.375 * j as f32,
+                2.0 * (-0.375 + 0.125 * k as f32),
+                2.0,
+            )
+        })
+    })
+}
+
 fn edges_along_x() -> Soup {
     let mut soup = Soup::default();
     for k in 0..6 {
@@ -871,23 +896,9 @@ fn branch_free_sample_pass_equals_the_per_sample_test() {
     // Receivers at the origin-ish, edges at height 1 along x, samples on the
     // light at height 2 exactly on the lines the edges project to (y' = 2 y).
     let soup = edges_along_x();
-    let light = LightPolygon::new(&[
-        Vec3::new(-1.0, -0.9, 2.0),
-        Vec3::new(1.0, -0.9, 2.0),
-        Vec3::new(1.0, 1.1, 2.0),
-        Vec3::new(-1.0, 1.1, 2.0),
-    ])
-    .unwrap();
+    let light = light_over_edges_along_x();
     let mut samples = light.samples(64, SamplePattern::Jittered, 5);
-    for k in 0..6 {
-        for j in 0..5 {
-            samples.push(Vec3::new(
-                -0.8 + 0.375 * j as f32,
-                2.0 * (-0.375 + 0.125 * k as f32),
-                2.0,
-            ));
-        }
-    }
+    samples.extend(on_projected_edges());
     let ss = build(&soup, &light, &samples, Structure::BruteForce);
     let n = samples.len();
     let mut unsure = 0;
@@ -923,33 +934,19 @@ fn branch_free_sample_pass_equals_the_per_sample_test() {
 #[test]
 fn lane_sample_pass_equals_the_per_sample_test() {
     let soup = edges_along_x();
-    let light = LightPolygon::new(&[
-        Vec3::new(-1.0, -0.9, 2.0),
-        Vec3::new(1.0, -0.9, 2.0),
-        Vec3::new(1.0, 1.1, 2.0),
-        Vec3::new(-1.0, 1.1, 2.0),
-    ])
-    .unwrap();
+    let light = light_over_edges_along_x();
     let mut samples = light.samples(64, SamplePattern::Jittered, 5);
     // On the lines the origin's edges project to, and a few units of
     // rounding beside them (where a bound too small takes the wrong side).
-    for k in 0..6 {
-        for j in 0..5 {
-            let on = Vec3::new(
-                -0.8 + 0.375 * j as f32,
-                2.0 * (-0.375 + 0.125 * k as f32),
-                2.0,
-            );
-            samples.push(on);
-            for ulps in [-3i32, -1, 1, 3] {
-                let step = if on.y == 0.0 {
-                    1e-9
-                } else {
-                    on.y.abs() * f32::EPSILON
-                };
-                let y = on.y + ulps as f32 * step;
-                samples.push(Vec3::new(on.x, y, 2.0));
-            }
+    for on in on_projected_edges() {
+        samples.push(on);
+        for ulps in [-3i32, -1, 1, 3] {
+            let step = if on.y == 0.0 {
+                1e-9
+            } else {
+                on.y.abs() * f32::EPSILON
+            };
+            samples.push(Vec3::new(on.x, on.y + ulps as f32 * step, 2.0));
         }
     }
     // Samples within rounding of the planes through a probe receiver and an
@@ -1753,13 +1750,7 @@ fn lane_arcs_hold_the_exact_endpoint_angles() {
         return;
     }
     let soup = torus(Vec3::new(0.1, -0.2, 1.0), 0.5, 0.15, 24);
-    let light = LightPolygon::new(&[
-        Vec3::new(-1.0, -0.9, 2.0),
-        Vec3::new(1.0, -0.9, 2.0),
-        Vec3::new(1.0, 1.1, 2.0),
-        Vec3::new(-1.0, 1.1, 2.0),
-    ])
-    .unwrap();
+    let light = light_over_edges_along_x();
     let samples = light.samples(64, SamplePattern::Jittered, 5);
     let ss = build(&soup, &light, &samples, Structure::BruteForce);
     let mut checked = 0;
