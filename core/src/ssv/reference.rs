@@ -33,14 +33,15 @@ pub(super) const REFERENCE_TRIES: usize = 8;
 
 /// The silhouette edges of one receiver whose plane through it comes within
 /// [`NEAR_ANGLE`] of the light (the edges near which an `f32` ray can cross
-/// differently from the exact segment), each with that plane's unit normal.
+/// differently from the exact segment), each with that plane's normal.
 ///
 /// The slots are left uninitialised until recorded: a query makes one of
 /// these 16 KiB records on its stack, and writing it whole would cost more than
 /// the bunny's reference ray.
 pub(super) struct Silhouettes {
-    /// Edge and unit `a' × b'` (rounded to `f32`: the test that reads it
-    /// allows for that); the first `len` are written.
+    /// Edge and `a' × b'` scaled by a power of two ([`scaled_normal`]) and
+    /// rounded to `f32` (the test that reads it allows for that); the first
+    /// `len` are written.
     pub(super) slots: [MaybeUninit<(u32, [f32; 3])>; RECORDED_SILHOUETTES],
     pub(super) len: usize,
     /// More edges were met than fit.
@@ -56,17 +57,20 @@ impl Silhouettes {
         }
     }
 
-    pub(super) fn record(&mut self, edge: u32, unit_normal: DVec3) {
+    /// Records edge `edge` with `normal`, the normal of its plane through the
+    /// receiver at any length (`a' × b'`: no square root or division per
+    /// edge; the test compares squares).
+    pub(super) fn record(&mut self, edge: u32, normal: DVec3) {
         match self.slots.get_mut(self.len) {
             Some(slot) => {
-                slot.write((edge, unit_normal.as_vec3().to_array()));
+                slot.write((edge, scaled_normal(normal)));
                 self.len += 1;
             }
             None => self.overflow = true,
         }
     }
 
-    /// The recorded edges and normals.
+    /// The recorded edges and normals (each of any length).
     pub(super) fn recorded(&self) -> impl Iterator<Item = (u32, Vec3)> + '_ {
         self.slots[..self.len].iter().map(|slot| {
             #[allow(unsafe_code)]
@@ -77,6 +81,26 @@ impl Silhouettes {
             (edge, Vec3::from_array(normal))
         })
     }
+}
+
+/// `n` times the power of two that brings its largest component into
+/// `[0.5, 1)`, rounded to `f32`. The scaling is exact and keeps the direction,
+/// so the rounding moves the direction by at most `√3 · 2⁻²⁴ ≈ 1e-7`, as
+/// rounding a unit normal would; no component can overflow, and one that
+/// falls below `f32`'s normal range is off by under `1e-38`. A zero or
+/// non-finite `n` is kept as it is (the test that reads it then decides
+/// exactly).
+fn scaled_normal(n: DVec3) -> [f32; 3] {
+    let largest = n.abs().max_element();
+    // Biased exponent of `largest`, a normal f64 (a cross product of
+    // differences of f32 coordinates is at least 2^-298 when not zero).
+    let exponent = (largest.to_bits() >> 52) & 0x7FF;
+    if largest == 0.0 || !(1..2045).contains(&exponent) {
+        return n.as_vec3().to_array();
+    }
+    // 2^(1022 - e), e the unbiased exponent: biased, 2045 minus the biased one.
+    let scale = f64::from_bits((2045 - exponent) << 52);
+    (n * scale).as_vec3().to_array()
 }
 
 impl SoftShadows {
@@ -156,12 +180,16 @@ impl SoftShadows {
                 });
                 return clear;
             }
-            // The f32 unit normals are within 1e-7 of the exact ones: the
-            // prefilter's bound allows for it.
-            let bound = (NEAR_ANGLE + 1e-6) * sw.length();
-            silhouettes
-                .recorded()
-                .all(|(e, n)| n.as_dvec3().dot(sw).abs() > bound || !near(sw, e))
+            // The recorded normals' directions are within 1e-7 of the exact
+            // ones: the prefilter's bound allows for it. `|n·s| > bound |n|`
+            // in squares (f64, its rounding far below that allowance).
+            let bound = NEAR_ANGLE + 1e-6;
+            let bound_squared = bound * bound * sw.length_squared();
+            silhouettes.recorded().all(|(e, n)| {
+                let n = n.as_dvec3();
+                let along = n.dot(sw);
+                along * along > bound_squared * n.length_squared() || !near(sw, e)
+            })
         });
         chosen.map(|k| self.samples[self.order[k] as usize])
     }
@@ -294,5 +322,42 @@ impl SoftShadows {
         self.near_light
             .iter()
             .any(|&[a, b, c]| segment_meets_triangle(p, s, a, b, c))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The recorded normal keeps the direction within the prefilter's
+    /// allowance for every magnitude a cross product of `f32` differences can
+    /// have, with no component overflowing or lost; zero stays zero (so the
+    /// prefilter passes the edge to the exact test).
+    #[test]
+    fn scaled_normals_keep_the_direction_at_every_magnitude() {
+        let mut rng = SplitMix64::new(11);
+        let mut worst = 0.0f64;
+        for k in -298..=258 {
+            for _ in 0..20 {
+                let mut n = DVec3::new(
+                    rng.next_f64() - 0.5,
+                    rng.next_f64() - 0.5,
+                    rng.next_f64() - 0.5,
+                );
+                // Some normals along an axis, some with a tiny component.
+                if rng.next_f64() < 0.2 {
+                    n.y *= 1e-30;
+                }
+                let n = n * 2f64.powi(k);
+                let m = DVec3::from(scaled_normal(n).map(f64::from));
+                let largest = m.abs().max_element();
+                assert!((0.5..=1.0).contains(&largest), "{n:?} -> {m:?}");
+                let angle = n.normalize().cross(m.normalize()).length();
+                worst = worst.max(angle);
+            }
+        }
+        // The prefilter allows 1e-6; rounding to f32 alone gives about 1e-7.
+        assert!(worst < 1.5e-7, "worst angle {worst:e}");
+        assert_eq!(scaled_normal(DVec3::ZERO), [0.0; 3]);
     }
 }

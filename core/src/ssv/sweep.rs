@@ -232,7 +232,7 @@ impl<'a> Kernel<'a> {
         counters: &mut [i32],
     ) {
         if silhouette.near {
-            self.silhouettes.record(e, at.nrm / at.nrm_length);
+            self.silhouettes.record(e, at.nrm);
         }
         if !silhouette.sweep {
             return;
@@ -273,8 +273,8 @@ impl<'a> Kernel<'a> {
         let edge = &g.edges[e as usize];
         let (a, b) = (g.positions[edge.a as usize], g.positions[edge.b as usize]);
         if silhouette.near {
-            let at = EdgeAt::new(a, b, self.pw);
-            self.silhouettes.record(e, at.nrm / at.nrm_length);
+            let normal = (a.as_dvec3() - self.pw).cross(b.as_dvec3() - self.pw);
+            self.silhouettes.record(e, normal);
         }
         let lane_arc = planes.arc >> lane & 1;
         self.lane_swept += 1;
