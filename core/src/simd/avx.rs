@@ -3,11 +3,13 @@
 #![allow(unsafe_code)]
 
 use core::arch::x86_64::{
-    __m256, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm256_add_ps,
-    _mm256_and_ps, _mm256_andnot_ps, _mm256_blendv_ps, _mm256_cmp_ps, _mm256_div_ps,
+    __m128i, __m256, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ,
+    _mm_add_epi32, _mm_loadu_si128, _mm_storeu_si128, _mm256_add_ps, _mm256_and_ps,
+    _mm256_andnot_ps, _mm256_blendv_ps, _mm256_castps_si256, _mm256_castsi256_ps,
+    _mm256_castsi256_si128, _mm256_cmp_ps, _mm256_div_ps, _mm256_extractf128_si256,
     _mm256_loadu_ps, _mm256_max_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps,
-    _mm256_set1_ps, _mm256_setzero_ps, _mm256_sqrt_ps, _mm256_storeu_ps, _mm256_sub_ps,
-    _mm256_xor_ps,
+    _mm256_set1_epi32, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sqrt_ps, _mm256_storeu_ps,
+    _mm256_sub_ps, _mm256_xor_ps,
 };
 
 use super::{EdgeCorners8, EdgePlanes8, SetupMasks8, SweepPlanes8, SweepReceiver8};
@@ -19,6 +21,24 @@ use glam::Vec4;
 
 #[cfg(feature = "bvh")]
 use super::{LaneHits8, Planes8, ShearedRay, SlabRay};
+
+/// Adds the eight `i32` lanes of `add` to `eight`, in two 128-bit halves
+/// (AVX without AVX2 has no 256-bit integer addition).
+#[target_feature(enable = "avx")]
+#[inline]
+fn add_i32x8(eight: &mut [i32; 8], add: __m256) {
+    let add = _mm256_castps_si256(add);
+    let halves = [
+        _mm256_castsi256_si128(add),
+        _mm256_extractf128_si256::<1>(add),
+    ];
+    for (four, half) in eight.chunks_exact_mut(4).zip(halves) {
+        let four = four.as_mut_ptr().cast::<__m128i>();
+        // SAFETY: `four` points at four readable and writable, contiguous
+        // `i32`; both accesses are unaligned.
+        unsafe { _mm_storeu_si128(four, _mm_add_epi32(_mm_loadu_si128(four), half)) };
+    }
+}
 
 #[inline(always)]
 fn load(eight: &[f32; 8]) -> __m256 {
@@ -768,22 +788,26 @@ pub(crate) fn silhouette_planes8(
 /// The per-sample pass of the sweep ([`Kernel::run`](crate::ssv)'s
 /// classification) for one edge over the samples `lo..hi` of `soa` (their
 /// coordinates by axis, padded with readable entries to a multiple of eight),
-/// eight samples at a time in `f32`: `visit(i, true)` for every sample `i`
-/// the edge certainly crosses, `visit(i, false)` for every one the `f32`
-/// signs leave unsure (none is certainly not crossed and some sign is within
-/// its bound); nothing for the others. Each sign is taken only beyond
-/// `edge`'s bound on its distance from the exact value
-/// ([`silhouette_planes8`]), the sum's with [`SUM_BOUND`] more, so a sample
-/// said crossed is crossed exactly and one said not is not.
+/// eight samples at a time in `f32`: `contribution` is added to
+/// `counters[i]` for every sample `i` the edge certainly crosses (eight
+/// counters at once where eight exist from the block's first), and for
+/// every one the `f32` signs leave unsure (none is certainly not crossed and
+/// some sign is within its bound) where `unsure(i)`, the exact test, says
+/// it is crossed; nothing for the others. Each sign is taken only beyond `edge`'s bound on its distance from
+/// the exact value ([`silhouette_planes8`]), the sum's with [`SUM_BOUND`]
+/// more, so a sample said crossed is crossed exactly and one said not is not.
 #[target_feature(enable = "avx")]
 #[inline]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn crossings8(
     edge: &EdgePlanes8,
     p: [f32; 3],
     soa: [&[f32]; 3],
     lo: usize,
     hi: usize,
-    mut visit: impl FnMut(usize, bool),
+    counters: &mut [i32],
+    contribution: i32,
+    mut unsure: impl FnMut(usize) -> bool,
 ) {
     let splat = |x: f32| _mm256_set1_ps(x);
     let zero = _mm256_setzero_ps();
@@ -803,6 +827,8 @@ pub(crate) fn crossings8(
     // The wanted side made positive by flipping signs.
     let flip = splat(if edge.want { 0.0 } else { -0.0 });
     let p = p.map(splat);
+    let lane_index = load(&[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
+    let contribution8 = _mm256_castsi256_ps(_mm256_set1_epi32(contribution));
     let mut base = lo & !7;
     while base < hi {
         let at = |axis: usize| -> __m256 {
@@ -840,13 +866,33 @@ pub(crate) fn crossings8(
         let first = lo.saturating_sub(base);
         let past = (hi - base).min(8);
         let inside = (0xFFu32 << first) & (0xFFu32 >> (8 - past));
-        let hits = _mm256_movemask_ps(hit) as u32 & inside;
-        let unsure = !(_mm256_movemask_ps(_mm256_or_ps(hit, reject)) as u32) & inside;
-        let mut bits = hits | unsure;
-        while bits != 0 {
-            let i = bits.trailing_zeros() as usize;
-            visit(base + i, hits >> i & 1 == 1);
-            bits &= bits - 1;
+        match counters.get_mut(base..base + 8) {
+            Some(eight) => {
+                // The hit lanes inside the range get the contribution, the
+                // others zero: no branch per sample, nor per block.
+                let lanes = _mm256_cmp_ps::<_CMP_LT_OQ>(lane_index, splat(past as f32));
+                let lanes = _mm256_and_ps(
+                    lanes,
+                    _mm256_cmp_ps::<_CMP_GE_OQ>(lane_index, splat(first as f32)),
+                );
+                let add = _mm256_and_ps(_mm256_and_ps(hit, lanes), contribution8);
+                add_i32x8(eight.try_into().expect("eight counters"), add);
+            }
+            None => {
+                let mut bits = _mm256_movemask_ps(hit) as u32 & inside;
+                while bits != 0 {
+                    counters[base + bits.trailing_zeros() as usize] += contribution;
+                    bits &= bits - 1;
+                }
+            }
+        }
+        let mut open = !(_mm256_movemask_ps(_mm256_or_ps(hit, reject)) as u32) & inside;
+        while open != 0 {
+            let i = base + open.trailing_zeros() as usize;
+            if unsure(i) {
+                counters[i] += contribution;
+            }
+            open &= open - 1;
         }
         base += 8;
     }

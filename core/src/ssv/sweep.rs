@@ -296,24 +296,28 @@ impl<'a> Kernel<'a> {
             if lo >= hi {
                 continue;
             }
-            let visit = |i: usize, certain: bool| {
-                if certain {
-                    counters[i] += contribution;
-                    return;
-                }
+            let exact_test = |i: usize| {
                 unsure += 1;
                 let exact = exact.get_or_insert_with(|| {
                     this.edge_planes(ss, &EdgeAt::new(a, b, this.pw), weight)
                 });
-                if this.crosses(ss, exact, i) {
-                    counters[i] += contribution;
-                }
+                this.crosses(ss, exact, i)
             };
+            let p = this.p.to_array();
             #[allow(unsafe_code)]
             // SAFETY: lanes' planes are only made where the processor runs
             // AVX ([`SoftShadows::sweep_receiver`]).
             unsafe {
-                crate::simd::avx::crossings8(&edge_planes, this.p.to_array(), soa, lo, hi, visit)
+                crate::simd::avx::crossings8(
+                    &edge_planes,
+                    p,
+                    soa,
+                    lo,
+                    hi,
+                    counters,
+                    contribution,
+                    exact_test,
+                )
             };
         }
         self.unsure += unsure;

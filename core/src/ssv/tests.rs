@@ -972,8 +972,14 @@ fn lane_sample_pass_equals_the_per_sample_test() {
             }
         }
     }
+    // A last block of fewer than eight samples, whose hits take the
+    // one-at-a-time addition (the others are added eight at a time).
+    let short = (8 + 5 - samples.len() % 8) % 8;
+    samples.extend(light.samples(short.max(1), SamplePattern::Jittered, 6));
+    samples.truncate(samples.len() / 8 * 8 + 5);
     let ss = build(&soup, &light, &samples, Structure::BruteForce);
     let n = samples.len();
+    assert_eq!(n % 8, 5);
     let (mut unsure, mut swept, mut arcs) = (0, 0, 0);
     let receivers = probes.into_iter().chain([Vec3::ZERO]).chain(receivers_box(
         Vec3::new(-1.5, -1.5, -0.5),
