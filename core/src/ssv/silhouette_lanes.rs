@@ -49,15 +49,16 @@ impl SoftShadows {
     ) -> u32 {
         #[cfg(all(target_arch = "x86_64", feature = "std"))]
         if let Some(receiver) = receiver {
-            let corners = self.lane_corners(edges);
-            let masks = lane_masks(receiver, &corners);
+            let mut corners = crate::simd::EdgeCorners8::default();
+            let irregular = self.lane_corners(edges, &mut corners);
+            let masks = lane_masks(receiver, &corners, irregular);
             // The swept silhouettes' planes and arcs in lanes too.
             let swept = masks.sweep & !masks.undecided & !masks.idle;
             #[allow(unsafe_code)]
             // SAFETY: a receiver is only made where the processor runs AVX
             // ([`SoftShadows::sweep_receiver`]).
             let planes = (swept != 0)
-                .then(|| unsafe { crate::simd::avx::silhouette_planes8(receiver, &corners.0) });
+                .then(|| unsafe { crate::simd::avx::silhouette_planes8(receiver, &corners) });
             let mut silhouettes = 0;
             for (i, &e) in edges.iter().enumerate() {
                 let bit = 1 << i;
@@ -108,19 +109,25 @@ impl SoftShadows {
     ) -> Option<SetupMasks8> {
         #[cfg(all(target_arch = "x86_64", feature = "std"))]
         if let Some(receiver) = receiver {
-            return Some(lane_masks(receiver, &self.lane_corners(edges)));
+            let mut corners = crate::simd::EdgeCorners8::default();
+            let irregular = self.lane_corners(edges, &mut corners);
+            return Some(lane_masks(receiver, &corners, irregular));
         }
         let _ = (receiver, edges);
         None
     }
 
-    /// The corners of `edges` by lane, and the lanes whose edge has not
-    /// exactly two adjacent triangles (their third vertices are the edge's
-    /// own endpoints).
+    /// The corners of `edges` by lane, into `corners` (written in place: a
+    /// returned copy of its 384 bytes cost a `memcpy` per batch); returns the
+    /// lanes whose edge has not exactly two adjacent triangles (their third
+    /// vertices are the edge's own endpoints).
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
-    pub(super) fn lane_corners(&self, edges: &[u32; LANES]) -> (crate::simd::EdgeCorners8, u32) {
+    pub(super) fn lane_corners(
+        &self,
+        edges: &[u32; LANES],
+        corners: &mut crate::simd::EdgeCorners8,
+    ) -> u32 {
         let g = &self.graph;
-        let mut corners = crate::simd::EdgeCorners8::default();
         let mut irregular = 0u32;
         let at = |v: u32| g.positions[v as usize].to_array();
         for (i, &e) in edges.iter().enumerate() {
@@ -144,7 +151,7 @@ impl SoftShadows {
                 }
             }
         }
-        (corners, irregular)
+        irregular
     }
 
     /// `kernel`'s receiver for the lanes, or `None` where they do not run (no
@@ -209,7 +216,8 @@ impl SoftShadows {
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
 fn lane_masks(
     receiver: &LaneReceiver,
-    (corners, irregular): &(crate::simd::EdgeCorners8, u32),
+    corners: &crate::simd::EdgeCorners8,
+    irregular: u32,
 ) -> SetupMasks8 {
     #[allow(unsafe_code)]
     // SAFETY: a receiver is only made where the processor runs AVX

@@ -1769,7 +1769,8 @@ fn lane_arcs_hold_the_exact_endpoint_angles() {
         };
         for chunk in ss.potential.chunks_exact(silhouette_lanes::LANES) {
             let edges: [u32; silhouette_lanes::LANES] = chunk.try_into().unwrap();
-            let (corners, _) = ss.lane_corners(&edges);
+            let mut corners = crate::simd::EdgeCorners8::default();
+            ss.lane_corners(&edges, &mut corners);
             #[allow(unsafe_code)]
             // SAFETY: AVX runs (checked above).
             let planes = unsafe { crate::simd::avx::silhouette_planes8(&receiver, &corners) };
