@@ -176,7 +176,10 @@ impl SoftShadows {
                 // the cheap test of the direction first.
                 let mut clear = true;
                 self.for_each_candidate(p, |e| {
-                    clear &= !(near(sw, e) && self.silhouette_weight(p, e) != 0);
+                    // Nothing left to test once one edge is near.
+                    if clear && near(sw, e) && self.silhouette_weight(p, e) != 0 {
+                        clear = false;
+                    }
                 });
                 return clear;
             }

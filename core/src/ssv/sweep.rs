@@ -696,14 +696,24 @@ pub(super) fn inset(
 /// endpoint. `f64` from `f32` coordinates: far more precise than the angle.
 pub(super) fn direction_near_edge(s: DVec3, a: DVec3, b: DVec3) -> bool {
     let n = a.cross(b);
-    let (ls, la, lb, ln) = (s.length(), a.length(), b.length(), n.length());
+    let (ls2, la2, lb2, ln2) = (
+        s.length_squared(),
+        a.length_squared(),
+        b.length_squared(),
+        n.length_squared(),
+    );
+    // Most directions are far from the edge's plane: decided in squares,
+    // before any square root (the same comparisons as below, squared).
+    let along = n.dot(s);
+    let plane_defined = ln2 > 1e-18 * la2 * lb2;
+    if plane_defined && along * along > NEAR_ANGLE * NEAR_ANGLE * ln2 * ls2 {
+        return false;
+    }
+    let [ls, la, lb, ln] = [ls2, la2, lb2, ln2].map(libm::sqrt);
     let near_endpoint =
         |e: DVec3, le: f64| e.cross(s).length() <= NEAR_ANGLE * le * ls && e.dot(s) > 0.0;
-    if ln <= 1e-9 * la * lb {
+    if !plane_defined {
         return near_endpoint(a, la) || near_endpoint(b, lb);
-    }
-    if n.dot(s).abs() > NEAR_ANGLE * ln * ls {
-        return false;
     }
     // In the plane, `a → b` turns counter-clockwise about `n` through less
     // than a half turn: `s` is inside the arc when it is on the inner side of

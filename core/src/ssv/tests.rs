@@ -1806,3 +1806,61 @@ fn lane_arcs_hold_the_exact_endpoint_angles() {
     }
     assert!(checked > 1000, "{checked} arcs checked");
 }
+
+/// `direction_near_edge` (its plane test in squares first) against its
+/// definition in angles (lengths by square roots), on directions at angles
+/// from the edge's plane on both sides of `NEAR_ANGLE` (never within 1e-6 of
+/// it, where rounding may take either side), beside and beyond the edge's
+/// ends, and on edges seen end-on.
+#[test]
+fn near_edge_test_equals_its_definition_in_angles() {
+    let by_angles = |s: DVec3, a: DVec3, b: DVec3| {
+        let n = a.cross(b);
+        let (ls, la, lb, ln) = (s.length(), a.length(), b.length(), n.length());
+        let near_endpoint =
+            |e: DVec3, le: f64| e.cross(s).length() <= NEAR_ANGLE * le * ls && e.dot(s) > 0.0;
+        if ln <= 1e-9 * la * lb {
+            return near_endpoint(a, la) || near_endpoint(b, lb);
+        }
+        if n.dot(s).abs() > NEAR_ANGLE * ln * ls {
+            return false;
+        }
+        let inside_a = a.cross(s).dot(n) >= -NEAR_ANGLE * la * ls * ln;
+        let inside_b = s.cross(b).dot(n) >= -NEAR_ANGLE * ls * lb * ln;
+        (inside_a && inside_b) || near_endpoint(a, la) || near_endpoint(b, lb)
+    };
+    let mut rng = SplitMix64::new(29);
+    let mut unit = || {
+        DVec3::new(
+            rng.next_f64() - 0.5,
+            rng.next_f64() - 0.5,
+            rng.next_f64() - 0.5,
+        )
+        .normalize()
+    };
+    let (mut near, mut far) = (0, 0);
+    for k in 0..20_000 {
+        let a = unit() * (0.5 + (k % 7) as f64);
+        let b = if k % 10 == 0 {
+            // Seen end-on: b along a (within rounding).
+            a * 1.7
+        } else {
+            unit() * (0.3 + (k % 5) as f64)
+        };
+        let n = a.cross(b).normalize_or_zero();
+        // A direction along the edge (between, beside or beyond its ends),
+        // tilted off the plane by a multiple of the near angle.
+        let t = 1.4 * (k % 11) as f64 / 10.0 - 0.2;
+        let along = (a + (b - a) * t).normalize_or_zero();
+        let tilt = NEAR_ANGLE * [0.0, 0.5, 0.999, 1.001, 2.0, 1e3][k % 6];
+        let s = (along + n * libm::tan(tilt)) * (0.1 + (k % 3) as f64);
+        let got = direction_near_edge(s, a, b);
+        assert_eq!(got, by_angles(s, a, b), "s {s:?} a {a:?} b {b:?}");
+        if got {
+            near += 1;
+        } else {
+            far += 1;
+        }
+    }
+    assert!(near > 3_000 && far > 3_000, "{near} near, {far} far");
+}
