@@ -46,6 +46,9 @@ pub(super) struct Silhouettes {
     pub(super) len: usize,
     /// More edges were met than fit.
     pub(super) overflow: bool,
+    /// The first edge that did not fit (with `overflow`): the edges met
+    /// before it that are not recorded are not near.
+    pub(super) first_unrecorded: u32,
 }
 
 impl Silhouettes {
@@ -54,6 +57,7 @@ impl Silhouettes {
             slots: [const { MaybeUninit::uninit() }; RECORDED_SILHOUETTES],
             len: 0,
             overflow: false,
+            first_unrecorded: 0,
         }
     }
 
@@ -66,7 +70,12 @@ impl Silhouettes {
                 slot.write((edge, scaled_normal(normal)));
                 self.len += 1;
             }
-            None => self.overflow = true,
+            None => {
+                if !self.overflow {
+                    self.first_unrecorded = edge;
+                }
+                self.overflow = true;
+            }
         }
     }
 
@@ -171,28 +180,38 @@ impl SoftShadows {
             if !deep_inside {
                 return false;
             }
-            if silhouettes.overflow {
-                // Every silhouette again, from the structure's candidates:
-                // the cheap test of the direction first.
-                let mut clear = true;
-                self.for_each_candidate(p, |e| {
-                    // Nothing left to test once one edge is near.
-                    if clear && near(sw, e) && self.silhouette_weight(p, e) != 0 {
-                        clear = false;
-                    }
-                });
-                return clear;
-            }
             // The recorded normals' directions are within 1e-7 of the exact
             // ones: the prefilter's bound allows for it. `|n·s| > bound |n|`
             // in squares (f64, its rounding far below that allowance).
             let bound = NEAR_ANGLE + 1e-6;
             let bound_squared = bound * bound * sw.length_squared();
-            silhouettes.recorded().all(|(e, n)| {
+            let recorded_clear = silhouettes.recorded().all(|(e, n)| {
                 let n = n.as_dvec3();
                 let along = n.dot(sw);
                 along * along > bound_squared * n.length_squared() || !near(sw, e)
-            })
+            });
+            if !recorded_clear || !silhouettes.overflow {
+                return recorded_clear;
+            }
+            // The silhouettes that did not fit, from the structure's
+            // candidates (visited in the sweep's order) from the first of
+            // them on; every candidate if that one is not met.
+            let clear_from = |first: Option<u32>| {
+                let mut reached = first.is_none();
+                let mut clear = true;
+                self.for_each_candidate(p, |e| {
+                    reached |= Some(e) == first;
+                    // Nothing left to test once one edge is near.
+                    if reached && clear && near(sw, e) && self.silhouette_weight(p, e) != 0 {
+                        clear = false;
+                    }
+                });
+                (reached, clear)
+            };
+            match clear_from(Some(silhouettes.first_unrecorded)) {
+                (true, clear) => clear,
+                (false, _) => clear_from(None).1,
+            }
         });
         chosen.map(|k| self.samples[self.order[k] as usize])
     }

@@ -1864,3 +1864,86 @@ fn near_edge_test_equals_its_definition_in_angles() {
     }
     assert!(near > 3_000 && far > 3_000, "{near} near, {far} far");
 }
+
+/// A receiver under more near silhouettes than a query records: the
+/// reference sample chosen (the recorded edges, then the structure's
+/// candidates from the first edge that did not fit) equals the slow
+/// definition (no candidate that is a silhouette at the receiver comes near
+/// the sample's direction), over windows of candidate samples of which many
+/// lie on the projections of the edges.
+#[test]
+fn reference_sample_past_the_record_equals_its_definition() {
+    // 700 separate small triangles (2,100 boundary edges, each a silhouette
+    // from every receiver below) between the receiver and a large light.
+    let mut soup = Soup::default();
+    let mut rng = SplitMix64::new(41);
+    for _ in 0..700 {
+        let c = Vec3::new(
+            rng.next_f64() as f32 * 1.6 - 0.8,
+            rng.next_f64() as f32 * 1.6 - 0.8,
+            rng.next_f64() as f32 * 0.8 + 0.6,
+        );
+        let r = 0.01 + 0.02 * rng.next_f64() as f32;
+        let t = rng.next_f64() as f32 * 6.0;
+        let corner = |k: f32| c + r * Vec3::new((t + k * 2.1).cos(), (t + k * 2.1).sin(), 0.0);
+        soup.push([corner(0.0), corner(1.0), corner(2.0)]);
+    }
+    let light = quad_light(Vec3::new(0.0, 0.0, 2.0), 1.0);
+    let p = Vec3::new(0.03, -0.02, 0.0);
+    // Samples on the projections of edge points from `p`, some nudged a few
+    // units of rounding off them, then jittered ones.
+    let mut samples = Vec::new();
+    for (i, [a, b, _]) in soup.triangles().into_iter().enumerate().step_by(3) {
+        let w = a + (b - a) * (0.2 + 0.6 * (i % 5) as f32 / 4.0);
+        let s = p + (w - p) * ((2.0 - p.z) / (w.z - p.z));
+        if s.x.abs() < 0.95 && s.y.abs() < 0.95 && samples.len() < 200 {
+            let nudge = [0.0, 1e-6, -3e-5, 2e-4][i % 4];
+            samples.push(Vec3::new(s.x + nudge, s.y, 2.0));
+        }
+    }
+    samples.extend(light.samples(56, SamplePattern::Jittered, 7));
+    let ss = build(&soup, &light, &samples, Structure::Hierarchy);
+    let n = samples.len();
+    let mut counters = vec![0i32; n];
+    let mut silhouettes = Silhouettes::new();
+    ss.sweep(
+        p,
+        &mut counters,
+        &mut QueryInfo::default(),
+        &mut silhouettes,
+    );
+    assert!(silhouettes.overflow, "{} recorded", silhouettes.len);
+    let pw = p.as_dvec3();
+    let height = (ss.plane_point - pw).dot(ss.plane_normal).abs();
+    let near_silhouette = |sw: DVec3, e: u32| {
+        let edge = &ss.graph.edges[e as usize];
+        let [a, b] = [edge.a, edge.b].map(|v| ss.graph.positions[v as usize].as_dvec3() - pw);
+        direction_near_edge(sw, a, b) && ss.silhouette_weight(p, e) != 0
+    };
+    let (mut chosen, mut refused) = (0, 0);
+    for start in 0..n {
+        let window: Vec<usize> = (start..n.min(start + 8)).collect();
+        let slow = window
+            .iter()
+            .take(reference::REFERENCE_TRIES)
+            .find(|&&k| {
+                let sw = ss.samples[ss.order[k] as usize].as_dvec3() - pw;
+                let deep = ss.insets[k] > 4.0 * NEAR_ANGLE * sw.length_squared() / height;
+                let mut clear = true;
+                ss.for_each_candidate(p, |e| clear &= !near_silhouette(sw, e));
+                if deep && !clear {
+                    refused += 1;
+                }
+                deep && clear
+            })
+            .map(|&k| ss.samples[ss.order[k] as usize]);
+        let fast = ss.reference_sample(p, window.iter().copied(), &silhouettes);
+        assert_eq!(fast, slow, "window from {start}");
+        chosen += usize::from(slow.is_some());
+    }
+    // Both answers occur, and samples were refused for a near silhouette.
+    assert!(
+        chosen > 0 && chosen < n && refused > 0,
+        "{chosen} chosen of {n}, {refused} refused"
+    );
+}
