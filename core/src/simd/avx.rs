@@ -358,6 +358,20 @@ fn dot3(x: [__m256; 3], y: [__m256; 3]) -> __m256 {
     )
 }
 
+/// An endpoint's height `w · toward` per lane, with the bound on its
+/// distance from the exact value (`HEIGHT_BOUND` times the permanent, plus
+/// `floor`), as both sweep kernels take it.
+#[target_feature(enable = "avx")]
+#[inline]
+fn bounded_height(w: [__m256; 3], toward: [__m256; 3], floor: __m256) -> (__m256, __m256) {
+    let permanent = dot3(w.map(|v| abs8(v)), toward.map(|v| abs8(v)));
+    let err = _mm256_add_ps(
+        _mm256_mul_ps(_mm256_set1_ps(HEIGHT_BOUND), permanent),
+        floor,
+    );
+    (dot3(w, toward), err)
+}
+
 /// `(v₀ + v₁) + v₂` per lane.
 #[target_feature(enable = "avx")]
 #[inline]
@@ -463,14 +477,7 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
     // (certainly below `-S`, possibly below; certainly above `hc + S`,
     // possibly above) for one endpoint.
     let height = |w: [__m256; 3]| {
-        let h = dot3(w, toward);
-        let err = _mm256_add_ps(
-            _mm256_mul_ps(
-                splat(HEIGHT_BOUND),
-                dot3(w.map(|v| abs8(v)), toward.map(|v| abs8(v))),
-            ),
-            floor,
-        );
+        let (h, err) = bounded_height(w, toward, floor);
         let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(h, err), _mm256_sub_ps(zero, slack));
         let maybe_behind = not(_mm256_cmp_ps::<_CMP_GE_OQ>(_mm256_sub_ps(h, err), zero));
         let beyond = _mm256_cmp_ps::<_CMP_GT_OQ>(
@@ -698,14 +705,7 @@ pub(crate) fn silhouette_planes8(
     // Per endpoint: the projection's coordinates, their bound, the lower
     // bound of the distance from the centroid, and whether it is usable.
     let project = |w: [__m256; 3]| {
-        let h = dot3(w, toward);
-        let h_err = _mm256_add_ps(
-            _mm256_mul_ps(
-                splat(HEIGHT_BOUND),
-                dot3(w.map(|v| abs8(v)), toward.map(|v| abs8(v))),
-            ),
-            floor,
-        );
+        let (h, h_err) = bounded_height(w, toward, floor);
         let h_lo = _mm256_sub_ps(h, h_err);
         let above = _mm256_cmp_ps::<_CMP_GT_OQ>(h_lo, _mm256_mul_ps(splat(1e-3), hc));
         let relative = _mm256_div_ps(h_err, h_lo);
