@@ -843,10 +843,6 @@ fn hemicube_lists_every_relevant_edge() {
     assert!(listed > 0);
 }
 
-/// Six triangles whose edges run along x at height 1 (at `y = -0.375 +
-/// 0.125 k`), so that from the origin they project onto the plane `z = 2` at
-/// `y = 2 y_k`, and a small sphere beside them: a scene whose decisions can be
-/// put exactly on their bounds.
 /// A quad light at height 2 over [`edges_along_x`].
 fn light_over_edges_along_x() -> LightPolygon {
     LightPolygon::new(&[
@@ -872,6 +868,10 @@ fn on_projected_edges() -> impl Iterator<Item = Vec3> {
     })
 }
 
+/// Six triangles whose edges run along x at height 1 (at `y = -0.375 +
+/// 0.125 k`), so that from the origin they project onto the plane `z = 2` at
+/// `y = 2 y_k`, and a small sphere beside them: a scene whose decisions can be
+/// put exactly on their bounds.
 fn edges_along_x() -> Soup {
     let mut soup = Soup::default();
     for k in 0..6 {
@@ -884,6 +884,28 @@ fn edges_along_x() -> Soup {
     }
     soup.append(&sphere(Vec3::new(0.3, 0.2, 1.2), 0.2, 8));
     soup
+}
+
+/// Receivers for [`edges_along_x`]: the origin (whose projected edges hold
+/// samples of [`on_projected_edges`]) and a box around the scene.
+fn receivers_under_edges_along_x() -> impl Iterator<Item = Vec3> {
+    [Vec3::ZERO].into_iter().chain(receivers_box(
+        Vec3::new(-1.5, -1.5, -0.5),
+        Vec3::new(1.5, 1.5, 0.5),
+        40,
+        9,
+    ))
+}
+
+/// The slow twin's counters at `p`: every sample through the exact
+/// per-sample test, no arc.
+fn slow_counters(ss: &SoftShadows, p: Vec3) -> Vec<i32> {
+    let mut counters = vec![0i32; ss.samples.len()];
+    let mut silhouettes = Silhouettes::new();
+    let mut k = Kernel::new(ss, p, &mut silhouettes);
+    k.slow = true;
+    ss.sweep_with(k, &mut counters, &mut QueryInfo::default());
+    counters
 }
 
 /// The branch-free sample pass against its slow twin (every sample through the
@@ -902,26 +924,15 @@ fn branch_free_sample_pass_equals_the_per_sample_test() {
     let ss = build(&soup, &light, &samples, Structure::BruteForce);
     let n = samples.len();
     let mut unsure = 0;
-    let receivers = [Vec3::ZERO].into_iter().chain(receivers_box(
-        Vec3::new(-1.5, -1.5, -0.5),
-        Vec3::new(1.5, 1.5, 0.5),
-        40,
-        9,
-    ));
-    for p in receivers {
-        let (mut fast, mut slow) = (vec![0i32; n], vec![0i32; n]);
-        let mut info = QueryInfo::default();
+    for p in receivers_under_edges_along_x() {
+        let mut fast = vec![0i32; n];
         let mut silhouettes = Silhouettes::new();
         let mut k = Kernel::new(&ss, p, &mut silhouettes);
         for &e in &ss.potential {
             k.add_edge(&ss, e, &mut fast);
         }
         unsure += k.unsure;
-        let mut silhouettes = Silhouettes::new();
-        let mut k = Kernel::new(&ss, p, &mut silhouettes);
-        k.slow = true;
-        ss.sweep_with(k, &mut slow, &mut info);
-        assert_eq!(fast, slow, "receiver {p:?}");
+        assert_eq!(fast, slow_counters(&ss, p), "receiver {p:?}");
     }
     // The exact path was exercised (30 samples lie on the origin's projected
     // edges; those the edge's own culling does not reach are unsure).
@@ -981,14 +992,8 @@ fn lane_sample_pass_equals_the_per_sample_test() {
     let n = samples.len();
     assert_eq!(n % 8, 5);
     let (mut unsure, mut swept, mut arcs) = (0, 0, 0);
-    let receivers = probes.into_iter().chain([Vec3::ZERO]).chain(receivers_box(
-        Vec3::new(-1.5, -1.5, -0.5),
-        Vec3::new(1.5, 1.5, 0.5),
-        40,
-        9,
-    ));
-    for p in receivers {
-        let (mut lanes, mut slow) = (vec![0i32; n], vec![0i32; n]);
+    for p in probes.into_iter().chain(receivers_under_edges_along_x()) {
+        let mut lanes = vec![0i32; n];
         let mut silhouettes = Silhouettes::new();
         let mut k = Kernel::new(&ss, p, &mut silhouettes);
         let receiver = ss.sweep_receiver(&k);
@@ -1001,11 +1006,7 @@ fn lane_sample_pass_equals_the_per_sample_test() {
             k.add_edge(&ss, e, &mut lanes);
         }
         (unsure, swept, arcs) = (unsure + k.unsure, swept + k.lane_swept, arcs + k.lane_arcs);
-        let mut silhouettes = Silhouettes::new();
-        let mut k = Kernel::new(&ss, p, &mut silhouettes);
-        k.slow = true;
-        ss.sweep_with(k, &mut slow, &mut QueryInfo::default());
-        assert_eq!(lanes, slow, "receiver {p:?}");
+        assert_eq!(lanes, slow_counters(&ss, p), "receiver {p:?}");
     }
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
     if crate::simd::avx_available() {
