@@ -1443,7 +1443,7 @@ void antumbra_hemi_material_init(struct antumbra_hemi_material *material);
  *         options->near_radius); OUT_OF_MEMORY (the per-frame memory or the
  *         shared half-space table); POISONED (options->raster.table); PANIC.
  *
- * Cost: groups the triangles (a sort of their centroids' Morton codes), reserves
+ * Cost: groups the triangles (recursive median splits of their centroids), reserves
  * 12 + 24 bytes per vertex and about 5 bytes per triangle (both meshes); with
  * `far_triangles`, simplifies the mesh (about 20 clusterings, each a sort of the
  * vertices and triangles: milliseconds per 10k triangles) and keeps the far mesh
@@ -1500,7 +1500,8 @@ void antumbra_hemi_shader_destroy(struct antumbra_hemi_shader *shader);
  *         the mesh checks of `antumbra_hemi_shader_create`); INDEX_OUT_OF_RANGE;
  *         NON_FINITE; POISONED; PANIC (the shader is poisoned).
  *
- * Cost: a sort of the triangles' Morton codes (allocates temporary memory).
+ * Cost: recursive median splits of the triangles' centroids (allocates
+ * temporary memory).
  * Thread safety: calls on one shader run one at a time (an internal lock).
  *
  * # Safety

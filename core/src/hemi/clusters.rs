@@ -1,5 +1,6 @@
-//! Triangle clusters of a deforming mesh: the triangles grouped once by the
-//! Morton order of their centroids, each cluster split into chunks with their
+//! Triangle clusters of a deforming mesh: the triangles grouped once by
+//! recursive splits of their centroids across the longest side of their box
+//! (a k-d order), each cluster split into chunks with their
 //! own vertex lists, and the boxes recomputed every frame
 //! ([`TriangleClusters::update`]) with a hierarchy of boxes above them. A
 //! receiver skips whole nodes below its horizon or behind the cells it has
@@ -74,7 +75,7 @@ impl Aabb {
 /// bounding box for the current frame: lets a receiver skip whole clusters below
 /// its horizon (see the module docs).
 ///
-/// The grouping (a Morton order of the triangle centroids) is computed once from
+/// The grouping (a k-d order of the triangle centroids) is computed once from
 /// the positions given to [`TriangleClusters::new`] (the rest pose) and kept while
 /// the mesh deforms; the boxes are recomputed every frame by
 /// [`TriangleClusters::update`], which is the only way to get a
@@ -87,7 +88,7 @@ pub struct TriangleClusters {
     /// The hierarchy's boxes, finest first: `nodes[0]` has one box per
     /// cluster of `size` consecutive entries of `order`, and each level above
     /// one box per [`GROUP`] consecutive boxes of the level below (neighbours
-    /// in the Morton order), their union, up to a top level of at most
+    /// in the k-d order), their union, up to a top level of at most
     /// [`GROUP`] boxes. A receiver skips a node with one test exactly when it
     /// would skip each box below it.
     pub(super) nodes: Vec<Vec<Aabb>>,
@@ -118,10 +119,11 @@ pub(super) const CHUNK: usize = 32;
 /// The most distinct vertices a chunk can have.
 pub(super) const CHUNK_VERTICES: usize = 3 * CHUNK;
 
-/// Triangles per box of [`TriangleClusters::spans`]: spans of 4 and of 8 cost
-/// about the same per receiver on the armadillo and CGAL's lion, 16 about 5 %
-/// more.
-pub(super) const SPAN: usize = 8;
+/// Triangles per box of [`TriangleClusters::spans`]: with the runs inside a
+/// cluster in k-d order, spans of 4 test a quarter fewer triangles than spans
+/// of 8 on the armadillo (masks about 5 % faster) and cost the same on CGAL's
+/// lion and the bunny.
+pub(super) const SPAN: usize = 4;
 
 /// Span boxes per chunk at most.
 pub(super) const CHUNK_SPANS: usize = CHUNK.div_ceil(SPAN);
@@ -165,7 +167,9 @@ impl TriangleClusters {
     pub const DEFAULT_SIZE: usize = 32;
 
     /// Groups the triangles of `mesh` into clusters of `triangles_per_cluster`
-    /// (at least 1) by the Morton order of their centroids in these positions.
+    /// (at least 1) by a k-d order of their centroids in these positions
+    /// (`split_order`), the runs of 4 triangles (span boxes) inside each cluster
+    /// ordered the same way.
     pub fn new(mesh: &MeshView<'_>, triangles_per_cluster: usize) -> Self {
         let mut clusters = TriangleClusters {
             size: triangles_per_cluster.max(1),
@@ -187,25 +191,16 @@ impl TriangleClusters {
     /// compact). Allocates when the triangle count grew.
     pub fn reorder(&mut self, mesh: &MeshView<'_>) {
         let count = mesh.triangle_count();
-        let mut bounds = Aabb::EMPTY;
-        for t in 0..count {
-            let [a, b, c] = mesh.triangle(t);
-            bounds.grow((a + b + c) * (1.0 / 3.0));
-        }
-        let extent = (bounds.max - bounds.min).max(Vec3::splat(f32::MIN_POSITIVE));
-        let mut keyed: Vec<(u32, u32)> = (0..count)
+        let mut keyed: Vec<(Vec3, u32)> = (0..count)
             .map(|t| {
                 let [a, b, c] = mesh.triangle(t);
-                let centroid = (a + b + c) * (1.0 / 3.0);
-                let cell = ((centroid - bounds.min) / extent * 1023.0)
-                    .clamp(Vec3::ZERO, Vec3::splat(1023.0));
-                let code = spread_bits(cell.x as u32)
-                    | spread_bits(cell.y as u32) << 1
-                    | spread_bits(cell.z as u32) << 2;
-                (code, t as u32)
+                ((a + b + c) * (1.0 / 3.0), t as u32)
             })
             .collect();
-        keyed.sort_unstable();
+        split_order(&mut keyed, self.size);
+        for cluster in keyed.chunks_mut(self.size) {
+            split_order(cluster, SPAN);
+        }
         self.order.clear();
         self.order.extend(keyed.iter().map(|&(_, t)| t));
         self.nodes.clear();
@@ -344,14 +339,41 @@ impl TriangleClusters {
     }
 }
 
-/// Morton spreading: bit `k` of a 10-bit value to bit `3k`.
-#[inline]
-fn spread_bits(v: u32) -> u32 {
-    let mut x = v & 0x3ff;
-    x = (x | x << 16) & 0x0300_00ff;
-    x = (x | x << 8) & 0x0300_f00f;
-    x = (x | x << 4) & 0x030c_30c3;
-    (x | x << 2) & 0x0924_9249
+/// Orders `keyed` (centroids and triangles) so that every run of `unit`
+/// entries, and every run of a power of two of such runs, is the set of
+/// entries on one side of a sequence of axis-aligned planes: the top split cuts
+/// the centroids' box across its longest side, with the largest power of two of
+/// units below the count on the low side, and each side is ordered the same
+/// way. So clusters of `unit` triangles and the groups of [`GROUP`] clusters
+/// above them (a power of two) are each compact, where a Morton order's runs
+/// jump across the curve's seams (measured: 20-40 % fewer triangles and nodes
+/// tested per receiver, masks 1.3-1.6x faster). Deterministic: ties are broken
+/// by triangle index, and NaN centroids sort by `total_cmp`.
+fn split_order(keyed: &mut [(Vec3, u32)], unit: usize) {
+    let units = keyed.len().div_ceil(unit);
+    if units <= 1 {
+        return;
+    }
+    let mut bounds = Aabb::EMPTY;
+    for &(centroid, _) in keyed.iter() {
+        bounds.grow(centroid);
+    }
+    let extent = bounds.max - bounds.min;
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    // `units >= 2`, so the low side holds at least one unit and fewer than all.
+    let low = units.next_power_of_two() / 2 * unit;
+    keyed.select_nth_unstable_by(low - 1, |(p, s), (q, t)| {
+        p[axis].total_cmp(&q[axis]).then(s.cmp(t))
+    });
+    let (low, high) = keyed.split_at_mut(low);
+    split_order(low, unit);
+    split_order(high, unit);
 }
 
 /// A mesh for one frame, with or without cluster boxes. Copy it freely; it only
@@ -434,6 +456,82 @@ mod tests {
                         bounds_of(&mesh, triangles),
                         "size {size}"
                     );
+                }
+            }
+        }
+    }
+
+    /// Whether `centroids` (in cluster order) are split as [`split_order`]
+    /// promises: the first largest power of two of `unit` runs below the
+    /// count lies on one side of a plane across a longest side of their box,
+    /// the rest on the other, and both sides again.
+    fn split_by_planes(centroids: &[Vec3], unit: usize) -> bool {
+        let units = centroids.len().div_ceil(unit);
+        if units <= 1 {
+            return true;
+        }
+        let (low, high) = centroids.split_at(units.next_power_of_two() / 2 * unit);
+        let (min, max) = centroids
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(min, max), &c| {
+                (min.min(c), max.max(c))
+            });
+        let extent = max - min;
+        // Across a longest side of the centroids' box, which keeps each side
+        // compact (a sort along one axis would cut slabs).
+        let separated = (0..3).any(|axis| {
+            let top = low
+                .iter()
+                .map(|c| c[axis])
+                .fold(f32::NEG_INFINITY, f32::max);
+            extent[axis] == extent.max_element() && high.iter().all(|c| c[axis] >= top)
+        });
+        separated && split_by_planes(low, unit) && split_by_planes(high, unit)
+    }
+
+    /// Every triangle appears once in the order; the clusters, the groups of
+    /// clusters above them and the spans inside each cluster are the sides of
+    /// axis-aligned planes (so each is compact), for cluster sizes that are
+    /// and are not powers of two, a mesh with many equal centroid
+    /// coordinates (a grid) and an empty one.
+    #[test]
+    fn clusters_and_spans_are_sides_of_axis_aligned_planes() {
+        let (sphere, sphere_indices) = bumpy_sphere(23, 37, 0.3, 0.0);
+        // A 20 x 20 grid of quads, gently rippled (so that no axis separates
+        // every split trivially), whose centroids share many coordinates.
+        let grid: Vec<[f32; 3]> = (0..21 * 21)
+            .map(|v| [(v % 21) as f32, (v / 21) as f32, 0.1 * ((v * 7 % 5) as f32)])
+            .collect();
+        let grid_indices: Vec<u32> = (0..20 * 20)
+            .flat_map(|q| {
+                let v = (q / 20) * 21 + q % 20;
+                [v, v + 1, v + 22, v, v + 22, v + 21]
+            })
+            .collect();
+        for (positions, indices) in [
+            (&sphere, &sphere_indices),
+            (&grid, &grid_indices),
+            (&Vec::new(), &Vec::new()),
+        ] {
+            let mesh = MeshView::new(positions, indices).unwrap();
+            for size in [1, 5, 8, 32, 40, 100] {
+                let clusters = TriangleClusters::new(&mesh, size);
+                let mut seen = alloc::vec![false; mesh.triangle_count()];
+                for &t in &clusters.order {
+                    assert!(!core::mem::replace(&mut seen[t as usize], true));
+                }
+                assert!(seen.iter().all(|&s| s), "size {size}");
+                let centroids: Vec<Vec3> = clusters
+                    .order
+                    .iter()
+                    .map(|&t| {
+                        let [a, b, c] = mesh.triangle(t as usize);
+                        (a + b + c) * (1.0 / 3.0)
+                    })
+                    .collect();
+                assert!(split_by_planes(&centroids, size), "size {size}");
+                for cluster in centroids.chunks(size) {
+                    assert!(split_by_planes(cluster, SPAN), "size {size}");
                 }
             }
         }

@@ -1,13 +1,13 @@
 //! The walk of a receiver over a mesh's hierarchy of cluster boxes. Speed: most
 //! triangles of a closed mesh lie below a receiver's horizon, and each is still
 //! read and culled. With [`TriangleClusters`](super::TriangleClusters) the
-//! triangles are grouped once into clusters of nearby triangles (a Morton order
+//! triangles are grouped once into clusters of nearby triangles (a k-d order
 //! of their centroids), each cluster's bounding box is recomputed every frame
 //! ([`TriangleClusters::update`](super::TriangleClusters::update)), and a whole
 //! cluster is skipped when its box is at or below the receiver's tangent plane
 //! through the center of projection, or entirely inside (far mesh) or outside
 //! (full mesh) the near radius. The boxes form a hierarchy (each node the union
-//! of 16 neighbours in the Morton order below it, refitted with the clusters),
+//! of 16 neighbours in the k-d order below it, refitted with the clusters),
 //! traversed per receiver depth first, each node's children nearest first
 //! (after Laine and Karras 2010, method 2): a node failing a test fails it for
 //! every box below, and a node whose reachable cells ([`BoxCells`]: a rectangle
