@@ -368,12 +368,24 @@ fn split_order(keyed: &mut [(Vec3, u32)], unit: usize) {
     };
     // `units >= 2`, so the low side holds at least one unit and fewer than all.
     let low = units.next_power_of_two() / 2 * unit;
-    keyed.select_nth_unstable_by(low - 1, |(p, s), (q, t)| {
-        p[axis].total_cmp(&q[axis]).then(s.cmp(t))
-    });
+    // One comparison per axis, so that none branches on the axis.
+    match axis {
+        0 => select_along(keyed, low - 1, |p| p.x),
+        1 => select_along(keyed, low - 1, |p| p.y),
+        _ => select_along(keyed, low - 1, |p| p.z),
+    }
     let (low, high) = keyed.split_at_mut(low);
     split_order(low, unit);
     split_order(high, unit);
+}
+
+/// `keyed.select_nth_unstable_by` at `nth` along `key` of the centroids, ties
+/// by triangle index.
+#[inline(always)]
+fn select_along(keyed: &mut [(Vec3, u32)], nth: usize, key: impl Fn(&Vec3) -> f32) {
+    keyed.select_nth_unstable_by(nth, |(p, s), (q, t)| {
+        key(p).total_cmp(&key(q)).then(s.cmp(t))
+    });
 }
 
 /// A mesh for one frame, with or without cluster boxes. Copy it freely; it only
