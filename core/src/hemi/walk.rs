@@ -20,7 +20,7 @@
 //! test only those rays, as a ray tracer's traversal would, instead of bounding
 //! their own rectangles. A cluster met by at most [`CELL_PATH`] rays tests the
 //! three edge planes of its triangles on those cells alone (`test_cells`
-//! (chunk.rs)), each run of eight triangles only on the rays that meet its
+//! (chunk.rs)), each run of four triangles only on the rays that meet its
 //! own box (the clusters' span boxes): the cells no triangle of the box can
 //! set are exactly those left out, and the test is the exact mask's predicate
 //! on the same `f32` values, so the bits are the same. Inside a box of cells that the mask already covers, a
