@@ -24,7 +24,7 @@ export PROPTEST_RNG_SEED ?= 20261122
 SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
 
 TEST_STEPS := fmt clippy docs no-std cargo-test miri header oracle-selfcheck embree c-examples \
-              embedded install-check python-abi
+              avx-encoding embedded install-check python-abi
 PREFIX ?= /usr/local
 DESTDIR ?=
 
@@ -140,6 +140,13 @@ embree:
 c-examples:
 	$(CARGO) build --release -p antumbra-ffi
 	$(MAKE) -C c_examples check
+
+# No function of the release library that runs 256-bit AVX code runs legacy SSE
+# instructions too (each would make the processor save or merge the vector
+# registers' upper halves).
+avx-encoding:
+	$(CARGO) build --release -p antumbra-ffi
+	python3 tools/check_avx_encoding.py $(TARGET_DIR)/release/libantumbra.so
 
 # The C library without std, as Cortex-M4 firmware under QEMU, against the host.
 embedded:

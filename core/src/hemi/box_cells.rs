@@ -20,7 +20,7 @@ use glam::Vec3;
 
 use super::clusters::Aabb;
 use super::mask::{CELL_COORD, CELL_Z, HemiMask};
-use crate::geom::Frame;
+use crate::geom::{Frame, length};
 
 /// Widening of the box's local coordinates, relative to their largest
 /// magnitude (`f32` rounding of the corners' transforms is below `1e-6`).
@@ -89,7 +89,7 @@ impl BoxCells {
         if close || !far_sq.is_finite() {
             return BoxCells::Any;
         }
-        let (near, far) = (libm::sqrtf(near_sq), libm::sqrtf(far_sq));
+        let (near, far) = (crate::geom::sqrtf(near_sq), crate::geom::sqrtf(far_sq));
         let upper = |h: f32| if h >= 0.0 { h / near } else { h / far };
         let lower = |l: f32| if l <= 0.0 { l / near } else { l / far };
         // Cell k's center is at (2k - 31) / 32, so centers in [a, b] are
@@ -466,8 +466,8 @@ impl<const N: usize> RayCells<N> {
 /// distance from the origin in angle.
 #[inline(always)]
 pub(crate) fn ray_pad(root: &Aabb, origin: Vec3) -> f32 {
-    let diagonal = (root.max - root.min).length();
-    let distance = (origin - (root.min + root.max) * 0.5).length();
+    let diagonal = length(root.max - root.min);
+    let distance = length(origin - (root.min + root.max) * 0.5);
     RAY_SLACK * (diagonal + distance)
 }
 

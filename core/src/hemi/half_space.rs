@@ -165,7 +165,7 @@ impl RowSolver {
                 Guess::Empty(peak)
             };
         }
-        let s = gz * libm::sqrtf(disc) * self.inv_len_xz_sq;
+        let s = gz * crate::geom::sqrtf(disc) * self.inv_len_xz_sq;
         let lo = if c - gx * r >= 0.0 { -1.0 } else { peak - s };
         let hi = if c + gx * r >= 0.0 { 1.0 } else { peak + s };
         if lo <= hi {

@@ -144,7 +144,7 @@ impl PhongLobe {
     /// `cos^s` by table, for `cos_angle` in `(0, 1]` (clamped).
     #[inline(always)]
     fn shape(&self, cos_angle: f32) -> f32 {
-        let w = libm::sqrtf((1.0 - cos_angle).max(0.0));
+        let w = crate::geom::sqrtf((1.0 - cos_angle).max(0.0));
         let x = (w * LOBE_SAMPLES as f32).min(LOBE_SAMPLES as f32);
         let k = x as usize;
         let f = x - k as f32;

@@ -613,7 +613,7 @@ fn region_error(n: usize, k: usize, l: usize) -> f64 {
     let side = (n - 1) as f64;
     let to_dir = |p: f64, q: f64| {
         let r = side - p - q;
-        let len = libm::sqrt(p * p + q * q + r * r);
+        let len = crate::geom::sqrt(p * p + q * q + r * r);
         [p / len, q / len, r / len]
     };
     let center = to_dir(k as f64, l as f64);

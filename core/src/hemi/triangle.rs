@@ -24,6 +24,7 @@ use glam::{DVec3, Vec3, Vec4, Vec4Swizzles};
 use super::half_space::{RowSolver, inside, normalize_exponent};
 use super::mask::{CELL_COORD, CELL_Z, GRID, HemiMask, ROW_FIRST, ROW_LAST};
 use super::table::{ALL, EdgeClasses, Entry, HalfSpaceTable, and_entries};
+use crate::geom::{length, sqrt4};
 
 /// Why a triangle contributes nothing and was skipped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -529,11 +530,11 @@ impl TriangleCone {
             // where they meet by up to error / sin(α/2), α the corner's
             // interior angle (cos α = -n_k · n_l for the inward edge normals):
             // more than the error itself at every corner narrower than 60°.
-            let unit = self.normals.map(|m| m * (1.0 / m.length()));
+            let unit = self.normals.map(|m| m * (1.0 / length(m)));
             let least_dot = dot(unit[0], unit[1])
                 .min(dot(unit[1], unit[2]))
                 .min(dot(unit[2], unit[0]));
-            let sin_half = libm::sqrtf((0.5 * (1.0 + least_dot)).max(0.0));
+            let sin_half = crate::geom::sqrtf((0.5 * (1.0 + least_dot)).max(0.0));
             (table.max_error() / sin_half.max(1e-3)).min(4.0)
         };
         if classes.spread < BOXED_SPREAD {
@@ -625,7 +626,7 @@ impl TriangleCone {
         } else {
             let unit = |p: Vec3| {
                 let p = normalize_exponent(p);
-                p * (1.0 / p.length())
+                p * (1.0 / length(p))
             };
             (unit(a), unit(b), unit(c))
         };
@@ -702,7 +703,7 @@ impl TriangleCone {
             j0: 0,
             j1: GRID - 1,
         };
-        let unit = self.normals.map(|m| m * (1.0 / m.length()));
+        let unit = self.normals.map(|m| m * (1.0 / length(m)));
         let dots = [
             dot(unit[0], unit[1]),
             dot(unit[1], unit[2]),
@@ -720,7 +721,7 @@ impl TriangleCone {
         // oriented into the third half-space.
         let corner = |k: usize, l: usize, opposite: usize| {
             let p = cross(unit[k], unit[l]);
-            let p = p * (1.0 / p.length());
+            let p = p * (1.0 / length(p));
             if dot(p, unit[opposite]) < 0.0 { -p } else { p }
         };
         let corners = [corner(2, 0, 1), corner(0, 1, 2), corner(1, 2, 0)];
@@ -747,7 +748,7 @@ fn proven_box(corners: [Vec3; 3], det_abs: f32) -> Proven {
         return Proven::Tiny;
     }
     // Correctly rounded square root and division: 1/|p| to within 3u.
-    let inv = Vec4::ONE / lengths_sq.sqrt();
+    let inv = Vec4::ONE / sqrt4(lengths_sq);
     // det(â, b̂, ĉ) from below: the computed |det| is within 6.5u |a||b||c| of
     // the true one, and the product of the inverses within 1e-5 of
     // 1 / (|a||b||c|). Weights of passing cells are at least -6.5u / D
@@ -901,7 +902,7 @@ pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> Fo
     // computes them: |p|² = (x² + y²) + z², a correctly rounded square root
     // and division, then the products.
     let unit = |x: Vec4, y: Vec4, z: Vec4| {
-        let inv = Vec4::ONE / (x * x + y * y + z * z).sqrt();
+        let inv = Vec4::ONE / sqrt4(x * x + y * y + z * z);
         (x * inv, y * inv, z * inv, inv)
     };
     let (uax, uay, uaz, ia) = unit(ax, ay, az);
@@ -916,7 +917,7 @@ pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> Fo
     let cos_min = cab.min(cbc).min(cca) - Vec4::splat(1e-4);
     let cos_ok = cos_min.cmpge(Vec4::splat(0.5));
     let kappa = 6.01 * tau;
-    let chord = (Vec4::splat(2.0) - 2.0 * cos_min).sqrt() + Vec4::splat(1e-5);
+    let chord = sqrt4(Vec4::splat(2.0) - 2.0 * cos_min) + Vec4::splat(1e-5);
     let e = kappa * chord;
     let n = cos_min - e;
     let n_ok = !n.cmplt(Vec4::splat(0.5));
@@ -944,7 +945,7 @@ pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> Fo
             let v = coordinate(row_v);
             for di in 0..4 {
                 let u = coordinate(first_u + Vec4::splat(di as f32));
-                let z = ((one - u * u) - v * v).sqrt();
+                let z = sqrt4((one - u * u) - v * v);
                 bits |= cones.inside(u, v, z) << (16 * dj + 4 * di);
             }
         }
@@ -1027,7 +1028,7 @@ fn proven_box_from_normals(normals: [Vec3; 3]) -> Proven {
     let ys = Vec4::new(m0.y, m1.y, m2.y, m0.y);
     let zs = Vec4::new(m0.z, m1.z, m2.z, m0.z);
     // Scaled normals have their largest component in [1, 2): no range issue.
-    let inv = Vec4::ONE / (xs * xs + ys * ys + zs * zs).sqrt();
+    let inv = Vec4::ONE / sqrt4(xs * xs + ys * ys + zs * zs);
     let (nx, ny, nz) = (xs * inv, ys * inv, zs * inv);
     // Corners in lanes (n0×n1, n1×n2, n2×n0, n0×n1).
     let (px, py, pz) = (nx.yzxy(), ny.yzxy(), nz.yzxy());
@@ -1037,11 +1038,11 @@ fn proven_box_from_normals(normals: [Vec3; 3]) -> Proven {
     // det(n̂0, n̂1, n̂2) = (n̂0×n̂1)·n̂2, lane 0 against n̂2 (lane 2 of n).
     let dn_lo = cx.x * nx.z + cy.x * ny.z + cz.x * nz.z - 2e-6;
     let sines_sq = cx * cx + cy * cy + cz * cz;
-    let sin_min = libm::sqrtf(sines_sq.min_element()) - 7e-7;
+    let sin_min = crate::geom::sqrtf(sines_sq.min_element()) - 7e-7;
     if dn_lo.is_nan() || dn_lo <= 0.0 || sin_min.is_nan() || sin_min < 1e-3 {
         return Proven::Tiny;
     }
-    let inv_sin = Vec4::ONE / sines_sq.sqrt();
+    let inv_sin = Vec4::ONE / sqrt4(sines_sq);
     let corner_error = 1.5e-6 / sin_min + 1e-6;
     box_of_corners(
         cx * inv_sin,
@@ -1130,7 +1131,7 @@ fn thin_cone_axis(normals: [Vec3; 3]) -> Option<(DVec3, f64)> {
     if !surround || margin <= 1e-3 {
         return None;
     }
-    let rho = libm::sqrt(1.0 - delta * delta);
+    let rho = crate::geom::sqrt(1.0 - delta * delta);
     let beta = (PREDICATE_SLACK + delta) / (rho * margin);
     let reach = 1.01 * beta + 1e-6;
     (reach <= THIN_REACH).then_some((axis, reach))
@@ -1156,7 +1157,7 @@ fn box_of_corners(ux: Vec4, uy: Vec4, uz: Vec4, tau: f32, corner_error: f32) -> 
     let kappa = 6.01 * tau;
     // The longest chord, from the smallest cosine (which is below the true
     // one); the 1e-5 covers the square root's rounding.
-    let chord = libm::sqrtf(2.0 - 2.0 * cos_min) + 1e-5;
+    let chord = crate::geom::sqrtf(2.0 - 2.0 * cos_min) + 1e-5;
     let e = kappa * chord;
     let n = cos_min - e;
     if n < 0.5 {
@@ -1273,7 +1274,7 @@ fn extent(corners: [Vec3; 3], normals: [Vec3; 3], axis: impl Fn(Vec3) -> f32) ->
         let pq = dot(p, q);
         let rise_at_p = axis(q) - axis(p) * pq;
         let rise_past_q = axis(q) * pq - axis(p);
-        let top = || libm::sqrtf((1.0 - axis(m) * axis(m)).max(0.0));
+        let top = || crate::geom::sqrtf((1.0 - axis(m) * axis(m)).max(0.0));
         if rise_at_p > 0.0 && rise_past_q < 0.0 {
             hi = hi.max(top());
         }
@@ -1561,7 +1562,7 @@ mod table_quality_tests {
         // About 0.08 rad across around the center of cell (21, 18): every edge
         // short, the small-cone path.
         let corners = [(0.31f32, 0.12f32), (0.38, 0.14), (0.34, 0.20)]
-            .map(|(u, v)| Vec3::new(u, v, libm::sqrtf(1.0 - u * u - v * v)));
+            .map(|(u, v)| Vec3::new(u, v, crate::geom::sqrtf(1.0 - u * u - v * v)));
         let table = HalfSpaceTable::default();
         let base = TriangleCone::new(corners[0], corners[1], corners[2], false).unwrap();
         assert_eq!(table.classify_edges(base.corners()).exact, 0b111);

@@ -166,7 +166,7 @@ pub(super) fn receivers(
             triangle: triangle as u32,
             barycentric: [w[1], w[2]],
             coverage,
-            texel_size: libm::sqrt(f64::from(world_area) / texel_area) as f32,
+            texel_size: crate::geom::sqrt(f64::from(world_area) / texel_area) as f32,
         }
     };
 

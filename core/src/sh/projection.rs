@@ -359,7 +359,7 @@ fn project_samples<const N: usize, const C: usize>(
             let jitter_phi = unit_f64(splitmix64(2 * cell + 1));
             let z = 1.0 - 2.0 * (row as f64 + jitter_z) / rows as f64;
             let phi = 2.0 * PI * (column as f64 + jitter_phi) / columns as f64;
-            let r = libm::sqrt((1.0 - z * z).max(0.0));
+            let r = crate::geom::sqrt((1.0 - z * z).max(0.0));
             let dir = Vec3::new(
                 (r * libm::cos(phi)) as f32,
                 (r * libm::sin(phi)) as f32,
@@ -383,7 +383,7 @@ fn project_samples<const N: usize, const C: usize>(
 /// The `(k_z, k_φ)` grid of [`project_fn`] for a sample budget.
 fn strata(sample_count: usize) -> (usize, usize) {
     let count = sample_count.max(1);
-    let rows = (libm::round(libm::sqrt(count as f64 / PI)) as usize).max(1);
+    let rows = (libm::round(crate::geom::sqrt(count as f64 / PI)) as usize).max(1);
     let columns = (count / rows).max(1);
     (rows, columns)
 }
@@ -660,7 +660,7 @@ mod tests {
         let (w, h) = (32, 16);
         let sh = project_equirect::<64, _>(&vec![[1.0f32; 3]; w * h], w, h, &EquirectMapping::Y_UP)
             .unwrap();
-        let c0 = 2.0 * libm::sqrtf(core::f32::consts::PI);
+        let c0 = 2.0 * crate::geom::sqrtf(core::f32::consts::PI);
         assert!((sh.r[0] - c0).abs() < 1e-5);
         // Other zonal terms carry only the midpoint rule's error, O((π/h)²).
         for i in 1..64 {
@@ -734,7 +734,7 @@ mod tests {
     #[test]
     fn function_projection_of_a_constant() {
         let sh: Sh16 = project_fn(1000, |_| 1.0);
-        assert!((sh[0] - 2.0 * libm::sqrtf(core::f32::consts::PI)).abs() < 1e-5);
+        assert!((sh[0] - 2.0 * crate::geom::sqrtf(core::f32::consts::PI)).abs() < 1e-5);
         for i in 1..16 {
             assert!(sh[i].abs() < 0.02, "{i}: {}", sh[i]);
         }

@@ -131,7 +131,7 @@ impl ZonalKernel {
     pub fn from_zonal_coeffs(zonal: &[f32]) -> Self {
         let mut factors = [0.0; MAX_BANDS];
         for (l, (factor, z)) in factors.iter_mut().zip(zonal).enumerate() {
-            *factor = (libm::sqrt(4.0 * PI / (2 * l + 1) as f64) * f64::from(*z)) as f32;
+            *factor = (crate::geom::sqrt(4.0 * PI / (2 * l + 1) as f64) * f64::from(*z)) as f32;
         }
         ZonalKernel { factors }
     }
@@ -250,7 +250,7 @@ mod tests {
         let mut out = Vec::new();
         for (x, w) in gauss_legendre(n) {
             let t = 0.5 * (x + 1.0);
-            let r = libm::sqrt(1.0 - t * t);
+            let r = crate::geom::sqrt(1.0 - t * t);
             for j in 0..2 * n {
                 let phi = PI * (j as f64 + 0.5) / n as f64;
                 let local = Vec3::new(
@@ -296,7 +296,8 @@ mod tests {
         // The clamped cosine along +z has z_l = A_l Y_l^0(+z) = A_l √((2l+1)/4π).
         let z: Vec<f32> = (0..MAX_BANDS)
             .map(|l| {
-                (clamped_cosine_factor(l) * libm::sqrt((2 * l + 1) as f64 / (4.0 * PI))) as f32
+                (clamped_cosine_factor(l) * crate::geom::sqrt((2 * l + 1) as f64 / (4.0 * PI)))
+                    as f32
             })
             .collect();
         let along = ZonalKernel::clamped_cosine().along::<64>(Vec3::Z);

@@ -313,7 +313,7 @@ impl LightPolygon {
                 let u = ((cell % k) as f64 + jx) / k as f64;
                 let w = ((cell / k) as f64 + jy) / k as f64;
                 // Square to triangle, area preserving: (1 - sqrt u, sqrt u (1 - w)).
-                let su = libm::sqrt(u);
+                let su = crate::geom::sqrt(u);
                 let (b1, b2) = (su * (1.0 - w), su * w);
                 let (a, b, c) = (t.0.as_dvec3(), t.1.as_dvec3(), t.2.as_dvec3());
                 out.push((a + (b - a) * b1 + (c - a) * b2).as_vec3());

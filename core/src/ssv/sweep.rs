@@ -91,7 +91,7 @@ impl EdgeAt {
             bw,
             nrm,
             nperm,
-            nrm_length: nrm.length(),
+            nrm_length: crate::geom::length_f64(nrm),
         }
     }
 }
@@ -709,7 +709,7 @@ pub(super) fn direction_near_edge(s: DVec3, a: DVec3, b: DVec3) -> bool {
     if plane_defined && along * along > NEAR_ANGLE * NEAR_ANGLE * ln2 * ls2 {
         return false;
     }
-    let [ls, la, lb, ln] = [ls2, la2, lb2, ln2].map(libm::sqrt);
+    let [ls, la, lb, ln] = [ls2, la2, lb2, ln2].map(crate::geom::sqrt);
     let near_endpoint =
         |e: DVec3, le: f64| e.cross(s).length() <= NEAR_ANGLE * le * ls && e.dot(s) > 0.0;
     if !plane_defined {

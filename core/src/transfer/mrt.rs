@@ -142,7 +142,7 @@ impl Brdf for WardBrdf {
                 * core::f32::consts::PI
                 * self.alpha_x
                 * self.alpha_y
-                * libm::sqrtf(wi.z * wo.z));
+                * crate::geom::sqrtf(wi.z * wo.z));
         f * wi.z
     }
 
@@ -277,7 +277,7 @@ pub(crate) fn brdf_matrix(brdf: &dyn Brdf, grid: u32, coeffs: usize) -> Vec<f32>
     let mut points = Vec::with_capacity(gl.len() * BRDF_QUADRATURE_PHI);
     let mut basis = vec![0.0f32; gl.len() * BRDF_QUADRATURE_PHI * coeffs];
     for &(z, w) in &gl {
-        let r = libm::sqrt((1.0 - z * z).max(0.0));
+        let r = crate::geom::sqrt((1.0 - z * z).max(0.0));
         for k in 0..BRDF_QUADRATURE_PHI {
             let phi = 2.0 * PI * (k as f64 + 0.5) / BRDF_QUADRATURE_PHI as f64;
             let d = Vec3::new(

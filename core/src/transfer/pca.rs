@@ -248,7 +248,7 @@ impl Pca {
 /// twice; rows that are numerically dependent on the earlier ones become zero.
 fn orthonormalize(q: &mut [f64], d: usize) {
     let k = q.len() / d;
-    let norm = |v: &[f64]| libm::sqrt(v.iter().map(|x| x * x).sum::<f64>());
+    let norm = |v: &[f64]| crate::geom::sqrt(v.iter().map(|x| x * x).sum::<f64>());
     for a in 0..k {
         let before = norm(&q[a * d..(a + 1) * d]);
         for _ in 0..2 {
@@ -304,9 +304,9 @@ fn jacobi_eigen(mut a: Vec<f64>, k: usize) -> (Vec<f64>, Vec<f64>) {
                     continue;
                 }
                 let theta = (a[q * k + q] - a[p * k + p]) / (2.0 * apq);
-                let t = theta.signum() / (theta.abs() + libm::sqrt(theta * theta + 1.0));
+                let t = theta.signum() / (theta.abs() + crate::geom::sqrt(theta * theta + 1.0));
                 let t = if theta == 0.0 { 1.0 } else { t };
-                let c = 1.0 / libm::sqrt(t * t + 1.0);
+                let c = 1.0 / crate::geom::sqrt(t * t + 1.0);
                 let s = t * c;
                 for r in 0..k {
                     let (arp, arq) = (a[r * k + p], a[r * k + q]);
@@ -538,7 +538,7 @@ impl TransferSet {
                     let bytes = pca.bytes_at(k);
                     PcaLevel {
                         components: k,
-                        relative_rms_error: libm::sqrt(err / total.max(f64::MIN_POSITIVE)),
+                        relative_rms_error: crate::geom::sqrt(err / total.max(f64::MIN_POSITIVE)),
                         bytes,
                         bytes_per_vertex: bytes as f64 / pca.vertices.max(1) as f64,
                     }

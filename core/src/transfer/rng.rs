@@ -39,7 +39,7 @@ pub(crate) struct Stratified {
 
 impl Stratified {
     pub(crate) fn new(count: u32) -> Self {
-        let mut side = libm::sqrt(f64::from(count)) as u32;
+        let mut side = crate::geom::sqrt(f64::from(count)) as u32;
         // Guard the float square root's rounding both ways.
         while side * side > count {
             side -= 1;
@@ -91,7 +91,7 @@ pub(crate) fn hemisphere_direction(sampling: Sampling, u: f32, v: f32) -> Vec3 {
     match sampling {
         Sampling::Uniform => {
             let z = u;
-            let r = libm::sqrtf((1.0 - z * z).max(0.0));
+            let r = crate::geom::sqrtf((1.0 - z * z).max(0.0));
             let phi = 2.0 * PI * v;
             // One shared range reduction for both (the same bits as sinf, cosf).
             let (sin, cos) = libm::sincosf(phi);
@@ -111,7 +111,7 @@ pub(crate) fn hemisphere_direction(sampling: Sampling, u: f32, v: f32) -> Vec3 {
             };
             let (sin, cos) = libm::sincosf(phi);
             let (x, y) = (r * cos, r * sin);
-            let z = libm::sqrtf((1.0 - x * x - y * y).max(0.0));
+            let z = crate::geom::sqrtf((1.0 - x * x - y * y).max(0.0));
             Vec3::new(x, y, z)
         }
     }
