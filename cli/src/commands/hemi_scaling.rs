@@ -4,7 +4,10 @@
 //! setting costs.
 //!
 //! Per mesh (the built-in bunny, teapot and armadillo, then each `--mesh`), one row per
-//! setting of `antumbra_hemi_shading_options` (`far_triangles`, `far_levels`):
+//! setting of `antumbra_hemi_shading_options` (`far_triangles`, `far_levels`),
+//! the last one following the mesh's size (a first level of a quarter of its
+//! triangles, every level), whose growth from the smallest mesh of about
+//! 10,000 triangles or more to the largest is printed at the end:
 //!
 //! - **ours**: one frame of core's `HemiShader` (what `antumbra_hemi_shader_transfer`
 //!   runs), one thread: the frame's posing (normals, cluster boxes, far levels)
@@ -22,8 +25,8 @@ use std::time::Duration;
 
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
-    BatchOptions, FarFieldSetup, HemiShader, Receiver, ShaderSetup, TransferMethod, TransferSpace,
-    TransferTable, scene_mask_with_counts, vertex_transfer,
+    BatchOptions, FarFieldSetup, HemiShader, MAX_FAR_LEVELS, Receiver, ShaderSetup, TransferMethod,
+    TransferSpace, TransferTable, scene_mask_with_counts, vertex_transfer,
 };
 use antumbra_core::sh::Sh;
 use antumbra_tests::oracle::{OracleOptions, try_cast};
@@ -47,9 +50,21 @@ const FAR_TRIANGLES: [usize; 2] = [2_000, 8_000];
 /// Far levels (`far_levels`) of the table.
 const FAR_LEVELS: [usize; 2] = [1, 3];
 
+/// The setting that follows the mesh's size: a first level of a quarter of
+/// its triangles and every level the library builds, so the full mesh is
+/// rasterized only within a few triangles of the receiver and each coarser
+/// level covers a band twice as wide; its rows are marked `(n/4)`.
+const RELATIVE_DIVISOR: usize = 4;
+
+/// Meshes with fewer triangles are left out of the growth line, which runs
+/// from a mesh of about ten thousand triangles (homer, 9,856) up.
+const GROWTH_FROM: usize = 9_000;
+
 /// One row: a setting's frame and error.
 struct Row {
     setting: String,
+    /// The setting that follows the mesh's size ([`RELATIVE_DIVISOR`]).
+    relative: bool,
     micros: f64,
     error: Option<f64>,
     triangles: f64,
@@ -86,7 +101,7 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
         .unwrap_or(4)
         .max(4);
     println!(
-        "{:<width$} {:>9} {:<14} {:>12} {:>12} {:>12} {:>8} {:>10} {:>8}",
+        "{:<width$} {:>9} {:<16} {:>12} {:>12} {:>12} {:>8} {:>10} {:>8}",
         "mesh",
         "triangles",
         "far field",
@@ -98,6 +113,9 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
         "nodes"
     );
     let mut worst: Option<(String, f64)> = None;
+    // The relative setting's time per vertex on meshes of at least
+    // GROWTH_FROM triangles: (triangles, µs, name).
+    let mut relative: Vec<(usize, f64, String)> = Vec::new();
     for (mesh, name) in meshes.iter().zip(&names) {
         let embree = if args.no_embree {
             None
@@ -107,7 +125,7 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
         for row in rows(mesh, args.receivers as usize, min_time)? {
             let ratio = embree.map(|e| e / row.micros);
             println!(
-                "{name:<width$} {:>9} {:<14} {:>12.2} {:>12} {:>12} {:>8} {:>10.0} {:>8.0}",
+                "{name:<width$} {:>9} {:<16} {:>12.2} {:>12} {:>12} {:>8} {:>10.0} {:>8.0}",
                 mesh.triangle_count(),
                 row.setting,
                 row.micros,
@@ -118,6 +136,9 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
                 row.triangles,
                 row.nodes,
             );
+            if row.relative && mesh.triangle_count() >= GROWTH_FROM {
+                relative.push((mesh.triangle_count(), row.micros, name.clone()));
+            }
             if let Some(ratio) = ratio
                 && worst.as_ref().is_none_or(|(_, w)| ratio < *w)
             {
@@ -127,6 +148,23 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
     }
     if let Some((name, ratio)) = worst {
         println!("worst row: {name}, {ratio:.2}x Embree's frame");
+    }
+    let smallest = relative.iter().min_by_key(|r| r.0);
+    let largest = relative.iter().max_by_key(|r| r.0);
+    if let (Some(small), Some(large)) = (smallest, largest)
+        && large.0 > small.0
+    {
+        println!(
+            "growth of the (n/4) far field's time per vertex from {} ({} triangles) to {} ({}): \
+             {:.2} -> {:.2} µs, {:.2}x",
+            small.2,
+            small.0,
+            large.2,
+            large.0,
+            small.1,
+            large.1,
+            large.1 / small.1
+        );
     }
     Ok(())
 }
@@ -157,7 +195,7 @@ fn embree_frame(mesh: &TriangleMesh, count: usize) -> Result<f64> {
 }
 
 /// The rows of `mesh`: the exact path, then each far-field setting below a
-/// quarter of its triangles.
+/// quarter of its triangles, then the one that follows its size.
 fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row>> {
     let view = mesh.view();
     let vertices = receiver_vertices(&mesh.vertex_normals(), count);
@@ -174,9 +212,18 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
             settings.extend(FAR_LEVELS.map(|levels| Some(FarFieldSetup { triangles, levels })));
         }
     }
+    let quarter = mesh.triangle_count() / RELATIVE_DIVISOR;
+    if quarter > 0 {
+        settings.push(Some(FarFieldSetup {
+            triangles: quarter,
+            levels: MAX_FAR_LEVELS,
+        }));
+    }
+    let last = settings.len() - 1;
     let mut exact: Vec<f64> = Vec::new();
     let mut rows = Vec::new();
-    for far_field in settings {
+    for (index, far_field) in settings.into_iter().enumerate() {
+        let relative = quarter > 0 && index == last;
         let setup = ShaderSetup {
             far_field,
             ..ShaderSetup::default()
@@ -249,11 +296,13 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
                     .map(|(a, b)| (a - b) * (a - b))
                     .sum();
                 let error = (squared / n).sqrt() / mean.abs().max(f64::MIN_POSITIVE);
-                (format!("{triangles} x {built}"), Some(error))
+                let mark = if relative { " (n/4)" } else { "" };
+                (format!("{triangles} x {built}{mark}"), Some(error))
             }
         };
         rows.push(Row {
             setting,
+            relative,
             micros,
             error,
             triangles: triangles as f64 / n,
