@@ -20,7 +20,7 @@ use glam::{DVec3, Vec3, Vec4};
 
 /// The correctly rounded square root of `x` (NaN for negative `x`).
 #[inline(always)]
-pub fn sqrtf(x: f32) -> f32 {
+pub(crate) fn sqrtf(x: f32) -> f32 {
     #[cfg(target_arch = "x86_64")]
     {
         use core::arch::x86_64::{_mm_cvtss_f32, _mm_set_ss, _mm_sqrt_ss};
@@ -35,7 +35,7 @@ pub fn sqrtf(x: f32) -> f32 {
 
 /// The correctly rounded square root of `x` (NaN for negative `x`).
 #[inline(always)]
-pub fn sqrt(x: f64) -> f64 {
+pub(crate) fn sqrt(x: f64) -> f64 {
     #[cfg(target_arch = "x86_64")]
     {
         use core::arch::x86_64::{_mm_cvtsd_f64, _mm_set_sd, _mm_sqrt_pd};
@@ -52,7 +52,7 @@ pub fn sqrt(x: f64) -> f64 {
 /// instruction on x86_64 (glam's `Vec4::sqrt` takes four scalar roots when it
 /// uses libm).
 #[inline(always)]
-pub fn sqrt4(v: Vec4) -> Vec4 {
+pub(crate) fn sqrt4(v: Vec4) -> Vec4 {
     #[cfg(target_arch = "x86_64")]
     {
         use core::arch::x86_64::_mm_sqrt_ps;
@@ -67,13 +67,13 @@ pub fn sqrt4(v: Vec4) -> Vec4 {
 
 /// `v`'s length, `sqrtf(v.dot(v))`: glam's `Vec3::length`, bit for bit.
 #[inline(always)]
-pub fn length(v: Vec3) -> f32 {
+pub(crate) fn length(v: Vec3) -> f32 {
     sqrtf(v.dot(v))
 }
 
 /// `v`'s length, `sqrt(v.dot(v))`: glam's `DVec3::length`, bit for bit.
 #[inline(always)]
-pub fn length_f64(v: DVec3) -> f64 {
+pub(crate) fn length_f64(v: DVec3) -> f64 {
     sqrt(v.dot(v))
 }
 
