@@ -10,7 +10,7 @@ mod uv_sphere;
 
 pub use frame::Frame;
 pub use mesh::{MeshError, MeshView, POSITION_BYTES};
-pub(crate) use sqrt::{length, length_f64, sqrt, sqrt4, sqrtf};
+pub(crate) use sqrt::{length, length_f64, normalize_or_zero, sqrt, sqrt4, sqrtf};
 pub use uv_sphere::uv_sphere;
 
 use glam::Vec3;
@@ -52,11 +52,11 @@ pub(crate) fn normalize_exponent(m: Vec3) -> Vec3 {
 /// the result is `v.normalize_or_zero()` itself.
 #[inline]
 pub(crate) fn unit_or_zero(v: Vec3) -> Vec3 {
-    let unit = v.normalize_or_zero();
+    let unit = normalize_or_zero(v);
     if unit != Vec3::ZERO || v == Vec3::ZERO || !v.is_finite() {
         return unit;
     }
-    normalize_exponent(v).normalize_or_zero()
+    normalize_or_zero(normalize_exponent(v))
 }
 
 const TWO_POW_64: f32 = 18_446_744_073_709_551_616.0;

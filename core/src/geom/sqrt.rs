@@ -71,6 +71,18 @@ pub(crate) fn length(v: Vec3) -> f32 {
     sqrtf(v.dot(v))
 }
 
+/// `v` scaled to unit length, or zero where its reciprocal length is not a
+/// positive finite number: glam's `Vec3::normalize_or_zero`, bit for bit.
+#[inline(always)]
+pub(crate) fn normalize_or_zero(v: Vec3) -> Vec3 {
+    let rcp = 1.0 / length(v);
+    if rcp.is_finite() && rcp > 0.0 {
+        v * rcp
+    } else {
+        Vec3::ZERO
+    }
+}
+
 /// `v`'s length, `sqrt(v.dot(v))`: glam's `DVec3::length`, bit for bit.
 #[inline(always)]
 pub(crate) fn length_f64(v: DVec3) -> f64 {
@@ -79,7 +91,7 @@ pub(crate) fn length_f64(v: DVec3) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{length, length_f64, sqrt, sqrt4, sqrtf};
+    use super::{length, length_f64, normalize_or_zero, sqrt, sqrt4, sqrtf};
     use glam::{DVec3, Vec3, Vec4};
 
     /// The same bits as libm's correctly rounded roots and glam's lengths, on
@@ -95,6 +107,8 @@ mod tests {
             assert_eq!(four, lanes.to_array().map(|l| libm::sqrtf(l).to_bits()));
             let v = Vec3::new(x, -0.5 * x, 2.0 * x);
             assert_eq!(length(v).to_bits(), v.length().to_bits());
+            let unit = normalize_or_zero(v).to_array().map(f32::to_bits);
+            assert_eq!(unit, v.normalize_or_zero().to_array().map(f32::to_bits));
             let y = f64::from(x) * 1.000_000_1;
             assert_eq!(sqrt(y).to_bits(), libm::sqrt(y).to_bits(), "sqrt({y:e})");
             let w = DVec3::new(y, 3.0 * y, -y);
@@ -117,5 +131,19 @@ mod tests {
         }
         assert!(sqrtf(-1.0).is_nan() && sqrt(-1.0).is_nan() && sqrtf(f32::NAN).is_nan());
         assert!(sqrt4(Vec4::new(-1.0, 1.0, 1.0, 1.0)).x.is_nan());
+        for v in [
+            Vec3::ZERO,
+            Vec3::splat(1e-30),
+            Vec3::splat(1e30),
+            Vec3::NAN,
+            Vec3::INFINITY,
+        ] {
+            let unit = normalize_or_zero(v).to_array().map(f32::to_bits);
+            assert_eq!(
+                unit,
+                v.normalize_or_zero().to_array().map(f32::to_bits),
+                "{v}"
+            );
+        }
     }
 }

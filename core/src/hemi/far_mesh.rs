@@ -27,7 +27,7 @@ use core::fmt;
 
 use glam::{DVec3, Vec3};
 
-use crate::geom::MeshView;
+use crate::geom::{MeshView, length_f64};
 
 /// Why a far mesh could not be made or posed.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -359,7 +359,7 @@ impl FarMesh {
                 continue;
             }
             let [a, b, c] = cubes.map(|cube| rest[cube as usize]);
-            if (b - a).cross(c - a).length() <= min_double_area {
+            if length_f64((b - a).cross(c - a)) <= min_double_area {
                 continue;
             }
             candidates.push((cubes, t as u32));

@@ -24,7 +24,7 @@ use glam::{DVec3, Vec3, Vec4, Vec4Swizzles};
 use super::half_space::{RowSolver, inside, normalize_exponent};
 use super::mask::{CELL_COORD, CELL_Z, GRID, HemiMask, ROW_FIRST, ROW_LAST};
 use super::table::{ALL, EdgeClasses, Entry, HalfSpaceTable, and_entries};
-use crate::geom::{length, sqrt4};
+use crate::geom::{length, length_f64, sqrt4};
 
 /// Why a triangle contributes nothing and was skipped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -1089,7 +1089,7 @@ const PREDICATE_SLACK: f64 = 1e-6;
 fn thin_cone_axis(normals: [Vec3; 3]) -> Option<(DVec3, f64)> {
     let unit = normals.map(|m| {
         let m = m.as_dvec3();
-        m / m.length()
+        m / length_f64(m)
     });
     if !unit.iter().all(|n| n.is_finite()) {
         return None;
@@ -1102,7 +1102,7 @@ fn thin_cone_axis(normals: [Vec3; 3]) -> Option<(DVec3, f64)> {
     let widest = crosses
         .into_iter()
         .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?;
-    let length = widest.length();
+    let length = length_f64(widest);
     if length <= 1e-6 {
         return None;
     }
@@ -1116,14 +1116,14 @@ fn thin_cone_axis(normals: [Vec3; 3]) -> Option<(DVec3, f64)> {
     // chord between neighbours at angle γ passes at cos(γ/2) from it.
     let projected = unit.map(|n| {
         let p = n - axis * n.dot(axis);
-        p / p.length()
+        p / length_f64(p)
     });
     let mut margin = f64::INFINITY;
     let mut turns = [0.0; 3];
     for k in 0..3 {
         let (p, q) = (projected[k], projected[(k + 1) % 3]);
         turns[k] = p.cross(q).dot(axis);
-        margin = margin.min(turns[k].abs() / (p - q).length());
+        margin = margin.min(turns[k].abs() / length_f64(p - q));
     }
     let surround = turns.iter().all(|&t| t > 0.0) || turns.iter().all(|&t| t < 0.0);
     // Less the rounding of the f64 steps, far below it.
