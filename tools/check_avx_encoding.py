@@ -19,8 +19,8 @@ With `--all-avx PREFIX`, BINARY is a library built with AVX for the whole
 crate (`RUSTFLAGS="-C target-feature=+avx2,+fma"`, as `-C target-cpu=native`
 builds are), where every instruction the compiler emits is VEX-encoded: every
 function whose name starts with PREFIX must hold no legacy SSE instruction at
-all, and at least one must exist. Engines built that way run the
-rasterizer (`antumbra_core::hemi::`) several times slower for each legacy root.
+all, and at least one must exist: legacy roots in the rasterizer
+(`antumbra_core::hemi::`) make such builds run it several times slower.
 """
 import re
 import subprocess
@@ -62,44 +62,43 @@ def legacy(body):
     ]
 
 
-def check_all_avx(prefix, binary):
-    """Fails on any legacy SSE instruction in the functions named PREFIX..."""
+def check(binary, chosen, what, none_chosen):
+    """Fails on any legacy SSE instruction in the functions of BINARY for which
+    chosen(name, body) holds (WHAT names them), and when there are none."""
     checked, offenders = 0, []
     for name, body in functions(binary):
-        if not name.startswith(prefix):
+        if not chosen(name, body):
             continue
         checked += 1
         for address, mnemonic, operands in legacy(body):
             offenders.append(f"{name}: {address}: {mnemonic} {operands}")
     if checked == 0:
-        sys.exit(f"{binary}: no function starts with {prefix}")
+        sys.exit(f"{binary}: {none_chosen}")
     if offenders:
-        print(f"legacy SSE instructions in {prefix} functions of an AVX build:")
+        print(f"legacy SSE instructions in {what}:")
         print("\n".join(offenders))
         sys.exit(1)
-    print(f"{checked} {prefix} functions of the AVX build, none with a legacy SSE instruction")
+    print(f"{checked} {what}, none with a legacy SSE instruction")
 
 
 def main():
     if len(sys.argv) == 4 and sys.argv[1] == "--all-avx":
-        check_all_avx(sys.argv[2], sys.argv[3])
-        return
-    if len(sys.argv) != 2:
+        prefix = sys.argv[2]
+        check(
+            sys.argv[3],
+            lambda name, _: name.startswith(prefix),
+            f"{prefix} functions of the AVX build",
+            f"no function starts with {prefix}",
+        )
+    elif len(sys.argv) == 2:
+        check(
+            sys.argv[1],
+            lambda _, body: any("%ymm" in operands for _, _, operands in body),
+            "functions that run 256-bit AVX code",
+            "no function uses 256-bit registers; is this the release library?",
+        )
+    else:
         sys.exit(__doc__)
-    with_avx, offenders = 0, []
-    for name, body in functions(sys.argv[1]):
-        if not any("%ymm" in operands for _, _, operands in body):
-            continue
-        with_avx += 1
-        for address, mnemonic, operands in legacy(body):
-            offenders.append(f"{name}: {address}: {mnemonic} {operands}")
-    if with_avx == 0:
-        sys.exit(f"{sys.argv[1]}: no function uses 256-bit registers; is this the release library?")
-    if offenders:
-        print("legacy SSE instructions in functions that run 256-bit AVX code:")
-        print("\n".join(offenders))
-        sys.exit(1)
-    print(f"{with_avx} functions run 256-bit AVX code, none of them legacy SSE instructions")
 
 
 if __name__ == "__main__":
