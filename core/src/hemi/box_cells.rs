@@ -20,7 +20,7 @@ use glam::Vec3;
 
 use super::clusters::Aabb;
 use super::mask::{CELL_COORD, CELL_Z, HemiMask};
-use crate::geom::{Frame, length};
+use crate::geom::{Frame, length, sqrtf};
 
 /// Widening of the box's local coordinates, relative to their largest
 /// magnitude (`f32` rounding of the corners' transforms is below `1e-6`).
@@ -89,7 +89,7 @@ impl BoxCells {
         if close || !far_sq.is_finite() {
             return BoxCells::Any;
         }
-        let (near, far) = (crate::geom::sqrtf(near_sq), crate::geom::sqrtf(far_sq));
+        let (near, far) = (sqrtf(near_sq), sqrtf(far_sq));
         let upper = |h: f32| if h >= 0.0 { h / near } else { h / far };
         let lower = |l: f32| if l <= 0.0 { l / near } else { l / far };
         // Cell k's center is at (2k - 31) / 32, so centers in [a, b] are

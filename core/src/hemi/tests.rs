@@ -494,7 +494,7 @@ fn cap_about_the_normal_occludes_the_disk_of_radius_sin_alpha() {
     let mut worst_table = 0.0f32;
     for m in [0, 8, 31, 63, 95, 126] {
         let sin2 = (8 * m + 6) as f32 / 1024.0;
-        let radius = crate::geom::sqrtf(sin2 / (1.0 - sin2)); // tan α at height 1
+        let radius = libm::sqrtf(sin2 / (1.0 - sin2)); // tan α at height 1
         let rim: Vec<Vec3> = (0..SIDES)
             .map(|k| {
                 let angle = core::f32::consts::TAU * k as f32 / SIDES as f32;
@@ -523,7 +523,7 @@ fn cap_about_the_normal_occludes_the_disk_of_radius_sin_alpha() {
             let wrong = rasterize_receiver(&mesh, p, n, &options).count_differences(&expected);
             // The spokes are shared edges, exact complements in the table too, so
             // table masks err only along the rim: a band of a fraction of a cell.
-            let rim_cells = core::f32::consts::TAU * crate::geom::sqrtf(sin2) * 16.0;
+            let rim_cells = core::f32::consts::TAU * libm::sqrtf(sin2) * 16.0;
             worst_table = worst_table.max(wrong as f32 / rim_cells);
         }
         let fraction = expected.count_occluded() as f32 / VALID_CELL_COUNT as f32;
@@ -755,7 +755,7 @@ fn receiver_helpers_follow_the_conventions() {
     assert_eq!(receiver.frame, crate::Frame::from_normal(n));
     let ray = receiver.cell_ray(16, 16).unwrap();
     let (u, v) = (cell_coordinate(16), cell_coordinate(16));
-    let z = crate::geom::sqrtf(1.0 - u * u - v * v);
+    let z = libm::sqrtf(1.0 - u * u - v * v);
     let f = receiver.frame;
     assert_eq!(
         ray.direction,

@@ -745,7 +745,7 @@ mod tests {
                 let mut area = 0.0;
                 for s in 0..strips {
                     let u = u0 + (u1 - u0) * (s as f64 + 0.5) / strips as f64;
-                    let h = crate::geom::sqrt((1.0 - u * u).max(0.0));
+                    let h = libm::sqrt((1.0 - u * u).max(0.0));
                     area += (v1.min(h) - v0.max(-h)).max(0.0);
                 }
                 area *= (u1 - u0) / strips as f64;
@@ -949,7 +949,7 @@ mod tests {
         let total = table.unoccluded();
         let c1 = 0.488_602_5f64;
         for sin2 in [0.1f64, 0.25, 0.5, 0.75, 0.9] {
-            let radius = crate::geom::sqrt(sin2 / (1.0 - sin2)) as f32;
+            let radius = libm::sqrt(sin2 / (1.0 - sin2)) as f32;
             let rim: Vec<Vec3> = (0..SIDES)
                 .map(|k| {
                     let a = core::f32::consts::TAU * k as f32 / SIDES as f32;
@@ -967,7 +967,7 @@ mod tests {
             let got_z = f64::from(total[2] - t[2]);
             // The staircase error: a fraction of a cell along the cap's rim, about
             // (2π sinα · 16 cells) × (1/256 area) / π × 1/4 on average.
-            let rim_share = 2.0 * crate::geom::sqrt(sin2) * 16.0 / 256.0 / 4.0;
+            let rim_share = 2.0 * libm::sqrt(sin2) * 16.0 / 256.0 / 4.0;
             std::println!(
                 "cap sin²α = {sin2}: blocked T_0 share {blocked:.5}, T_2 {got_z:.5} vs {blocked_z:.5}"
             );

@@ -1562,7 +1562,7 @@ mod table_quality_tests {
         // About 0.08 rad across around the center of cell (21, 18): every edge
         // short, the small-cone path.
         let corners = [(0.31f32, 0.12f32), (0.38, 0.14), (0.34, 0.20)]
-            .map(|(u, v)| Vec3::new(u, v, crate::geom::sqrtf(1.0 - u * u - v * v)));
+            .map(|(u, v)| Vec3::new(u, v, libm::sqrtf(1.0 - u * u - v * v)));
         let table = HalfSpaceTable::default();
         let base = TriangleCone::new(corners[0], corners[1], corners[2], false).unwrap();
         assert_eq!(table.classify_edges(base.corners()).exact, 0b111);

@@ -259,7 +259,7 @@ mod tests {
     fn const_sqrt_matches_libm() {
         for &x in &[0.0, 1e-6, 0.02, 0.5, 1.0, 2.0, 3.0, 10.0, 12345.678, 1e9] {
             let ours = const_sqrt(x);
-            let libm = crate::geom::sqrt(x);
+            let libm = libm::sqrt(x);
             assert!(
                 (ours - libm).abs() <= 2.0 * f64::EPSILON * libm,
                 "{x}: {ours} {libm}"
@@ -283,7 +283,7 @@ mod tests {
         let (x, y, z) = (f64::from(dir.x), f64::from(dir.y), f64::from(dir.z));
         // Normalise in f64: an f32 "unit" vector is off by ~1e-7 in length, which
         // near a pole moves sin θ = sqrt(1 - z²) by far more than the tolerance.
-        let length = crate::geom::sqrt(x * x + y * y + z * z);
+        let length = libm::sqrt(x * x + y * y + z * z);
         let (x, y, z) = (x / length, y / length, z / length);
         let theta = libm::acos(z.clamp(-1.0, 1.0));
         let phi = libm::atan2(y, x);
@@ -295,7 +295,7 @@ mod tests {
                 libm::cos(k * phi)
             }
         };
-        let sq = crate::geom::sqrt;
+        let sq = libm::sqrt;
         match (l, m.unsigned_abs()) {
             (2, 2) => 0.25 * sq(15.0 / PI) * st * st * trig(2.0),
             (2, 1) => -0.5 * sq(15.0 / PI) * st * ct * trig(1.0),
@@ -315,7 +315,7 @@ mod tests {
         let (x, y, z) = (f64::from(dir.x), f64::from(dir.y), f64::from(dir.z));
         // Normalise in f64: an f32 "unit" vector is off by ~1e-7 in length, which
         // near a pole moves sin θ = sqrt(1 - z²) by far more than the tolerance.
-        let length = crate::geom::sqrt(x * x + y * y + z * z);
+        let length = libm::sqrt(x * x + y * y + z * z);
         let (x, y, z) = (x / length, y / length, z / length);
         let theta = libm::acos(z.clamp(-1.0, 1.0));
         let phi = libm::atan2(y, x);
@@ -324,7 +324,7 @@ mod tests {
         // P_l^m(ct) with the Condon–Shortley phase.
         let legendre = {
             let mut pmm = 1.0;
-            let somx2 = crate::geom::sqrt((1.0 - ct) * (1.0 + ct));
+            let somx2 = libm::sqrt((1.0 - ct) * (1.0 + ct));
             let mut fact = 1.0;
             for _ in 0..am {
                 pmm *= -fact * somx2;
@@ -350,9 +350,8 @@ mod tests {
             }
         };
         let factorial = |n: usize| (1..=n).map(|k| k as f64).product::<f64>();
-        let k = crate::geom::sqrt(
-            (2.0 * l as f64 + 1.0) / (4.0 * PI) * factorial(l - am) / factorial(l + am),
-        );
+        let k =
+            libm::sqrt((2.0 * l as f64 + 1.0) / (4.0 * PI) * factorial(l - am) / factorial(l + am));
         let amf = am as f64;
         match m.signum() {
             0 => k * legendre,
@@ -389,10 +388,10 @@ mod tests {
     fn a_few_hand_checked_values() {
         // Y_2^0 at the pole is ¼√(5/π)·2; Y_3^{-2} at (1,1,1)/√3 is ½√(105/π)/(3√3).
         let pole = eval_basis::<9>(Vec3::Z);
-        assert!((f64::from(pole[6]) - 0.5 * crate::geom::sqrt(5.0 / PI)).abs() < 1e-6);
+        assert!((f64::from(pole[6]) - 0.5 * libm::sqrt(5.0 / PI)).abs() < 1e-6);
         let d = Vec3::ONE.normalize();
         let y = eval_basis::<16>(d);
-        let want = 0.5 * crate::geom::sqrt(105.0 / PI) / (3.0 * crate::geom::sqrt(3.0));
+        let want = 0.5 * libm::sqrt(105.0 / PI) / (3.0 * libm::sqrt(3.0));
         assert!((f64::from(y[sh_index(3, -2)]) - want).abs() < 1e-6);
     }
 
@@ -409,7 +408,7 @@ mod tests {
                     } else {
                         // P_l(±1) = (±1)^l, so Y_l^0 = ±√((2l+1)/4π).
                         let sign = if dir.z < 0.0 && l % 2 == 1 { -1.0 } else { 1.0 };
-                        let want = sign * crate::geom::sqrt((2.0 * l as f64 + 1.0) / (4.0 * PI));
+                        let want = sign * libm::sqrt((2.0 * l as f64 + 1.0) / (4.0 * PI));
                         assert!((f64::from(v) - want).abs() < 1e-5, "{l}");
                     }
                 }

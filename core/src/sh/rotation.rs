@@ -323,7 +323,7 @@ mod tests {
         // Direct construction: c_lm = z_l √(4π/(2l+1)) Y_lm(axis).
         let y = crate::sh::eval_basis::<64>(axis);
         for l in 0..8usize {
-            let scale = crate::geom::sqrtf(4.0 * core::f32::consts::PI / (2 * l + 1) as f32);
+            let scale = libm::sqrtf(4.0 * core::f32::consts::PI / (2 * l + 1) as f32);
             for m in -(l as isize)..=(l as isize) {
                 let i = sh_index(l, m);
                 let want = zonal[sh_index(l, 0)] * scale * y[i];

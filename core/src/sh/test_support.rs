@@ -43,7 +43,7 @@ pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 pub fn sphere_quadrature(n: usize) -> Vec<(Vec3, f64)> {
     let mut out = Vec::with_capacity(2 * n * n);
     for (z, w) in gauss_legendre(n) {
-        let r = crate::geom::sqrt(1.0 - z * z);
+        let r = libm::sqrt(1.0 - z * z);
         for j in 0..2 * n {
             let phi = PI * (j as f64 + 0.5) / n as f64;
             let dir = Vec3::new(

@@ -250,7 +250,7 @@ mod tests {
         let mut out = Vec::new();
         for (x, w) in gauss_legendre(n) {
             let t = 0.5 * (x + 1.0);
-            let r = crate::geom::sqrt(1.0 - t * t);
+            let r = libm::sqrt(1.0 - t * t);
             for j in 0..2 * n {
                 let phi = PI * (j as f64 + 0.5) / n as f64;
                 let local = Vec3::new(
@@ -296,8 +296,7 @@ mod tests {
         // The clamped cosine along +z has z_l = A_l Y_l^0(+z) = A_l √((2l+1)/4π).
         let z: Vec<f32> = (0..MAX_BANDS)
             .map(|l| {
-                (clamped_cosine_factor(l) * crate::geom::sqrt((2 * l + 1) as f64 / (4.0 * PI)))
-                    as f32
+                (clamped_cosine_factor(l) * libm::sqrt((2 * l + 1) as f64 / (4.0 * PI))) as f32
             })
             .collect();
         let along = ZonalKernel::clamped_cosine().along::<64>(Vec3::Z);
