@@ -206,24 +206,29 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
         parallel: false,
         ..BatchOptions::default()
     };
-    let mut settings = vec![None];
+    // Each setting, and whether it is the one that follows the mesh's size.
+    let mut settings = vec![(None, false)];
     for triangles in FAR_TRIANGLES {
         if 4 * triangles <= mesh.triangle_count() {
-            settings.extend(FAR_LEVELS.map(|levels| Some(FarFieldSetup { triangles, levels })));
+            settings.extend(
+                FAR_LEVELS.map(|levels| (Some(FarFieldSetup { triangles, levels }), false)),
+            );
         }
     }
     let quarter = mesh.triangle_count() / RELATIVE_DIVISOR;
     if quarter > 0 {
-        settings.push(Some(FarFieldSetup {
-            triangles: quarter,
-            levels: MAX_FAR_LEVELS,
-        }));
+        let levels = MAX_FAR_LEVELS;
+        settings.push((
+            Some(FarFieldSetup {
+                triangles: quarter,
+                levels,
+            }),
+            true,
+        ));
     }
-    let last = settings.len() - 1;
     let mut exact: Vec<f64> = Vec::new();
     let mut rows = Vec::new();
-    for (index, far_field) in settings.into_iter().enumerate() {
-        let relative = quarter > 0 && index == last;
+    for (far_field, relative) in settings {
         let setup = ShaderSetup {
             far_field,
             ..ShaderSetup::default()
