@@ -16,11 +16,11 @@
 //! them. The rest is widened by a margin far above `f32` rounding and far
 //! below a cell (a cell is `1/16` of the disk's radius wide).
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A, Vec4};
 
 use super::clusters::Aabb;
 use super::mask::{CELL_COORD, CELL_Z, HemiMask};
-use crate::geom::{Frame, length, sqrtf};
+use crate::geom::{Frame, length, sqrt4};
 
 /// Widening of the box's local coordinates, relative to their largest
 /// magnitude (`f32` rounding of the corners' transforms is below `1e-6`).
@@ -56,56 +56,55 @@ impl BoxCells {
     #[inline(always)]
     pub(crate) fn of(bounds: &Aabb, frame: &Frame, origin: Vec3) -> BoxCells {
         let (lo, hi) = (bounds.min - origin, bounds.max - origin);
-        // The same expression as Frame::to_local, at the corners bounding it.
-        let range = |axis: Vec3| {
-            let up = axis.cmpge(Vec3::ZERO);
-            (
-                axis.dot(Vec3::select(up, lo, hi)),
-                axis.dot(Vec3::select(up, hi, lo)),
-            )
-        };
-        let (x0, x1) = range(frame.tangent);
-        let (y0, y1) = range(frame.bitangent);
-        let (z0, z1) = range(frame.normal);
-        let largest = x0.abs().max(x1.abs()).max(y0.abs()).max(y1.abs());
-        let slack = LOCAL_SLACK * largest.max(z0.abs()).max(z1.abs());
-        let (x0, x1, y0, y1, z0, z1) = (
-            x0 - slack,
-            x1 + slack,
-            y0 - slack,
-            y1 + slack,
-            z0 - slack,
-            z1 + slack,
-        );
-        let nearest = Vec3::new(0f32.clamp(x0, x1), 0f32.clamp(y0, y1), 0f32.clamp(z0, z1));
-        let farthest = Vec3::new(
-            x0.abs().max(x1.abs()),
-            y0.abs().max(y1.abs()),
-            z0.abs().max(z1.abs()),
-        );
+        // The same expression as Frame::to_local, at the corners bounding it,
+        // for the three axes at once (lanes x, y, z: tangent, bitangent,
+        // normal): `x·x' + y·y' + z·z'` in that order, each product with the
+        // corner's coordinate that minimises (maximises) it.
+        let (t, b, n) = (frame.tangent, frame.bitangent, frame.normal);
+        let mut low = Vec3A::ZERO;
+        let mut high = Vec3A::ZERO;
+        for (axes, l, h) in [
+            (Vec3A::new(t.x, b.x, n.x), lo.x, hi.x),
+            (Vec3A::new(t.y, b.y, n.y), lo.y, hi.y),
+            (Vec3A::new(t.z, b.z, n.z), lo.z, hi.z),
+        ] {
+            let up = axes.cmpge(Vec3A::ZERO);
+            let (l, h) = (Vec3A::splat(l), Vec3A::splat(h));
+            low += axes * Vec3A::select(up, l, h);
+            high += axes * Vec3A::select(up, h, l);
+        }
+        let slack = Vec3A::splat(LOCAL_SLACK * low.abs().max(high.abs()).max_element());
+        let (low, high) = (low - slack, high + slack);
+        let nearest = low.max(Vec3A::ZERO).min(high);
+        let farthest = low.abs().max(high.abs());
         let (near_sq, far_sq) = (nearest.length_squared(), farthest.length_squared());
-        // Not `>` for NaN too: a box this close sees every direction.
+        // Not `>` for NaN too: a box this close sees every direction, and so
+        // does one whose bounds are not finite.
         let close = near_sq.partial_cmp(&(1e-6 * far_sq)) != Some(core::cmp::Ordering::Greater);
-        if close || !far_sq.is_finite() {
+        if close || !far_sq.is_finite() || !(low.is_finite() && high.is_finite()) {
             return BoxCells::Any;
         }
-        let (near, far) = (sqrtf(near_sq), sqrtf(far_sq));
-        let upper = |h: f32| if h >= 0.0 { h / near } else { h / far };
-        let lower = |l: f32| if l <= 0.0 { l / near } else { l / far };
+        let roots = sqrt4(Vec4::new(near_sq, far_sq, near_sq, far_sq));
+        let (near, far) = (Vec3A::splat(roots.x), Vec3A::splat(roots.y));
+        // The bounds of the disk coordinates and elevation: a positive upper
+        // coordinate over the nearest distance, a negative one over the
+        // farthest (and the reverse for lower ones).
+        let upper = high / Vec3A::select(high.cmpge(Vec3A::ZERO), near, far);
+        let lower = low / Vec3A::select(low.cmple(Vec3A::ZERO), near, far);
         // Cell k's center is at (2k - 31) / 32, so centers in [a, b] are
         // k in [16 a + 15.5, 16 b + 15.5].
         let cells = |l: f32, h: f32| {
-            let first = ceil_clamped(lower(l) * 16.0 + 15.5 - CELL_SLACK);
-            let last = floor_clamped(upper(h) * 16.0 + 15.5 + CELL_SLACK);
+            let first = ceil_clamped(l * 16.0 + 15.5 - CELL_SLACK);
+            let last = floor_clamped(h * 16.0 + 15.5 + CELL_SLACK);
             (first, last)
         };
-        let (i0, i1) = cells(x0, x1);
-        let (j0, j1) = cells(y0, y1);
+        let (i0, i1) = cells(lower.x, upper.x);
+        let (j0, j1) = cells(lower.y, upper.y);
         // A cell center (u, v, w) has u² + v² = 1 - w², and its elevation w
         // is the box point's z / |q|.
         let (w0, w1) = (
-            (lower(z0) - RING_SLACK).clamp(0.0, 1.0),
-            (upper(z1) + RING_SLACK).clamp(0.0, 1.0),
+            (lower.z - RING_SLACK).clamp(0.0, 1.0),
+            (upper.z + RING_SLACK).clamp(0.0, 1.0),
         );
         let ring = (1.0 - w1 * w1 - RING_SLACK, 1.0 - w0 * w0 + RING_SLACK);
         let no_ring = ring.1.partial_cmp(&ring.0).is_none_or(|o| o.is_lt());
@@ -157,12 +156,13 @@ impl BoxCells {
             return (self == BoxCells::None).then_some(open);
         };
         let rect = HemiMask::columns(i0, i1);
+        let band = RingBand::new(ring);
         for j in j0..=j1 {
             let clear = rect & HemiMask::VALID.rows[j] & !mask.rows[j];
             if clear == 0 {
                 continue;
             }
-            let mut row = clear & ring_band(j, ring);
+            let mut row = clear & band.row(j);
             if open.len + row.count_ones() as usize > N {
                 return None;
             }
@@ -189,9 +189,10 @@ impl BoxCells {
             return self == BoxCells::Any;
         };
         let rect = HemiMask::columns(i0, i1);
+        let band = RingBand::new(ring);
         (j0..=j1).any(|j| {
             let open = rect & HemiMask::VALID.rows[j] & !mask.rows[j];
-            open != 0 && open & ring_band(j, ring) != 0
+            open != 0 && open & band.row(j) != 0
         })
     }
 }
@@ -231,35 +232,67 @@ fn floor_by_truncation(x: f32) -> i32 {
 }
 
 /// Row `j`'s columns whose centers have their squared disk radius `u² + v²`
-/// in `ring`, and those within [`RING_UNITS`] of it. A cell center's squared
-/// radius is `((2i - 31)² + (2j - 31)²) / 1024` exactly, so the band comes
-/// from integers and a table instead of square roots: the walk asks for it on
-/// every row of every box it lists.
-#[inline(always)]
-fn ring_band(j: usize, (r0, r1): (f32, f32)) -> u32 {
-    let row = ROW_SQUARE[j];
-    // A NaN outer radius bounds nothing in.
-    let high = r1 * 1024.0;
-    if high.is_nan() || high < 0.0 {
-        return 0;
+/// in `ring`, and those within [`RING_UNITS`] of it ([`RingBand::row`]).
+#[cfg(test)]
+fn ring_band(j: usize, ring: (f32, f32)) -> u32 {
+    RingBand::new(ring).row(j)
+}
+
+/// A ring of squared disk radii as integer bounds on the rows' cells. A
+/// cell center's squared radius is `((2i - 31)² + (2j - 31)²) / 1024`
+/// exactly, so each row's band comes from integers and a table instead of
+/// square roots; the ring's own conversions are made once per box, since the
+/// walk asks for the band on every row of every box it lists.
+#[derive(Clone, Copy)]
+struct RingBand {
+    /// `1024` times the outer squared radius, rounded down, plus
+    /// [`RING_UNITS`]; `i32::MIN` when the ring bounds nothing in (a NaN or
+    /// negative outer radius).
+    outer: i32,
+    /// `1024` times the inner squared radius, rounded up, less
+    /// [`RING_UNITS`]; `i32::MIN` when the ring has no inside to leave out.
+    inner: i32,
+}
+
+impl RingBand {
+    #[inline(always)]
+    fn new((r0, r1): (f32, f32)) -> RingBand {
+        let high = r1 * 1024.0;
+        // A NaN outer radius bounds nothing in.
+        let outer = if high.is_nan() || high < 0.0 {
+            i32::MIN
+        } else {
+            floor_by_truncation(high.min(4096.0)) + RING_UNITS
+        };
+        let low = r0 * 1024.0;
+        let inner = if low > 0.0 {
+            ceil_by_truncation(low.min(4096.0)) - RING_UNITS
+        } else {
+            i32::MIN
+        };
+        RingBand { outer, inner }
     }
-    let outer = floor_by_truncation(high.min(4096.0)) + RING_UNITS - row;
-    if outer < 1 {
-        return 0;
-    }
-    let mut band = centered_columns(ODD_SQUARES_WITHIN[outer.min(961) as usize]);
-    let low = r0 * 1024.0;
-    if low > 0.0 {
+
+    /// Row `j`'s columns in the band.
+    #[inline(always)]
+    fn row(self, j: usize) -> u32 {
+        let row = ROW_SQUARE[j];
+        // Saturating: the sentinel stays below 1.
+        let outer = self.outer.saturating_sub(row);
+        if outer < 1 {
+            return 0;
+        }
+        let mut band = centered_columns(ODD_SQUARES_WITHIN[outer.min(961) as usize]);
         // Columns with (2i - 31)² below this are strictly inside the ring.
-        let inner = ceil_by_truncation(low.min(4096.0)) - RING_UNITS - row;
+        let inner = self.inner.saturating_sub(row);
         if inner > 1 {
             band &= !centered_columns(ODD_SQUARES_WITHIN[(inner - 1).min(961) as usize]);
         }
+        band
     }
-    band
 }
 
-/// The widening of [`ring_band`], in units of `1/1024` of the squared disk
+/// The widening of [`RingBand`], in units of `1/1024` of the squared disk
 /// radius: a hundredth of a cell ([`CELL_SLACK`]) moves `u²` by at most
 /// `2 · 0.01 / 16 = 1.25` units.
 const RING_UNITS: i32 = 2;
@@ -338,18 +371,75 @@ impl RayCell {
         }
     }
 
-    /// Whether the cell's center ray meets `padded`.
-    #[inline(always)]
-    pub(crate) fn meets(&self, padded: &PaddedBox) -> bool {
+    /// Whether the cell's center ray meets `padded`: the slow twin of
+    /// [`RaysFour::meet`].
+    #[cfg(test)]
+    fn meets(&self, padded: &PaddedBox) -> bool {
         // The slabs' parameter intervals. An axis with a zero direction
-        // component and the origin on a face multiplies 0 by infinity: NaN,
-        // which min and max ignore, so that axis constrains nothing
-        // (conservative).
+        // component and the origin on a face multiplies 0 by infinity: NaN.
+        // Vec3's min and max take the second operand when the comparison
+        // fails, so the ray then reads as met (NaN bounds compare false) or
+        // as running along the padded face, outside the box by the pad:
+        // either way no triangle inside the box is missed.
         let (t0, t1) = (padded.lo * self.inverse, padded.hi * self.inverse);
         let near = t0.min(t1).max_element();
         let far = t0.max(t1).min_element();
         // Not `near > far` or `far < 0` (NaN included): met.
         !(near > far || far < 0.0)
+    }
+}
+
+/// Four cells' center rays as lanes (their inverse directions, one vector
+/// per axis), tested against a box at once: a cluster's spans and a node's
+/// children test the same few rays against many boxes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RaysFour {
+    inverse: [Vec4; 3],
+}
+
+impl RaysFour {
+    /// No ray: lanes not yet written.
+    pub(crate) const EMPTY: RaysFour = RaysFour {
+        inverse: [Vec4::ZERO; 3],
+    };
+
+    /// The rays of `cells`, one to four of them (missing lanes repeat the
+    /// first; [`RaysFour::meet`] leaves their bits out).
+    #[inline(always)]
+    pub(crate) fn new(cells: &[RayCell]) -> RaysFour {
+        let last = cells.len() - 1;
+        let lane = |k: usize| cells[k.min(last)].inverse;
+        let (a, b, c, d) = (lane(0), lane(1), lane(2), lane(3));
+        RaysFour {
+            inverse: [
+                Vec4::new(a.x, b.x, c.x, d.x),
+                Vec4::new(a.y, b.y, c.y, d.y),
+                Vec4::new(a.z, b.z, c.z, d.z),
+            ],
+        }
+    }
+
+    /// Bit `k` set when ray `k` meets `padded`, for the first `len` rays:
+    /// lane by lane the expressions of [`RayCell::meets`]. Vec3's `min` and
+    /// `max` take their second operand unless the first compares smaller
+    /// (larger), as the vector instructions do, so a NaN lane gives the same
+    /// verdict.
+    #[inline(always)]
+    pub(crate) fn meet(&self, padded: &PaddedBox, len: usize) -> u32 {
+        let slab = |axis: usize, lo: f32, hi: f32| {
+            let inverse = self.inverse[axis];
+            let (t0, t1) = (Vec4::splat(lo) * inverse, Vec4::splat(hi) * inverse);
+            (t0.min(t1), t0.max(t1))
+        };
+        let (near_x, far_x) = slab(0, padded.lo.x, padded.hi.x);
+        let (near_y, far_y) = slab(1, padded.lo.y, padded.hi.y);
+        let (near_z, far_z) = slab(2, padded.lo.z, padded.hi.z);
+        // `max_element` and `min_element` of Vec3: x against (y against z).
+        let near = near_x.max(near_y.max(near_z));
+        let far = far_x.min(far_y.min(far_z));
+        let missed = near.cmpgt(far) | far.cmplt(Vec4::ZERO);
+        let used = (1u32 << len.min(4)) - 1;
+        !missed.bitmask() & used
     }
 }
 
@@ -427,11 +517,13 @@ impl<const N: usize> RayCells<N> {
     ) -> usize {
         let padded = PaddedBox::new(bounds, origin, pad);
         let mut kept = 0;
-        for ray in self.as_slice() {
-            let met = ray.meets(&padded);
-            let clear = mask.rows[usize::from(ray.j)] >> ray.i & 1 == 0;
-            out.cells[kept] = *ray;
-            kept += usize::from(met & clear);
+        for four in self.as_slice().chunks(4) {
+            let met = RaysFour::new(four).meet(&padded, four.len());
+            for (k, ray) in four.iter().enumerate() {
+                let clear = mask.rows[usize::from(ray.j)] >> ray.i & 1 == 0;
+                out.cells[kept] = *ray;
+                kept += usize::from((met >> k & 1 == 1) & clear);
+            }
         }
         out.len = kept;
         kept
@@ -648,6 +740,69 @@ mod tests {
             "{rects} rectangles, {nones} none, {listed_some} short lists, \
              {missed_some} boxes setting cells whose rays miss most cells"
         );
+    }
+
+    /// The slow twin of [`RaysFour::meet`]: each ray's own slab test, on
+    /// random boxes and directions and on the cases that make NaN (a zero
+    /// direction component with the origin on a face), with one to four
+    /// rays.
+    #[test]
+    fn four_rays_meet_a_box_as_each_ray_does() {
+        let mut rng = Rng(0x7261_7973);
+        let component = |rng: &mut Rng| match (rng.next() * 8.0) as u32 {
+            0 => 0.0,
+            1 => -0.0,
+            _ => rng.next() * 2.0 - 1.0,
+        };
+        let mut checked = 0;
+        for _ in 0..20_000 {
+            let rays: Vec<RayCell> = (0..1 + (rng.next() * 4.0) as usize)
+                .map(|_| {
+                    let d = Vec3::new(
+                        component(&mut rng),
+                        component(&mut rng),
+                        component(&mut rng),
+                    );
+                    RayCell {
+                        i: 0,
+                        j: 0,
+                        inverse: d.recip(),
+                    }
+                })
+                .collect();
+            // Faces through the origin, boxes around it, beside it, behind it.
+            let coordinate = |rng: &mut Rng| match (rng.next() * 6.0) as u32 {
+                0 => 0.0,
+                _ => rng.next() * 4.0 - 2.0,
+            };
+            let (a, b) = (
+                Vec3::new(
+                    coordinate(&mut rng),
+                    coordinate(&mut rng),
+                    coordinate(&mut rng),
+                ),
+                Vec3::new(
+                    coordinate(&mut rng),
+                    coordinate(&mut rng),
+                    coordinate(&mut rng),
+                ),
+            );
+            let padded = PaddedBox {
+                lo: a.min(b),
+                hi: a.max(b),
+            };
+            let lanes = RaysFour::new(&rays).meet(&padded, rays.len());
+            for (k, ray) in rays.iter().enumerate() {
+                assert_eq!(
+                    lanes >> k & 1 == 1,
+                    ray.meets(&padded),
+                    "ray {k} of {rays:?}, {padded:?}"
+                );
+                checked += 1;
+            }
+            assert_eq!(lanes >> rays.len(), 0, "bits past the rays");
+        }
+        assert!(checked > 40_000);
     }
 
     /// The slow twin of [`ring_band`]: each cell's squared radius compared

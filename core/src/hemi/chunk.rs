@@ -25,7 +25,7 @@
 
 use glam::{Vec3, Vec4};
 
-use super::box_cells::{PaddedBox, RayCell};
+use super::box_cells::{PaddedBox, RayCell, RaysFour};
 use super::clusters::{CHUNK, CHUNK_SPANS, CHUNK_VERTICES, Chunk, SPAN, TriangleClusters};
 #[cfg(feature = "std")]
 use super::cone_mask::TableCones;
@@ -46,6 +46,9 @@ pub(super) struct CellPath<'c> {
     pub(super) origin: Vec3,
     pub(super) pad: f32,
 }
+
+/// Groups of four rays of a [`CellPath`]: at most 32 cells.
+const CELL_LANES: usize = 8;
 
 /// One chunk's vertices moved into the receiver's frame: local positions and
 /// flags, indexed by position in the chunk's list.
@@ -100,10 +103,17 @@ pub(super) fn chunk_loop<M: ConeMask>(
     if let Some(path) = &cells {
         let spans = &clusters.spans[chunk.span_range()];
         let mut any = 0;
+        // The rays as lanes once, then four of them against each span.
+        let mut lanes = [RaysFour::EMPTY; CELL_LANES];
+        for (lane, four) in lanes.iter_mut().zip(path.cells.chunks(4)) {
+            *lane = RaysFour::new(four);
+        }
+        let groups = path.cells.len().div_ceil(4);
         for (met, bounds) in span_cells.iter_mut().zip(spans) {
             let padded = PaddedBox::new(bounds, path.origin, path.pad);
-            for (k, ray) in path.cells.iter().enumerate() {
-                *met |= u32::from(ray.meets(&padded)) << k;
+            for (g, lane) in lanes[..groups].iter().enumerate() {
+                let len = path.cells.len() - 4 * g;
+                *met |= lane.meet(&padded, len) << (4 * g);
             }
             any |= *met;
         }
