@@ -47,13 +47,13 @@ use super::mask::HemiMask;
 /// Adds the triangles of `mesh` that `select` takes, cluster by cluster when there
 /// are clusters.
 #[inline(always)]
-pub(super) fn mesh_loop<M: ConeMask>(
+pub(super) fn mesh_loop<M: ConeMask, const N: usize>(
     mesh: &ClusteredMesh<'_>,
     acc: &mut Accumulator<'_>,
     pass: &Pass<M>,
     select: Select,
     projected: &mut Projected,
-    walk: &mut Walk,
+    walk: &mut Walk<N>,
 ) {
     let view = &mesh.mesh;
     let Some(clusters) = mesh.clusters else {
@@ -113,7 +113,7 @@ pub(super) fn mesh_loop<M: ConeMask>(
                 // A few open cells in reach: those whose rays meet the box.
                 // Many: every triangle is looked at.
                 let reach = BoxCells::of(bounds, &acc.frame, o);
-                reach.open_cells::<LISTED>(&acc.mask).map(|cells| {
+                reach.open_cells::<N>(&acc.mask).map(|cells| {
                     listing.set_from(&cells, &acc.frame);
                     listing.meet_into(bounds, o, pad, &HemiMask::EMPTY, rays)
                 })
@@ -159,14 +159,22 @@ pub(super) fn mesh_loop<M: ConeMask>(
 
 /// The most open cells a node may reach for them to be listed and tested
 /// ray by ray against its box ([`BoxCells::open_cells`], [`RayCells`]) and
-/// then its children's: 128 is 4–9 % faster than 64 on meshes of 10k–90k
-/// triangles and as fast on the bunny (256 is slower there). Without `std`
-/// (bare metal) 64: the lists are most of the walk's state, which lives on
-/// the stack, and small devices have small stacks.
+/// then its children's, in a walk over the full mesh alone: 128 is 4–9 %
+/// faster than 64 on meshes of 10k–90k triangles and as fast on the bunny
+/// (256 is slower there). Without `std` (bare metal) 64: the lists are most
+/// of the walk's state, which lives on the stack, and small devices have
+/// small stacks.
 #[cfg(feature = "std")]
-const LISTED: usize = 128;
+pub(super) const LISTED: usize = 128;
 #[cfg(not(feature = "std"))]
-const LISTED: usize = 64;
+pub(super) const LISTED: usize = 64;
+
+/// [`LISTED`] in a walk with far levels: their boxes are large and hold few
+/// triangles, cheaper to rasterize than to list many rays for, and the
+/// smaller state keeps the passes' working set in the first-level cache (128
+/// makes such a frame about a tenth slower, even when only the walk over the
+/// full mesh lists that many).
+pub(super) const LISTED_WITH_FAR_FIELD: usize = 64;
 
 /// The most cells whose rays meet a cluster for its triangles to be tested on
 /// them one by one (`test_cells` (chunk.rs)) rather than rasterized: the three plane
@@ -184,21 +192,21 @@ const MAX_LEVELS: usize = 9;
 /// What a receiver's walk over a hierarchy keeps on the stack, made once per
 /// receiver and reused for each of its meshes: every entry is written before
 /// it is read.
-pub(super) struct Walk {
+pub(super) struct Walk<const N: usize> {
     /// Nodes still to visit.
     stack: [Visit; STACK],
     /// Per level, the cells whose rays met the parent of the nodes of that
     /// level on the stack (depth first, those nodes share one parent): a
     /// child's rays are among them.
-    inherited: [RayCells<LISTED>; MAX_LEVELS],
+    inherited: [RayCells<N>; MAX_LEVELS],
     /// The rays meeting the node visited.
-    rays: RayCells<LISTED>,
+    rays: RayCells<N>,
     /// The cells of a node listed afresh.
-    listing: RayCells<LISTED>,
+    listing: RayCells<N>,
 }
 
-impl Walk {
-    pub(super) const EMPTY: Walk = Walk {
+impl<const N: usize> Walk<N> {
+    pub(super) const EMPTY: Walk<N> = Walk {
         stack: [Visit {
             level: 0,
             index: 0,
