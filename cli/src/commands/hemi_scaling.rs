@@ -217,14 +217,11 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
     }
     let quarter = mesh.triangle_count() / RELATIVE_DIVISOR;
     if quarter > 0 {
-        let levels = MAX_FAR_LEVELS;
-        settings.push((
-            Some(FarFieldSetup {
-                triangles: quarter,
-                levels,
-            }),
-            true,
-        ));
+        let quarter = FarFieldSetup {
+            triangles: quarter,
+            levels: MAX_FAR_LEVELS,
+        };
+        settings.push((Some(quarter), true));
     }
     let mut exact: Vec<f64> = Vec::new();
     let mut rows = Vec::new();

@@ -395,12 +395,15 @@ impl RayCell {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct RaysFour {
     inverse: [Vec4; 3],
+    /// A bit per lane holding one of the rays given.
+    used: u32,
 }
 
 impl RaysFour {
     /// No ray: lanes not yet written.
     pub(crate) const EMPTY: RaysFour = RaysFour {
         inverse: [Vec4::ZERO; 3],
+        used: 0,
     };
 
     /// The rays of `cells`, one to four of them (missing lanes repeat the
@@ -416,16 +419,17 @@ impl RaysFour {
                 Vec4::new(a.y, b.y, c.y, d.y),
                 Vec4::new(a.z, b.z, c.z, d.z),
             ],
+            used: (1 << cells.len().min(4)) - 1,
         }
     }
 
-    /// Bit `k` set when ray `k` meets `padded`, for the first `len` rays:
+    /// Bit `k` set when ray `k` meets `padded`, for the rays given:
     /// lane by lane the expressions of [`RayCell::meets`]. Vec3's `min` and
     /// `max` take their second operand unless the first compares smaller
     /// (larger), as the vector instructions do, so a NaN lane gives the same
     /// verdict.
     #[inline(always)]
-    pub(crate) fn meet(&self, padded: &PaddedBox, len: usize) -> u32 {
+    pub(crate) fn meet(&self, padded: &PaddedBox) -> u32 {
         let slab = |axis: usize, lo: f32, hi: f32| {
             let inverse = self.inverse[axis];
             let (t0, t1) = (Vec4::splat(lo) * inverse, Vec4::splat(hi) * inverse);
@@ -438,8 +442,7 @@ impl RaysFour {
         let near = near_x.max(near_y.max(near_z));
         let far = far_x.min(far_y.min(far_z));
         let missed = near.cmpgt(far) | far.cmplt(Vec4::ZERO);
-        let used = (1u32 << len.min(4)) - 1;
-        !missed.bitmask() & used
+        !missed.bitmask() & self.used
     }
 }
 
@@ -518,7 +521,7 @@ impl<const N: usize> RayCells<N> {
         let padded = PaddedBox::new(bounds, origin, pad);
         let mut kept = 0;
         for four in self.as_slice().chunks(4) {
-            let met = RaysFour::new(four).meet(&padded, four.len());
+            let met = RaysFour::new(four).meet(&padded);
             for (k, ray) in four.iter().enumerate() {
                 let clear = mask.rows[usize::from(ray.j)] >> ray.i & 1 == 0;
                 out.cells[kept] = *ray;
@@ -791,7 +794,7 @@ mod tests {
                 lo: a.min(b),
                 hi: a.max(b),
             };
-            let lanes = RaysFour::new(&rays).meet(&padded, rays.len());
+            let lanes = RaysFour::new(&rays).meet(&padded);
             for (k, ray) in rays.iter().enumerate() {
                 assert_eq!(
                     lanes >> k & 1 == 1,

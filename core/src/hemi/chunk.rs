@@ -112,8 +112,7 @@ pub(super) fn chunk_loop<M: ConeMask>(
         for (met, bounds) in span_cells.iter_mut().zip(spans) {
             let padded = PaddedBox::new(bounds, path.origin, path.pad);
             for (g, lane) in lanes[..groups].iter().enumerate() {
-                let len = path.cells.len() - 4 * g;
-                *met |= lane.meet(&padded, len) << (4 * g);
+                *met |= lane.meet(&padded) << (4 * g);
             }
             any |= *met;
         }
