@@ -111,10 +111,11 @@ no-std:
 	  $(CARGO) tree --workspace -d -i glam; echo "more than one glam in the tree"; exit 1; fi
 
 # Everything but the Embree comparison, which `embree` runs with its figures shown.
+# The workspace run already tests core with every feature on (the cli and the
+# ffi ask for std, bvh and parallel); the second run tests it without std.
 cargo-test:
 	$(CARGO) test --workspace --exclude antumbra-tests
 	$(CARGO) test -p antumbra-core --no-default-features
-	$(CARGO) test -p antumbra-core --all-features
 
 # Miri, the undefined-behaviour checker, over the tests that reach core's unsafe
 # code: the AVX lanes of the BVH and of the edge bounds, prefetching, the
@@ -128,8 +129,10 @@ miri:
 	  $(CARGO) +nightly miri test -p antumbra-core --features "std bvh libm/force-soft-floats" \
 	  -- $(MIRI_TESTS)
 
+# The same package selection as `cargo-test`, so the build it made is reused
+# (`-p antumbra-ffi` alone would unify features differently and rebuild).
 header:
-	$(CARGO) test -p antumbra-ffi --test header
+	$(CARGO) test --workspace --exclude antumbra-tests --test header
 
 oracle-selfcheck:
 	$(ANTUMBRA_ORACLE_PYTHON) tests/oracle/test_oracle_selfcheck.py
