@@ -19,7 +19,7 @@
 //!   degenerate ones (`(a×b)·c == 0`, an edge normal that rounds to zero, or a
 //!   non-finite value), and, on request, back-facing ones (see [`Culled`]).
 
-use glam::{DVec3, Vec3, Vec4, Vec4Swizzles};
+use glam::{BVec4A, DVec3, Vec3, Vec4, Vec4Swizzles};
 
 use super::half_space::{RowSolver, inside, normalize_exponent};
 use super::mask::{CELL_COORD, CELL_Z, GRID, HemiMask, ROW_FIRST, ROW_LAST};
@@ -928,7 +928,15 @@ pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> Fo
     let (first_v, last_v) = cell_range_four(uay.min(uby).min(ucy), uay.max(uby).max(ucy), margin);
     let no_cell = first_u.cmpgt(last_u) | first_v.cmpgt(last_v);
     let boxed = (tau_ok & cos_ok & n_ok).bitmask() & !degenerate & !back_facing;
-    let empty = boxed & no_cell.bitmask();
+    // Below every cell center: box_of_corners' test, each arc a lane set.
+    let (ab_low, ab_z) = arc_below_cells([uax, uay, uaz], [ubx, uby, ubz], cab, e);
+    let (bc_low, bc_z) = arc_below_cells([ubx, uby, ubz], [ucx, ucy, ucz], cbc, e);
+    let (ca_low, ca_z) = arc_below_cells([ucx, ucy, ucz], [uax, uay, uaz], cca, e);
+    let apart = Vec4::splat(1e-5);
+    let any_below = ab_z.cmplt(-apart) | bc_z.cmplt(-apart) | ca_z.cmplt(-apart);
+    let any_above = ab_z.cmpgt(apart) | bc_z.cmpgt(apart) | ca_z.cmpgt(apart);
+    let below_cells = ab_low & bc_low & ca_low & any_below & any_above;
+    let empty = boxed & (no_cell | below_cells).bitmask();
     // Small boxes: the three predicates on a window of 4 x 2 cells, all four
     // lanes at once, on the normals of ConesFour (scale-free lanes only).
     let narrow = (last_u - first_u).cmple(Vec4::splat(3.0)) & (last_v - first_v).cmple(Vec4::ONE);
@@ -1140,7 +1148,10 @@ fn thin_cone_axis(normals: [Vec3; 3]) -> Option<(DVec3, f64)> {
 /// The box of the cells whose directions can have every barycentric weight
 /// at least `-tau` against unit corners (lanes `(a, b, c, a)` of `ux, uy, uz`,
 /// each coordinate within `corner_error` of the true one): see
-/// [`TriangleCone::proven_box`]. `tau <= 1/12` keeps `κ = 3τ / (1 - u - 6τ)`
+/// [`TriangleCone::proven_box`]. None for a triangle lying wholly below the
+/// lowest cell centers ([`below_every_cell`]): a surface's own triangles
+/// around a receiver often graze its horizon there, their corners' box
+/// holding rim cells they cannot reach. `tau <= 1/12` keeps `κ = 3τ / (1 - u - 6τ)`
 /// below `6.01 τ`.
 #[inline(always)]
 fn box_of_corners(ux: Vec4, uy: Vec4, uz: Vec4, tau: f32, corner_error: f32) -> Proven {
@@ -1165,12 +1176,71 @@ fn box_of_corners(ux: Vec4, uy: Vec4, uz: Vec4, tau: f32, corner_error: f32) -> 
     }
     // 1/n - 1 = (1 - n)/n <= (1 - n)(1 + 2(1 - n)) for n >= 0.5, without a
     // division (the bound is (1 - n)(1 + (1 - n)/n)).
+    if below_every_cell(
+        [ux, uy, uz],
+        [ux.yzxy(), uy.yzxy(), uz.yzxy()],
+        cosines,
+        e + corner_error,
+    )
+    .all()
+    {
+        return Proven::Cells(None);
+    }
     let bulge = ((1.0 - n) * (1.0 + 2.0 * (1.0 - n))).max(e);
     // 1e-5 for the corners' rounding, 5e-5 for the range's.
     let margin = e + (1.0 + e) * bulge + 6e-5 + corner_error;
     let (i0, i_end) = cell_range(ux.min_element(), ux.max_element(), margin);
     let (j0, j_end) = cell_range(uy.min_element(), uy.max_element(), margin);
     Proven::Cells((i0 < i_end && j0 < j_end).then_some((i0, i_end, j0, j_end)))
+}
+
+/// The lowest elevation of a valid cell's center, as `z` on the unit
+/// sphere, rounded down: the outermost centers have squared disk radius
+/// `1018 / 1024`, so `z = √(6 / 1024) = 0.076547…`.
+const LOWEST_CELL_Z: f32 = 0.0765;
+
+/// Per lane, whether the great-circle arc from unit corner `p` to unit corner
+/// `q` (cosine `cosine` between them, under 60°) stays below elevation
+/// `LOWEST_CELL_Z` with room for `slack` (a passing cell's distance from the
+/// cone, [`box_of_corners`]'s `e`): both ends below it, and the circle's
+/// highest point either off the arc or itself below it. The highest point
+/// `h` of the circle with pole `g = p × q` lies strictly between `p` and `q`
+/// exactly when `q_z - (p·q) p_z` and `p_z - (p·q) q_z` are both positive
+/// (`(p × z)·g` and `(z × q)·g`), and its elevation is `|g_xy| / |g|`. Near
+/// zero, a sign is taken as the one that keeps the triangle. Also gives,
+/// per lane, `g_z` for the zenith test of [`below_every_cell`].
+#[inline(always)]
+fn arc_below_cells(p: [Vec4; 3], q: [Vec4; 3], cosine: Vec4, slack: Vec4) -> (BVec4A, Vec4) {
+    let [px, py, pz] = p;
+    let [qx, qy, qz] = q;
+    // A cell at distance `slack` from a point of elevation `w` (over the
+    // flat triangle's distance from the center, at least 1/2) is at most
+    // about 4 slack higher; 1e-4 covers the unit corners' rounding.
+    let limit = Vec4::splat(LOWEST_CELL_Z) - 5.0 * slack - Vec4::splat(1e-4);
+    let low_ends = pz.cmplt(limit) & qz.cmplt(limit) & limit.cmpgt(Vec4::splat(0.01));
+    let off = Vec4::splat(-1e-5);
+    let top_between = (qz - cosine * pz).cmpgt(off) & (pz - cosine * qz).cmpgt(off);
+    let gx = py * qz - pz * qy;
+    let gy = pz * qx - px * qz;
+    let gz = px * qy - py * qx;
+    let gxy = gx * gx + gy * gy;
+    let top_high = gxy.cmpge((gxy + gz * gz) * (limit * limit * 0.999));
+    (low_ends & !(top_between & top_high), gz)
+}
+
+/// Per lane, whether no cell center can be set by the triangle with unit
+/// corners `a` and `b`, `b` and `c`, `c` and `a` (the three arcs as lanes of
+/// [`arc_below_cells`] in `arcs`): every arc below the lowest centers' elevation
+/// and the zenith outside the triangle (the poles' `z` of different signs:
+/// on the sphere, `z` has no other maximum inside), so every point of it is
+/// below those centers.
+#[inline(always)]
+fn below_every_cell(p: [Vec4; 3], q: [Vec4; 3], cosines: Vec4, slack: f32) -> BVec4A {
+    let (low, gz) = arc_below_cells(p, q, cosines, Vec4::splat(slack));
+    // Lanes a→b, b→c, c→a of one triangle (the fourth repeats the first).
+    let apart = Vec4::splat(1e-5);
+    let zenith_out = gz.cmplt(-apart).any() && gz.cmpgt(apart).any();
+    BVec4A::splat(low.all() && zenith_out)
 }
 
 /// One plane's predicate on four neighbouring cells of a row at once.
@@ -1786,6 +1856,88 @@ mod proven_box_tests {
                 }
             }
         }
+    }
+
+    /// Triangles grazing the horizon: corners from 3° below it to 6° above
+    /// (the lowest cell centers are 4.39° up), up to 55° apart in azimuth
+    /// (their arcs rise between the corners), at distances a hundredfold apart.
+    fn grazing_triangle() -> impl Strategy<Value = [Vec3; 3]> {
+        let corner = (-0.05f32..0.1, -0.5f32..0.5, -1.0f32..1.0).prop_map(|(up, around, d)| {
+            let r = libm::powf(10.0, d);
+            let (sin_up, cos_up) = (libm::sinf(up), libm::cosf(up));
+            Vec3::new(
+                r * cos_up * libm::cosf(around),
+                r * cos_up * libm::sinf(around),
+                r * sin_up,
+            )
+        });
+        (
+            0.0f32..core::f32::consts::TAU,
+            corner.clone(),
+            corner.clone(),
+            corner,
+        )
+            .prop_map(|(turn, a, b, c)| {
+                let (sin, cos) = (libm::sinf(turn), libm::cosf(turn));
+                [a, b, c].map(|p| Vec3::new(cos * p.x - sin * p.y, sin * p.x + cos * p.y, p.z))
+            })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+
+        /// A triangle found below every cell center sets none: one at a time
+        /// and four at once, the masks are the per-cell predicate's.
+        #[test]
+        fn grazing_triangles_keep_their_cells(
+            t0 in grazing_triangle(), t1 in grazing_triangle(), t2 in grazing_triangle(),
+            t3 in grazing_triangle(),
+        ) {
+            let triangles = [t0, t1, t2, t3];
+            let got = through_four(triangles, false);
+            for (k, [a, b, c]) in triangles.into_iter().enumerate() {
+                let Ok(cone) = TriangleCone::new(a, b, c, false) else {
+                    continue;
+                };
+                prop_assert_eq!(cone.mask_exact(), cone.mask_reference(), "triangle {}", k);
+                if let Ok(Some(mask)) = got[k] {
+                    prop_assert_eq!(mask, cone.mask_reference(), "lane {}", k);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn triangles_below_the_lowest_cells_are_found() {
+        // Low triangles 30° wide at 2° up all round the horizon: no cell
+        // center can be in them, and the box of their corners holds some.
+        let (mut found, mut total) = (0, 0);
+        for k in 0..36 {
+            let around = k as f32 * 10f32.to_radians();
+            let at = |turn: f32, up: f32, r: f32| {
+                let (a, u) = (around + turn.to_radians(), up.to_radians());
+                Vec3::new(r * u.cos() * a.cos(), r * u.cos() * a.sin(), r * u.sin())
+            };
+            let t = [at(-15.0, 2.0, 1.0), at(15.0, 2.0, 1.0), at(0.0, 3.0, 2.0)];
+            let cone = TriangleCone::new(t[0], t[1], t[2], false).unwrap();
+            assert_eq!(cone.mask_reference(), HemiMask::EMPTY);
+            total += 1;
+            found += usize::from(matches!(cone.proven_box(), Proven::Cells(None)));
+            for got in through_four([t; 4], false) {
+                assert_eq!(got, Ok(Some(HemiMask::EMPTY)));
+            }
+        }
+        assert_eq!(found, total);
+        // One whose arc rises over the lowest centers between its corners
+        // (120° apart at 4° up: the arc's middle is at about 8°) is kept.
+        let at = |a: f32, up: f32| {
+            let (a, u) = (a.to_radians(), up.to_radians());
+            Vec3::new(u.cos() * a.cos(), u.cos() * a.sin(), u.sin())
+        };
+        let wide = [at(-60.0, 4.0), at(60.0, 4.0), at(0.0, 3.0) * 0.5];
+        let cone = TriangleCone::new(wide[0], wide[1], wide[2], false).unwrap();
+        assert_ne!(cone.mask_reference(), HemiMask::EMPTY);
+        assert_eq!(cone.mask_exact(), cone.mask_reference());
     }
 
     /// Lanes that took the window in `through_four`, so the test can tell it
