@@ -932,10 +932,7 @@ pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> Fo
     let (ab_low, ab_z) = arc_below_cells([uax, uay, uaz], [ubx, uby, ubz], cab, e);
     let (bc_low, bc_z) = arc_below_cells([ubx, uby, ubz], [ucx, ucy, ucz], cbc, e);
     let (ca_low, ca_z) = arc_below_cells([ucx, ucy, ucz], [uax, uay, uaz], cca, e);
-    let apart = Vec4::splat(1e-5);
-    let any_below = ab_z.cmplt(-apart) | bc_z.cmplt(-apart) | ca_z.cmplt(-apart);
-    let any_above = ab_z.cmpgt(apart) | bc_z.cmpgt(apart) | ca_z.cmpgt(apart);
-    let below_cells = ab_low & bc_low & ca_low & any_below & any_above;
+    let below_cells = ab_low & bc_low & ca_low & zenith_outside(ab_z, bc_z, ca_z);
     let empty = boxed & (no_cell | below_cells).bitmask();
     // Small boxes: the three predicates on a window of 4 x 2 cells, all four
     // lanes at once, on the normals of ConesFour (scale-free lanes only).
@@ -1174,18 +1171,16 @@ fn box_of_corners(ux: Vec4, uy: Vec4, uz: Vec4, tau: f32, corner_error: f32) -> 
     if n < 0.5 {
         return Proven::Wide;
     }
-    // 1/n - 1 = (1 - n)/n <= (1 - n)(1 + 2(1 - n)) for n >= 0.5, without a
-    // division (the bound is (1 - n)(1 + (1 - n)/n)).
     if below_every_cell(
         [ux, uy, uz],
         [ux.yzxy(), uy.yzxy(), uz.yzxy()],
         cosines,
         e + corner_error,
-    )
-    .all()
-    {
+    ) {
         return Proven::Cells(None);
     }
+    // 1/n - 1 = (1 - n)/n <= (1 - n)(1 + 2(1 - n)) for n >= 0.5, without a
+    // division (the bound is (1 - n)(1 + (1 - n)/n)).
     let bulge = ((1.0 - n) * (1.0 + 2.0 * (1.0 - n))).max(e);
     // 1e-5 for the corners' rounding, 5e-5 for the range's.
     let margin = e + (1.0 + e) * bulge + 6e-5 + corner_error;
@@ -1208,7 +1203,7 @@ const LOWEST_CELL_Z: f32 = 0.0765;
 /// exactly when `q_z - (p·q) p_z` and `p_z - (p·q) q_z` are both positive
 /// (`(p × z)·g` and `(z × q)·g`), and its elevation is `|g_xy| / |g|`. Near
 /// zero, a sign is taken as the one that keeps the triangle. Also gives,
-/// per lane, `g_z` for the zenith test of [`below_every_cell`].
+/// per lane, `g_z` for [`zenith_outside`].
 #[inline(always)]
 fn arc_below_cells(p: [Vec4; 3], q: [Vec4; 3], cosine: Vec4, slack: Vec4) -> (BVec4A, Vec4) {
     let [px, py, pz] = p;
@@ -1228,19 +1223,26 @@ fn arc_below_cells(p: [Vec4; 3], q: [Vec4; 3], cosine: Vec4, slack: Vec4) -> (BV
     (low_ends & !(top_between & top_high), gz)
 }
 
-/// Per lane, whether no cell center can be set by the triangle with unit
-/// corners `a` and `b`, `b` and `c`, `c` and `a` (the three arcs as lanes of
-/// [`arc_below_cells`] in `arcs`): every arc below the lowest centers' elevation
-/// and the zenith outside the triangle (the poles' `z` of different signs:
-/// on the sphere, `z` has no other maximum inside), so every point of it is
-/// below those centers.
+/// Per lane, whether the zenith is certainly outside the triangle whose
+/// arcs' poles have `z` components `ab`, `bc` and `ca` ([`arc_below_cells`]):
+/// some clearly negative, some clearly positive. On the sphere `z` has no
+/// maximum but the zenith, so a triangle without it is highest on its arcs.
 #[inline(always)]
-fn below_every_cell(p: [Vec4; 3], q: [Vec4; 3], cosines: Vec4, slack: f32) -> BVec4A {
-    let (low, gz) = arc_below_cells(p, q, cosines, Vec4::splat(slack));
-    // Lanes a→b, b→c, c→a of one triangle (the fourth repeats the first).
+fn zenith_outside(ab: Vec4, bc: Vec4, ca: Vec4) -> BVec4A {
     let apart = Vec4::splat(1e-5);
-    let zenith_out = gz.cmplt(-apart).any() && gz.cmpgt(apart).any();
-    BVec4A::splat(low.all() && zenith_out)
+    let below = ab.cmplt(-apart) | bc.cmplt(-apart) | ca.cmplt(-apart);
+    let above = ab.cmpgt(apart) | bc.cmpgt(apart) | ca.cmpgt(apart);
+    below & above
+}
+
+/// Whether no cell center can be set by the triangle with unit corners in
+/// lanes `(a, b, c, a)` of `p` (and `(b, c, a, b)` of `q`, `cosines` their
+/// lane-wise cosines): every arc below the lowest centers' elevation and the
+/// zenith outside it, so every point of it is below those centers.
+#[inline(always)]
+fn below_every_cell(p: [Vec4; 3], q: [Vec4; 3], cosines: Vec4, slack: f32) -> bool {
+    let (low, gz) = arc_below_cells(p, q, cosines, Vec4::splat(slack));
+    low.all() && zenith_outside(gz.xxxx(), gz.yyyy(), gz.zzzz()).all()
 }
 
 /// One plane's predicate on four neighbouring cells of a row at once.
