@@ -144,6 +144,14 @@
  */
 #define ANTUMBRA_HEMI_NEAR_CELLS 3.0
 
+/**
+ * The least near radius with the library's own far mesh, in edges of its
+ * clustering cubes (√3, a cube's diagonal; core's `FarMesh::MIN_NEAR_CELLS`):
+ * from a smaller radius the coarse triangles made from a receiver's own cube
+ * count as distant and can pass over it.
+ */
+#define ANTUMBRA_HEMI_MIN_NEAR_CELLS 1.7320508
+
 #if defined(ANTUMBRA_HAS_STD)
 /**
  * The largest side of a lightmap, in texels.
@@ -505,9 +513,11 @@ typedef struct antumbra_hemi_shading_options {
    * means the full mesh everywhere (the far mesh unused); with the library's
    * own (`far_triangles` > 0) it means the library's rule: three edges of the
    * far mesh's clustering cubes (`ANTUMBRA_HEMI_NEAR_CELLS`), so the coarse
-   * surface starts where its error is about a third of the distance. With
-   * several levels (`far_levels`) this is the first level's radius, and each
-   * further level's is twice the one before.
+   * surface starts where its error is about a third of the distance; a
+   * finite radius must then be at least `ANTUMBRA_HEMI_MIN_NEAR_CELLS` cube
+   * edges (INVALID_ARGUMENT, with the least radius in the message, else).
+   * With several levels (`far_levels`) this is the first level's radius, and
+   * each further level's is twice the one before.
    * Ignored without a far mesh.
    */
   float near_radius;

@@ -46,9 +46,9 @@ use std::sync::{Mutex, PoisonError};
 
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
-    BatchOptions, FarFieldSetup, HemiShader, MAX_FAR_LEVELS, Material, PhongLobe, Quality,
-    ShaderError, ShaderFrame, ShaderSetup, TransferLut, TransferMethod, TransferSpace,
-    TransferTable, VertexSurface,
+    BatchOptions, FarFieldSetup, FarMesh, FarMeshError, HemiShader, MAX_FAR_LEVELS, Material,
+    PhongLobe, Quality, ShaderError, ShaderFrame, ShaderSetup, TransferLut, TransferMethod,
+    TransferSpace, TransferTable, VertexSurface,
 };
 use antumbra_core::raycast::MAX_COORDINATE;
 use antumbra_core::sh::{Sh, ShRgb};
@@ -130,9 +130,11 @@ pub struct antumbra_hemi_shading_options {
     /// means the full mesh everywhere (the far mesh unused); with the library's
     /// own (`far_triangles` > 0) it means the library's rule: three edges of the
     /// far mesh's clustering cubes (`ANTUMBRA_HEMI_NEAR_CELLS`), so the coarse
-    /// surface starts where its error is about a third of the distance. With
-    /// several levels (`far_levels`) this is the first level's radius, and each
-    /// further level's is twice the one before.
+    /// surface starts where its error is about a third of the distance; a
+    /// finite radius must then be at least `ANTUMBRA_HEMI_MIN_NEAR_CELLS` cube
+    /// edges (INVALID_ARGUMENT, with the least radius in the message, else).
+    /// With several levels (`far_levels`) this is the first level's radius, and
+    /// each further level's is twice the one before.
     /// Ignored without a far mesh.
     pub near_radius: f32,
     /// 0 (the default): no far mesh but the one a caller passes. Otherwise the
@@ -170,6 +172,14 @@ const _: () = assert!(ANTUMBRA_HEMI_MAX_FAR_LEVELS as usize == MAX_FAR_LEVELS);
 /// clustering cubes (`antumbra_hemi_shading_options.near_radius`; core's
 /// `FarMesh::NEAR_CELLS`).
 pub const ANTUMBRA_HEMI_NEAR_CELLS: f32 = 3.0;
+
+/// The least near radius with the library's own far mesh, in edges of its
+/// clustering cubes (√3, a cube's diagonal; core's `FarMesh::MIN_NEAR_CELLS`):
+/// from a smaller radius the coarse triangles made from a receiver's own cube
+/// count as distant and can pass over it.
+pub const ANTUMBRA_HEMI_MIN_NEAR_CELLS: f32 = 1.732_050_8;
+
+const _: () = assert!(ANTUMBRA_HEMI_MIN_NEAR_CELLS == FarMesh::MIN_NEAR_CELLS);
 
 /// The surface and viewer of `antumbra_hemi_shade`: a Lambertian term plus an
 /// optional normalised modified Phong lobe about the mirror direction of the view
@@ -871,6 +881,15 @@ impl Workspace {
 /// the far field and memory are expected to fail here).
 fn shader_error(config: &Config, input: &FrameInput<'_>, e: ShaderError) -> Error {
     match e {
+        ShaderError::FarField(FarMeshError::NearRadius { radius, minimum }) => {
+            Error::invalid(message!(
+                "options->near_radius is {radius}; with the library's far mesh \
+                 (far_triangles {}) it must be at least {minimum}, \
+                 ANTUMBRA_HEMI_MIN_NEAR_CELLS edges of its clustering cubes, or +INFINITY \
+                 for the library's rule",
+                config.far_triangles
+            ))
+        }
         ShaderError::FarField(e) => Error::invalid(message!(
             "options->far_triangles is {}: {e}",
             config.far_triangles

@@ -73,10 +73,10 @@ pub use hemi::{
 pub use hemi::{antumbra_hemi_table_create, antumbra_hemi_table_destroy};
 pub use hemi_shading::{
     ANTUMBRA_HEMI_MAX_FAR_LEVELS, ANTUMBRA_HEMI_METHOD_CELLS, ANTUMBRA_HEMI_METHOD_DOWNSAMPLED,
-    ANTUMBRA_HEMI_METHOD_LUT, ANTUMBRA_HEMI_NEAR_CELLS, ANTUMBRA_HEMI_SPACE_LOCAL,
-    ANTUMBRA_HEMI_SPACE_WORLD, antumbra_hemi_material, antumbra_hemi_material_init,
-    antumbra_hemi_shade, antumbra_hemi_shading_options, antumbra_hemi_shading_options_init,
-    antumbra_hemi_transfer,
+    ANTUMBRA_HEMI_METHOD_LUT, ANTUMBRA_HEMI_MIN_NEAR_CELLS, ANTUMBRA_HEMI_NEAR_CELLS,
+    ANTUMBRA_HEMI_SPACE_LOCAL, ANTUMBRA_HEMI_SPACE_WORLD, antumbra_hemi_material,
+    antumbra_hemi_material_init, antumbra_hemi_shade, antumbra_hemi_shading_options,
+    antumbra_hemi_shading_options_init, antumbra_hemi_transfer,
 };
 #[cfg(feature = "std")]
 pub use hemi_shading::{

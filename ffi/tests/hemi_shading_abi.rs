@@ -1148,6 +1148,51 @@ fn the_librarys_far_mesh_follows_the_full_mesh_as_a_callers_would() {
     );
 }
 
+/// With the library's far mesh a finite near radius below
+/// `ANTUMBRA_HEMI_MIN_NEAR_CELLS` cube edges is refused, by a shader and by a
+/// one-shot call alike, with the least radius in the message and the outputs
+/// untouched; the least radius itself is taken.
+#[test]
+fn a_near_radius_under_the_far_meshs_cube_diagonal_is_refused() {
+    assert_eq!(
+        ANTUMBRA_HEMI_MIN_NEAR_CELLS,
+        antumbra_core::hemi::FarMesh::MIN_NEAR_CELLS
+    );
+    let rest = blob(24, 32, 0.0);
+    let rest_core = MeshView::new(bytemuck_positions(&rest.positions), &rest.indices).unwrap();
+    let far = antumbra_core::hemi::FarMesh::with_triangles(&rest_core, 300).unwrap();
+    let minimum = ANTUMBRA_HEMI_MIN_NEAR_CELLS * far.cell_size();
+    let with_radius = |radius: f32| {
+        options_with(|o| {
+            o.far_triangles = 300;
+            o.far_levels = 3;
+            o.near_radius = radius;
+        })
+    };
+    let small = with_radius(0.9 * minimum);
+    let (result, out) = transfer(&rest.view(), None, None, Some(&small), 3);
+    assert_eq!(result, ANTUMBRA_RESULT_INVALID_ARGUMENT);
+    let message = last_error();
+    assert!(
+        message.contains("options->near_radius is") && message.contains(&minimum.to_string()),
+        "{message}"
+    );
+    assert!(out.iter().all(|&c| c == SENTINEL));
+    let mut refused = ptr::null_mut();
+    // SAFETY: valid pointers; the radius is under test.
+    let result =
+        unsafe { antumbra_hemi_shader_create(&rest.view(), ptr::null(), &small, &mut refused) };
+    assert_eq!(result, ANTUMBRA_RESULT_INVALID_ARGUMENT);
+    assert!(refused.is_null());
+    assert!(
+        last_error().contains("options->near_radius is"),
+        "{}",
+        last_error()
+    );
+    let (result, _) = transfer(&rest.view(), None, None, Some(&with_radius(minimum)), 3);
+    assert_eq!(result, ANTUMBRA_RESULT_OK, "{}", last_error());
+}
+
 /// The library's far field in several levels (`far_levels`): a shader gives
 /// the bits of core's `FarField` scene, posed from each frame's full mesh; a
 /// one-shot call on the rest pose gives the same; 0 and 1 level are the same
@@ -1156,8 +1201,9 @@ fn the_librarys_far_mesh_follows_the_full_mesh_as_a_callers_would() {
 fn far_levels_are_cores_far_field_posed_per_frame() {
     let rest = blob(32, 48, 0.0);
     let levels = 3;
-    // A near radius of a tenth of the blob: every level has a band on it.
-    let radius = 0.2;
+    // A near radius of about a third of the blob, just above the least the
+    // first level's cubes allow: every level has a band on it.
+    let radius = 0.6;
     let options = options_with(|o| {
         o.far_triangles = 400;
         o.far_levels = levels;
@@ -1172,7 +1218,7 @@ fn far_levels_are_cores_far_field_posed_per_frame() {
         ..one_level
     };
     let mut field = antumbra_core::hemi::FarField::new(&rest.core(), 400, levels as usize).unwrap();
-    field.set_near_radius(radius);
+    field.set_near_radius(radius).unwrap();
     assert_eq!(field.level_count(), levels as usize);
     let shader = Shader::new(&rest.view(), None, Some(&options));
     let single = Shader::new(&rest.view(), None, Some(&one_level));
@@ -1347,7 +1393,12 @@ fn a_frame_through_a_shader_allocates_nothing() {
         (ANTUMBRA_HEMI_METHOD_CELLS, 60),
     ] {
         let options = options_with(|o| {
-            o.near_radius = 0.5;
+            // The library's own far mesh takes its own rule.
+            o.near_radius = if far_triangles == 0 {
+                0.5
+            } else {
+                f32::INFINITY
+            };
             o.method = method;
             o.far_triangles = far_triangles;
             o.raster.quality = ANTUMBRA_HEMI_QUALITY_TABLE;

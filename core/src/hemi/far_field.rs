@@ -94,12 +94,25 @@ impl FarField {
         })
     }
 
-    /// Sets the finest level's near radius (mesh units, finite and `> 0`; the
-    /// default is [`FarMesh::NEAR_CELLS`] of its cube edges); level `k`'s is
-    /// `2^k` times it, so every level keeps the same ratio of cube edge to
-    /// distance.
-    pub fn set_near_radius(&mut self, radius: f32) {
+    /// Sets the finest level's near radius (mesh units, finite and at least
+    /// [`FarField::min_near_radius`]; the default is [`FarMesh::NEAR_CELLS`]
+    /// of its cube edges); level `k`'s is `2^k` times it, so every level keeps
+    /// the same ratio of cube edge to distance. A smaller or non-finite radius
+    /// is refused ([`FarMeshError::NearRadius`]) and the radius kept.
+    pub fn set_near_radius(&mut self, radius: f32) -> Result<(), FarMeshError> {
+        let minimum = self.min_near_radius();
+        // Written so that NaN is refused too.
+        if !(radius.is_finite() && radius >= minimum) {
+            return Err(FarMeshError::NearRadius { radius, minimum });
+        }
         self.near_radius = radius;
+        Ok(())
+    }
+
+    /// The least near radius [`FarField::set_near_radius`] accepts:
+    /// [`FarMesh::MIN_NEAR_CELLS`] edges of the finest level's cubes.
+    pub fn min_near_radius(&self) -> f32 {
+        FarMesh::MIN_NEAR_CELLS * self.levels[0].mesh.cell_size()
     }
 
     /// The number of levels.
@@ -190,6 +203,7 @@ impl<'a> FarLevels<'a> {
 #[cfg(test)]
 mod tests {
     use super::super::test_meshes::bumpy_sphere;
+    use super::super::test_meshes::normals_of;
     use super::*;
     use crate::hemi::{BatchOptions, scene_mask, vertex_normals};
     use alloc::vec;
@@ -212,12 +226,118 @@ mod tests {
             assert!(field.level(k).triangle_count() < triangles);
             triangles = field.level(k).triangle_count();
         }
-        field.set_near_radius(0.25);
+        field.set_near_radius(0.5).unwrap();
         let levels = field.pose(&mesh).unwrap();
         let scene = levels.scene(crate::hemi::ClusteredMesh::unclustered(mesh));
-        assert_eq!(scene.near_radius, 0.25);
+        assert_eq!(scene.near_radius, 0.5);
         let radii: Vec<f32> = scene.coarser.iter().map(|l| l.near_radius).collect();
-        assert_eq!(radii, [0.5, 1.0, 2.0]);
+        assert_eq!(radii, [1.0, 2.0, 4.0]);
+    }
+
+    /// A bumpy sphere of radius about 1 standing on a flat ground (`z = 0`,
+    /// facing up) of polar rings growing outwards to 40 radii, as a scene's
+    /// ground is tessellated; returns the mesh and the first ground vertex.
+    fn sphere_on_ground() -> (Vec<[f32; 3]>, Vec<u32>, usize) {
+        let (mut positions, mut indices) = bumpy_sphere(24, 32, 0.15, 0.0);
+        for p in &mut positions {
+            p[2] += 1.25;
+        }
+        let first = positions.len();
+        const SEGMENTS: u32 = 24;
+        positions.push([0.0, 0.0, 0.0]);
+        let mut radius = 0.3f32;
+        let mut rings = 0u32;
+        while radius < 40.0 {
+            for s in 0..SEGMENTS {
+                let angle = core::f32::consts::TAU * s as f32 / SEGMENTS as f32;
+                positions.push([radius * libm::cosf(angle), radius * libm::sinf(angle), 0.0]);
+            }
+            radius *= 1.3;
+            rings += 1;
+        }
+        let ring = |r: u32, s: u32| first as u32 + 1 + r * SEGMENTS + s % SEGMENTS;
+        for s in 0..SEGMENTS {
+            indices.extend([first as u32, ring(0, s), ring(0, s + 1)]);
+            for r in 0..rings - 1 {
+                let (a, b) = (ring(r, s), ring(r, s + 1));
+                let (c, d) = (ring(r + 1, s), ring(r + 1, s + 1));
+                indices.extend([a, c, d, a, d, b]);
+            }
+        }
+        (positions, indices, first)
+    }
+
+    #[test]
+    fn a_near_radius_below_a_cube_diagonal_is_refused() {
+        let (positions, indices, _) = sphere_on_ground();
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let mut field = FarField::new(&mesh, 600, MAX_FAR_LEVELS).unwrap();
+        let minimum = field.min_near_radius();
+        assert_eq!(
+            minimum,
+            FarMesh::MIN_NEAR_CELLS * field.level(0).cell_size()
+        );
+        let default = field.near_radius(0);
+        for radius in [0.99 * minimum, 0.0, -1.0, f32::NAN, f32::INFINITY] {
+            let refused = field.set_near_radius(radius);
+            assert!(
+                matches!(refused, Err(FarMeshError::NearRadius { minimum: m, .. }) if m == minimum),
+                "{radius}: {refused:?}"
+            );
+            assert_eq!(
+                field.near_radius(0),
+                default,
+                "a refused radius is not kept"
+            );
+        }
+        field.set_near_radius(minimum).unwrap();
+        assert_eq!(field.near_radius(0), minimum);
+    }
+
+    /// The hazard the minimum radius keeps out: from a radius under a cube
+    /// edge, coarse triangles joining the sphere's cubes to the ground's pass
+    /// over ground receivers, which then see far more of their sky covered
+    /// than the full mesh covers; from the minimum on, none does.
+    #[test]
+    fn coarse_levels_do_not_pass_over_ground_receivers() {
+        let (positions, indices, first_ground) = sphere_on_ground();
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let normals = normals_of(&mesh);
+        let mut field = FarField::new(&mesh, 600, MAX_FAR_LEVELS).unwrap();
+        let minimum = field.min_near_radius();
+        field.set_near_radius(minimum).unwrap();
+        let options = BatchOptions {
+            normal_offset: 1e-3,
+            ..BatchOptions::default()
+        };
+        let levels = field.pose(&mesh).unwrap();
+        let exact = HemiScene::new(ClusteredMesh::unclustered(mesh));
+        let at_minimum = levels.scene(ClusteredMesh::unclustered(mesh));
+        // The same levels, every radius a third of a cube edge.
+        let mut small: Vec<FarLevel<'_>> = at_minimum.coarser.to_vec();
+        for level in &mut small {
+            level.near_radius /= 3.0 * FarMesh::MIN_NEAR_CELLS;
+        }
+        let below = HemiScene {
+            near_radius: at_minimum.near_radius / (3.0 * FarMesh::MIN_NEAR_CELLS),
+            coarser: &small,
+            ..at_minimum
+        };
+        // Receivers whose far-field mask covers more than twice the full
+        // mesh's cells and 40 more (a tenth of the lowest ring of cells).
+        let over_covered = |scene: &HemiScene<'_>| {
+            (first_ground..mesh.vertex_count())
+                .filter(|&v| {
+                    let p = mesh.position(v);
+                    let far = scene_mask(scene, p, normals[v], &options).count_occluded();
+                    let full = scene_mask(&exact, p, normals[v], &options).count_occluded();
+                    far > 2 * full + 40
+                })
+                .count()
+        };
+        let (fine, coarse) = (over_covered(&at_minimum), over_covered(&below));
+        assert_eq!(fine, 0);
+        assert!(coarse > 0, "the hazard is not reproduced");
     }
 
     #[test]

@@ -45,6 +45,14 @@ pub enum FarMeshError {
     /// No triangle survived (cubes as large as the mesh, or a mesh of
     /// degenerate triangles only).
     Empty,
+    /// A near radius below [`FarMesh::MIN_NEAR_CELLS`] cube edges (or not a
+    /// finite number) was asked of a far field.
+    NearRadius {
+        /// The radius asked for.
+        radius: f32,
+        /// The least radius the far field's cubes allow.
+        minimum: f32,
+    },
     /// [`FarMesh::pose`] was given a mesh with another vertex count.
     VertexCount {
         /// The vertex count of the mesh the far mesh was made from.
@@ -72,6 +80,12 @@ impl fmt::Display for FarMeshError {
                  mesh's {available}"
             ),
             FarMeshError::Empty => write!(f, "no triangle is left after simplification"),
+            FarMeshError::NearRadius { radius, minimum } => write!(
+                f,
+                "the near radius {radius} is below {minimum}, {} edges of the far mesh's \
+                 clustering cubes: its coarse triangles would pass over receivers",
+                FarMesh::MIN_NEAR_CELLS
+            ),
             FarMeshError::VertexCount { expected, got } => write!(
                 f,
                 "the mesh has {got} vertices, but the far mesh was made from one of {expected}"
@@ -111,6 +125,14 @@ impl FarMesh {
     /// up to about a cube edge off the full one, then starts where that error is
     /// about a third of the distance to the receiver.
     pub const NEAR_CELLS: f32 = 3.0;
+
+    /// The least near radius a far field accepts, in cube edges: a cube's
+    /// diagonal. A far vertex lies anywhere in its cube, so from a smaller
+    /// radius the far triangles made from the receiver's own cube count as
+    /// distant, and they can pass right over it (an object on a large ground:
+    /// the coarse surface joining the object's cube to the ground's spans the
+    /// ground receivers around it and darkens them wholly).
+    pub const MIN_NEAR_CELLS: f32 = 1.732_050_8; // √3
 
     /// The far mesh of `mesh` (in its rest pose) with cubes of edge `cell_size`.
     pub fn with_cell_size(mesh: &MeshView<'_>, cell_size: f32) -> Result<Self, FarMeshError> {

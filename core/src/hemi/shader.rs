@@ -47,7 +47,8 @@ pub struct ShaderSetup {
     pub far_field: Option<FarFieldSetup>,
     /// The near radius (see [`HemiScene::near_radius`]). With the library's far
     /// field, `+inf` means its rule ([`FarField::near_radius`]) and a finite
-    /// value sets its first level's.
+    /// value sets its first level's, which must be at least
+    /// [`FarField::min_near_radius`] (else [`FarMeshError::NearRadius`]).
     pub near_radius: f32,
     /// Keep a per-vertex shading buffer for [`ShaderFrame::shade`].
     pub shading: bool,
@@ -163,7 +164,9 @@ impl HemiShader {
                 let mut field =
                     FarField::new(mesh, triangles, levels).map_err(ShaderError::FarField)?;
                 if setup.near_radius.is_finite() {
-                    field.set_near_radius(setup.near_radius);
+                    field
+                        .set_near_radius(setup.near_radius)
+                        .map_err(ShaderError::FarField)?;
                 }
                 Some(field)
             }
@@ -387,7 +390,7 @@ mod tests {
                 triangles: 300,
                 levels: 3,
             }),
-            near_radius: 0.3,
+            near_radius: 0.7,
             shading: true,
             ..ShaderSetup::default()
         };
@@ -407,8 +410,8 @@ mod tests {
         .unwrap();
         let mut with_far = HemiShader::new(&rest_mesh, Some(&far_rest_mesh), &callers).unwrap();
         let mut field = FarField::new(&rest_mesh, 300, 3).unwrap();
-        field.set_near_radius(0.3);
-        assert_eq!(with_field.near_radius(), 0.3);
+        field.set_near_radius(0.7).unwrap();
+        assert_eq!(with_field.near_radius(), 0.7);
         let lobe = PhongLobe::new(8.0).unwrap();
         let material = Material {
             albedo: Vec3::splat(0.7),
