@@ -478,6 +478,14 @@ pub struct BenchHemiArgs {
     /// Mask quality of the frames-per-second table.
     #[arg(long, value_enum, default_value_t = QualityArg::Exact)]
     pub quality: QualityArg,
+
+    /// Print only the frames-per-second table, with the mesh standing on the
+    /// demo's ground (a polar grid reaching 30 of its diagonals, every vertex a
+    /// receiver too; the far mesh is the mesh's vertex clustering plus the
+    /// ground as one square), against the library's far levels made from the
+    /// whole scene.
+    #[arg(long, conflicts_with = "scaling")]
+    pub on_ground: bool,
 }
 
 /// Arguments of `antumbra verify`: a subcommand, or the ray-caster check's options.

@@ -238,7 +238,7 @@ pub enum Occluders {
     FarMesh,
     /// The full mesh near, then the library's own far field of this many
     /// levels (core's `FarField`), its finest level about the far mesh's size
-    /// and its first radius the near radius.
+    /// and its radii the library's rule (three of the level's cube edges).
     FarLevels(usize),
 }
 
@@ -285,7 +285,10 @@ impl<'m> Posed<'m> {
         let far_view = lod.far.view();
         let setup = ShaderSetup {
             far_field,
-            near_radius: lod.near_radius,
+            near_radius: match occluders {
+                Occluders::FarLevels(_) => f32::INFINITY,
+                Occluders::Full | Occluders::FarMesh => lod.near_radius,
+            },
             shading: true,
             ..ShaderSetup::default()
         };

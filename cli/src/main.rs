@@ -14,6 +14,7 @@ mod commands;
 mod envmap;
 mod error;
 mod gltf_mesh;
+mod ground;
 mod hemi_shading;
 mod lightmap;
 mod mesh;

@@ -641,6 +641,34 @@ fn bench_hemi_reports_ratios_against_the_bvh() {
     }
 }
 
+/// `--on-ground`: the frames table alone, of the mesh standing on the demo's
+/// ground, with its three rows.
+#[test]
+fn bench_hemi_on_ground_times_the_mesh_on_the_demos_ground() {
+    let output = antumbra(&[
+        "bench",
+        "hemi",
+        "--on-ground",
+        "--mesh",
+        &data("teapot.obj"),
+        "--min-time",
+        "1",
+    ]);
+    assert_success(&output);
+    let text = stdout(&output);
+    for needle in [
+        "teapot.obj on a ground",
+        "full near + far mesh",
+        "far levels",
+        "far levels speed-up",
+    ] {
+        assert!(text.contains(needle), "{needle}: {text}");
+    }
+    // Only the frames table: no masks table, no Embree.
+    assert!(!text.contains("ns per rasterized triangle"), "{text}");
+    assert!(!text.contains("Embree"), "{text}");
+}
+
 #[test]
 fn bench_hemi_frames_run_on_another_mesh_with_table_quality() {
     let output = antumbra(&[

@@ -28,9 +28,11 @@ use antumbra_tests::oracle::{OracleOptions, try_cast, try_frame};
 use glam::Vec3;
 
 use super::format_duration;
+use crate::bounds::Bounds;
 use crate::builtin;
 use crate::cli::{BenchHemiArgs, QualityArg, VerifyHemiArgs};
 use crate::error::{Error, Result};
+use crate::ground::on_ground;
 use crate::hemi_shading::{
     COEFFICIENTS, FAR_CELL_OF_DIAGONAL, LodMesh, NEAR_RADIUS_OF_DIAGONAL, OFFSET_OF_DIAGONAL,
     Occluders, PHONG_EXPONENT, Posed, Shader, Twist, half_space_table, sky_lighting,
@@ -200,11 +202,21 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
     // The frames per second need a far mesh, sized from the diagonal: refuse
     // before any timing rather than after.
     mesh.require_extent()?;
+    if args.on_ground {
+        let object = mesh.bounds();
+        return frame_rates(
+            on_ground(&mesh)?,
+            &object,
+            args.quality,
+            min_time(args),
+            None,
+        );
+    }
     let offset = OFFSET_OF_DIAGONAL * mesh.bounds().diagonal();
     let chosen = receivers(&mesh, args.receivers as usize);
     let count = chosen.len().max(1) as f64;
     let view = mesh.view();
-    let min_time = Duration::from_millis(args.min_time);
+    let min_time = min_time(args);
     let _ = half_space_table();
     println!(
         "bench hemi: {} ({} triangles), {} receivers, one thread, each figure repeated for at least {} ms",
@@ -407,7 +419,14 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
         min_time,
     )?;
     println!();
-    frame_rates(mesh, args.quality, min_time, embree_micros)
+    let object = mesh.bounds();
+    frame_rates(
+        LodMesh::new(mesh)?,
+        &object,
+        args.quality,
+        min_time,
+        embree_micros,
+    )
 }
 
 /// Far mesh sizes (triangles) the far-mesh table tries, those below half the
@@ -580,21 +599,28 @@ fn time_frames(
     Ok(total / count)
 }
 
-/// The frames-per-second table of `bench hemi`: every vertex shaded per frame,
-/// with and without the far mesh, on one thread and on rayon's default pool.
+/// `--min-time`.
+fn min_time(args: &BenchHemiArgs) -> Duration {
+    Duration::from_millis(args.min_time)
+}
+
+/// The frames-per-second table of `bench hemi`: every vertex of `lod` shaded
+/// per frame with the object of bounds `object` twisted (the ground, at its
+/// bottom, stays), with the full mesh, the far mesh and the library's far
+/// levels, on one thread and on rayon's default pool.
 fn frame_rates(
-    mesh: TriangleMesh,
+    lod: LodMesh,
+    object: &Bounds,
     quality_arg: QualityArg,
     min_time: Duration,
     embree_micros: Option<f64>,
 ) -> Result<()> {
-    let triangles = mesh.triangle_count();
-    let diagonal = mesh.bounds().diagonal();
-    let twist = Twist::of_bounds(&mesh.bounds());
-    let lod = LodMesh::new(mesh)?;
+    let triangles = lod.full.triangle_count();
+    let diagonal = object.diagonal();
+    let twist = Twist::of_bounds(object);
     let shader = Shader::new();
     let lighting = sky_lighting(&builtin::sunrise()?)?;
-    let center = lod.full.bounds().center();
+    let center = object.center();
     let material = Material {
         albedo: Vec3::splat(0.4),
         specular: Vec3::splat(0.5),
@@ -611,9 +637,10 @@ fn frame_rates(
         .map_err(|e| Error::msg(format!("cannot start a one-thread pool: {e}")))?;
     let threads = rayon::current_num_threads();
     println!(
-        "frames per second shading every vertex ({} vertices; diffuse + glossy, {COEFFICIENTS} SH coefficients, \
+        "frames per second shading every vertex of {} ({} vertices; diffuse + glossy, {COEFFICIENTS} SH coefficients, \
          Phong exponent {PHONG_EXPONENT}, {} masks, {}-triangle clusters); each frame twists the mesh, \
          recomputes normals and cluster boxes, and shades",
+        lod.full.name(),
         lod.full.vertex_count(),
         quality_name(quality_arg),
         TriangleClusters::DEFAULT_SIZE
@@ -637,6 +664,14 @@ fn frame_rates(
         let mut posed = Posed::new(&lod, occluders)?;
         if let Some(field) = posed.far_field() {
             levels_built = field.level_count();
+            println!(
+                "far levels: {levels_built}, the first of {} triangles with cells of {:.4} \
+                 ({:.1} times the far mesh's), near radius {:.4}, doubling per level",
+                field.level(0).triangle_count(),
+                field.level(0).cell_size(),
+                field.level(0).cell_size() / lod.far_cell,
+                field.near_radius(0)
+            );
         }
         let mut row = Vec::new();
         for pool in [Some(&one), None] {
