@@ -202,8 +202,7 @@ impl<'a> FarLevels<'a> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::test_meshes::bumpy_sphere;
-    use super::super::test_meshes::normals_of;
+    use super::super::test_meshes::{bumpy_sphere, normals_of};
     use super::*;
     use crate::hemi::{BatchOptions, scene_mask, vertex_normals};
     use alloc::vec;

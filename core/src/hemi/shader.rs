@@ -163,7 +163,9 @@ impl HemiShader {
             Some(FarFieldSetup { triangles, levels }) => {
                 let mut field =
                     FarField::new(mesh, triangles, levels).map_err(ShaderError::FarField)?;
-                if setup.near_radius.is_finite() {
+                // Anything but the rule's `+inf` (NaN included) is a radius
+                // to check.
+                if setup.near_radius != f32::INFINITY {
                     field
                         .set_near_radius(setup.near_radius)
                         .map_err(ShaderError::FarField)?;
