@@ -202,21 +202,15 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
     // The frames per second need a far mesh, sized from the diagonal: refuse
     // before any timing rather than after.
     mesh.require_extent()?;
+    let min_time = Duration::from_millis(args.min_time);
     if args.on_ground {
         let object = mesh.bounds();
-        return frame_rates(
-            on_ground(&mesh)?,
-            &object,
-            args.quality,
-            min_time(args),
-            None,
-        );
+        return frame_rates(on_ground(&mesh)?, &object, args.quality, min_time, None);
     }
     let offset = OFFSET_OF_DIAGONAL * mesh.bounds().diagonal();
     let chosen = receivers(&mesh, args.receivers as usize);
     let count = chosen.len().max(1) as f64;
     let view = mesh.view();
-    let min_time = min_time(args);
     let _ = half_space_table();
     println!(
         "bench hemi: {} ({} triangles), {} receivers, one thread, each figure repeated for at least {} ms",
@@ -597,11 +591,6 @@ fn time_frames(
         count += 1;
     }
     Ok(total / count)
-}
-
-/// `--min-time`.
-fn min_time(args: &BenchHemiArgs) -> Duration {
-    Duration::from_millis(args.min_time)
 }
 
 /// The frames-per-second table of `bench hemi`: every vertex of `lod` shaded

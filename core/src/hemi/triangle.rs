@@ -1194,6 +1194,25 @@ fn box_of_corners(ux: Vec4, uy: Vec4, uz: Vec4, tau: f32, corner_error: f32) -> 
 /// `1018 / 1024`, so `z = √(6 / 1024) = 0.076547…`.
 const LOWEST_CELL_Z: f32 = 0.0765;
 
+// The constant is the lowest valid center's `z` in the cells' own table,
+// rounded down by less than the margin `arc_below_cells` keeps.
+const _: () = {
+    let mut lowest = 1.0f32;
+    let mut j = 0;
+    while j < GRID {
+        let mut i = 0;
+        while i < GRID {
+            let z = CELL_Z[j][i];
+            if z > 0.0 && z < lowest {
+                lowest = z;
+            }
+            i += 1;
+        }
+        j += 1;
+    }
+    assert!(LOWEST_CELL_Z <= lowest && lowest - LOWEST_CELL_Z < 1e-4);
+};
+
 /// Per lane, whether the great-circle arc from unit corner `p` to unit corner
 /// `q` (cosine `cosine` between them, under 60°) stays below elevation
 /// `LOWEST_CELL_Z` with room for `slack` (a passing cell's distance from the
