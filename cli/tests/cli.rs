@@ -503,26 +503,40 @@ fn bench_hemi_scaling_has_a_row_per_mesh_and_far_field_setting() {
     ]);
     assert_success(&output);
     let text = stdout(&output);
-    // The field after the mesh's name and its triangle count.
-    let setting = |line: &str, mesh: &str| {
-        line.strip_prefix(mesh)
-            .and_then(|rest| rest.split_whitespace().nth(1).map(str::to_string))
+    // The far field (the field after the mesh's name and its triangle count)
+    // and the receivers (the first field after the far field's).
+    let fields = |line: &str, mesh: &str| -> Option<(String, String)> {
+        let rest: Vec<&str> = line.strip_prefix(mesh)?.split_whitespace().collect();
+        let far = rest.get(1)?.to_string();
+        // "none", or "T x L" with an optional "(n/4)".
+        let mut next = if far == "none" { 2 } else { 4 };
+        if rest.get(next) == Some(&"(n/4)") {
+            next += 1;
+        }
+        Some((far, rest.get(next)?.to_string()))
     };
-    let rows = |mesh: &str, far: &str| {
+    let rows = |mesh: &str, far: &str, every: bool| {
         text.lines()
-            .filter(|l| setting(l, mesh).as_deref() == Some(far))
+            .filter_map(|l| fields(l, mesh))
+            .filter(|(f, r)| f == far && (r == "all") == every)
             .count()
     };
     // The exact path for every mesh; far fields only below a quarter of the
     // triangles: the armadillo's 52,000, not the teapot's 992.
-    assert_eq!(rows("built-in bunny", "none"), 1, "{text}");
-    assert_eq!(rows("teapot.obj", "none"), 1, "{text}");
-    assert_eq!(rows("teapot.obj", "2000"), 0, "{text}");
-    assert_eq!(rows("built-in armadillo", "2000"), 2, "{text}");
-    assert_eq!(rows("built-in armadillo", "8000"), 2, "{text}");
-    // Far-field rows carry their error, the exact rows say so.
+    assert_eq!(rows("built-in bunny", "none", true), 1, "{text}");
+    assert_eq!(rows("teapot.obj", "none", true), 1, "{text}");
+    assert_eq!(rows("teapot.obj", "2000", true), 0, "{text}");
+    assert_eq!(rows("built-in armadillo", "2000", true), 2, "{text}");
+    assert_eq!(rows("built-in armadillo", "8000", true), 2, "{text}");
+    // Two sparse-receiver settings, each with the full mesh and the (n/4) far
+    // field.
+    assert_eq!(rows("teapot.obj", "none", false), 2, "{text}");
+    assert_eq!(rows("built-in armadillo", "13000", false), 2, "{text}");
+    // Far-field and sparse-receiver rows carry their error, the exact rows
+    // say so.
     for line in text.lines().filter(|l| l.starts_with("built-in armadillo")) {
-        let exact = setting(line, "built-in armadillo").as_deref() == Some("none");
+        let (far, receivers) = fields(line, "built-in armadillo").expect("a row");
+        let exact = far == "none" && receivers == "all";
         assert_eq!(line.contains("exact"), exact, "{line}");
         assert_eq!(line.contains('%'), !exact, "{line}");
     }

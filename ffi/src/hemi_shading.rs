@@ -846,6 +846,7 @@ impl Workspace {
             far_field: far_field_setup(config, input)?,
             near_radius: config.near_radius,
             shading,
+            receivers: None,
         };
         let shader = HemiShader::new(&input.mesh, input.far.as_ref(), &setup)
             .map_err(|e| shader_error(config, input, e))?;
@@ -961,7 +962,7 @@ fn transfer_frame<const N: usize>(
 ) -> Result<(), Error> {
     let method = transfer_method::<N>(config.method)?;
     let options = config.batch_options(quality);
-    let (frame, _) = workspace.frame(config, input)?;
+    let (mut frame, _) = workspace.frame(config, input)?;
     let out = bytemuck::cast_slice_mut::<f32, [f32; N]>(out);
     frame
         .transfer(&options, method, config.space, out)

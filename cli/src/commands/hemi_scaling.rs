@@ -25,8 +25,8 @@ use std::time::Duration;
 
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
-    BatchOptions, FarFieldSetup, HemiShader, MAX_FAR_LEVELS, Receiver, ShaderSetup, TransferMethod,
-    TransferSpace, TransferTable, scene_mask_with_counts, vertex_transfer,
+    BatchOptions, FarFieldSetup, HemiShader, MAX_FAR_LEVELS, Receiver, ReceiverLod, ShaderSetup,
+    TransferMethod, TransferSpace, TransferTable, scene_mask_with_counts, vertex_transfer,
 };
 use antumbra_core::sh::Sh;
 use antumbra_tests::oracle::{OracleOptions, try_cast};
@@ -60,9 +60,25 @@ const RELATIVE_DIVISOR: usize = 4;
 /// from a mesh of about ten thousand triangles (homer, 9,856) up.
 const GROWTH_FROM: usize = 9_000;
 
+/// Sparse-receiver settings of the table (`ReceiverLod` spacing and
+/// tolerance), each timed with the full mesh and with the `(n/4)` far field.
+const RECEIVER_LODS: [ReceiverLod; 2] = [
+    ReceiverLod {
+        spacing: 1,
+        tolerance: 0.05,
+    },
+    ReceiverLod {
+        spacing: 2,
+        tolerance: 0.1,
+    },
+];
+
 /// One row: a setting's frame and error.
 struct Row {
     setting: String,
+    /// `all`, or the sparse-receiver setting and the share of vertices it
+    /// rasterized.
+    receivers: String,
     /// The setting that follows the mesh's size ([`RELATIVE_DIVISOR`]).
     relative: bool,
     micros: f64,
@@ -101,10 +117,11 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
         .unwrap_or(4)
         .max(4);
     println!(
-        "{:<width$} {:>9} {:<16} {:>12} {:>12} {:>12} {:>8} {:>10} {:>8}",
+        "{:<width$} {:>9} {:<16} {:<14} {:>12} {:>12} {:>12} {:>8} {:>10} {:>8}",
         "mesh",
         "triangles",
         "far field",
+        "receivers",
         "µs / vertex",
         "Embree µs",
         "Embree/ours",
@@ -125,16 +142,17 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
         for row in rows(mesh, args.receivers as usize, min_time)? {
             let ratio = embree.map(|e| e / row.micros);
             println!(
-                "{name:<width$} {:>9} {:<16} {:>12.2} {:>12} {:>12} {:>8} {:>10.0} {:>8.0}",
+                "{name:<width$} {:>9} {:<16} {:<14} {:>12.2} {:>12} {:>12} {:>8} {:>10} {:>8}",
                 mesh.triangle_count(),
                 row.setting,
+                row.receivers,
                 row.micros,
                 embree.map_or("-".to_string(), |e| format!("{e:.2}")),
                 ratio.map_or("-".to_string(), |r| format!("{r:.2}x")),
                 row.error
                     .map_or("exact".to_string(), |e| format!("{:.2}%", 100.0 * e)),
-                row.triangles,
-                row.nodes,
+                count(row.triangles),
+                count(row.nodes),
             );
             if row.relative && mesh.triangle_count() >= GROWTH_FROM {
                 relative.push((mesh.triangle_count(), row.micros, name.clone()));
@@ -142,7 +160,13 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
             if let Some(ratio) = ratio
                 && worst.as_ref().is_none_or(|(_, w)| ratio < *w)
             {
-                worst = Some((format!("{name}, far field {}", row.setting), ratio));
+                worst = Some((
+                    format!(
+                        "{name}, far field {}, receivers {}",
+                        row.setting, row.receivers
+                    ),
+                    ratio,
+                ));
             }
         }
     }
@@ -167,6 +191,15 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// A per-receiver count, or `-` where the row has none.
+fn count(value: f64) -> String {
+    if value.is_nan() {
+        "-".to_string()
+    } else {
+        format!("{value:.0}")
+    }
 }
 
 /// Embree's frame per vertex on `mesh`: the scene's build over the vertex
@@ -195,7 +228,8 @@ fn embree_frame(mesh: &TriangleMesh, count: usize) -> Result<f64> {
 }
 
 /// The rows of `mesh`: the exact path, then each far-field setting below a
-/// quarter of its triangles, then the one that follows its size.
+/// quarter of its triangles, then the one that follows its size; then each
+/// sparse-receiver setting with the full mesh and with that last far field.
 fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row>> {
     let view = mesh.view();
     let vertices = receiver_vertices(&mesh.vertex_normals(), count);
@@ -207,32 +241,88 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
         ..BatchOptions::default()
     };
     // Each setting, and whether it is the one that follows the mesh's size.
-    let mut settings = vec![(None, false)];
+    let mut settings = vec![(None, false, None)];
     for triangles in FAR_TRIANGLES {
         if 4 * triangles <= mesh.triangle_count() {
             settings.extend(
-                FAR_LEVELS.map(|levels| (Some(FarFieldSetup { triangles, levels }), false)),
+                FAR_LEVELS.map(|levels| (Some(FarFieldSetup { triangles, levels }), false, None)),
             );
         }
     }
     let quarter = mesh.triangle_count() / RELATIVE_DIVISOR;
-    if quarter > 0 {
-        let quarter = FarFieldSetup {
-            triangles: quarter,
-            levels: MAX_FAR_LEVELS,
-        };
-        settings.push((Some(quarter), true));
+    let relative = (quarter > 0).then_some(FarFieldSetup {
+        triangles: quarter,
+        levels: MAX_FAR_LEVELS,
+    });
+    if relative.is_some() {
+        settings.push((relative, true, None));
     }
+    for lod in RECEIVER_LODS {
+        settings.push((None, false, Some(lod)));
+        if relative.is_some() {
+            settings.push((relative, true, Some(lod)));
+        }
+    }
+    let frame_view = || {
+        MeshView::new(mesh.positions(), mesh.indices())
+            .map_err(|e| Error::msg(format!("{}: {e}", mesh.name())))
+    };
     let mut exact: Vec<f64> = Vec::new();
+    // Every vertex's exact ambient occlusion, for the sparse-receiver rows
+    // (made when the first one needs it, on every thread: untimed).
+    let mut every_exact: Vec<f64> = Vec::new();
     let mut rows = Vec::new();
-    for (far_field, relative) in settings {
+    for (far_field, relative, lod) in settings {
         let setup = ShaderSetup {
             far_field,
+            receivers: lod,
             ..ShaderSetup::default()
         };
         let mut shader = HemiShader::new(&view, None, &setup)
             .map_err(|e| Error::msg(format!("cannot make the shader of {}: {e}", mesh.name())))?;
-        let frame_view = || MeshView::new(mesh.positions(), mesh.indices());
+        let far_label = match far_field {
+            None => "none".to_string(),
+            Some(FarFieldSetup { triangles, .. }) => {
+                let built = shader.far_field().map_or(0, |f| f.level_count());
+                let mark = if relative { " (n/4)" } else { "" };
+                format!("{triangles} x {built}{mark}")
+            }
+        };
+        if let Some(lod) = lod {
+            if every_exact.is_empty() {
+                every_exact = every_vertex_ambient(mesh, method, &options)?;
+            }
+            let mut out = vec![[0.0f32; COEFFICIENTS]; mesh.vertex_count()];
+            let mut rasterized = 0;
+            // The whole frame: posing, then every vertex's vector.
+            let frame_time = time_per_call(min_time, || {
+                let view = frame_view().expect("the mesh was validated when loaded");
+                let mut frame = shader
+                    .frame(view, None, None)
+                    .expect("the shader fits the mesh");
+                rasterized = frame
+                    .transfer(&options, method, TransferSpace::Local, &mut out)
+                    .expect("one vector per vertex");
+                black_box(&out);
+            });
+            let n = mesh.vertex_count().max(1) as f64;
+            let ambient: Vec<f64> = out.iter().map(|t| f64::from(t[0])).collect();
+            rows.push(Row {
+                setting: far_label,
+                receivers: format!(
+                    "{}/{} {:.0}%",
+                    lod.spacing,
+                    lod.tolerance,
+                    100.0 * rasterized as f64 / n
+                ),
+                relative: false,
+                micros: 1e6 * frame_time.as_secs_f64() / n,
+                error: Some(relative_rms(&every_exact, &ambient)),
+                triangles: f64::NAN,
+                nodes: f64::NAN,
+            });
+            continue;
+        }
         // Posing the whole mesh, per vertex.
         let pose = time_per_call(min_time, || {
             let view = frame_view().expect("the mesh was validated when loaded");
@@ -243,11 +333,7 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
             );
         });
         let frame = shader
-            .frame(
-                frame_view().map_err(|e| Error::msg(e.to_string()))?,
-                None,
-                None,
-            )
+            .frame(frame_view()?, None, None)
             .map_err(|e| Error::msg(e.to_string()))?;
         let scene = frame.scene();
         let normals = frame.normals();
@@ -284,26 +370,16 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
         let micros = 1e6
             * (pose.as_secs_f64() / mesh.vertex_count().max(1) as f64
                 + receivers.as_secs_f64() / n);
-        let (setting, error) = match far_field {
+        let error = match far_field {
             None => {
                 exact = ambient;
-                ("none".to_string(), None)
+                None
             }
-            Some(FarFieldSetup { triangles, .. }) => {
-                let built = shader.far_field().map_or(0, |f| f.level_count());
-                let mean = exact.iter().sum::<f64>() / n;
-                let squared: f64 = exact
-                    .iter()
-                    .zip(&ambient)
-                    .map(|(a, b)| (a - b) * (a - b))
-                    .sum();
-                let error = (squared / n).sqrt() / mean.abs().max(f64::MIN_POSITIVE);
-                let mark = if relative { " (n/4)" } else { "" };
-                (format!("{triangles} x {built}{mark}"), Some(error))
-            }
+            Some(_) => Some(relative_rms(&exact, &ambient)),
         };
         rows.push(Row {
-            setting,
+            setting: far_label,
+            receivers: "all".to_string(),
             relative,
             micros,
             error,
@@ -312,4 +388,35 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
         });
     }
     Ok(rows)
+}
+
+/// Every vertex's exact ambient occlusion (the full mesh, on every thread).
+fn every_vertex_ambient(
+    mesh: &TriangleMesh,
+    method: TransferMethod<'_, COEFFICIENTS>,
+    options: &BatchOptions<'_>,
+) -> Result<Vec<f64>> {
+    let view = mesh.view();
+    let mut shader = HemiShader::new(&view, None, &ShaderSetup::default())
+        .map_err(|e| Error::msg(e.to_string()))?;
+    let mut frame = shader
+        .frame(view, None, None)
+        .map_err(|e| Error::msg(e.to_string()))?;
+    let mut out = vec![[0.0f32; COEFFICIENTS]; mesh.vertex_count()];
+    let pooled = BatchOptions {
+        parallel: true,
+        ..*options
+    };
+    frame
+        .transfer(&pooled, method, TransferSpace::Local, &mut out)
+        .map_err(|e| Error::msg(e.to_string()))?;
+    Ok(out.iter().map(|t| f64::from(t[0])).collect())
+}
+
+/// Relative RMS of `got` against `want`, divided by `want`'s mean.
+fn relative_rms(want: &[f64], got: &[f64]) -> f64 {
+    let n = want.len().max(1) as f64;
+    let mean = want.iter().sum::<f64>() / n;
+    let squared: f64 = want.iter().zip(got).map(|(a, b)| (a - b) * (a - b)).sum();
+    (squared / n).sqrt() / mean.abs().max(f64::MIN_POSITIVE)
 }

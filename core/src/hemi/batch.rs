@@ -123,7 +123,7 @@ pub struct VertexShading {
 
 /// Whether a vertex normal can carry a receiver.
 #[inline]
-fn usable(normal: Vec3) -> bool {
+pub(super) fn usable(normal: Vec3) -> bool {
     normal.is_finite() && normal != Vec3::ZERO
 }
 
@@ -203,7 +203,11 @@ pub fn shade_vertex_towards<const N: usize>(
     VertexShading { diffuse, glossy }
 }
 
-fn check(scene: &HemiScene<'_>, normals: &[Vec3], out_len: usize) -> Result<(), BatchError> {
+pub(super) fn check(
+    scene: &HemiScene<'_>,
+    normals: &[Vec3],
+    out_len: usize,
+) -> Result<(), BatchError> {
     let expected = scene.mesh.mesh.vertex_count();
     if normals.len() != expected {
         return Err(BatchError::NormalCount {
@@ -239,6 +243,30 @@ fn for_each_vertex<T: Send>(out: &mut [T], parallel: bool, f: impl Fn(usize) -> 
     let _ = parallel;
     for (v, o) in out.iter_mut().enumerate() {
         *o = f(v);
+    }
+}
+
+/// `f(k, &mut out[k])` for every entry, over rayon's pool when `parallel` is
+/// set and the `parallel` feature is on (entries `f` leaves alone keep their
+/// values).
+#[inline]
+pub(super) fn for_each_entry<T: Send>(
+    out: &mut [T],
+    parallel: bool,
+    f: impl Fn(usize, &mut T) + Sync,
+) {
+    #[cfg(feature = "parallel")]
+    if parallel {
+        use rayon::prelude::*;
+        out.par_iter_mut()
+            .enumerate()
+            .with_min_len(VERTEX_GRAIN)
+            .for_each(|(k, o)| f(k, o));
+        return;
+    }
+    let _ = parallel;
+    for (k, o) in out.iter_mut().enumerate() {
+        f(k, o);
     }
 }
 

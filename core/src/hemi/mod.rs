@@ -104,6 +104,7 @@ mod far_mesh;
 mod half_space;
 mod lod;
 mod mask;
+mod receivers;
 mod shader;
 mod shading;
 mod table;
@@ -130,6 +131,7 @@ pub use mask::{
     GRID, HemiMask, VALID_CELL_COUNT, cell_coordinate, cell_direction, cell_directions,
     is_valid_cell,
 };
+pub use receivers::{KeySource, ReceiverLod, ReceiverSampling, ReceiverSamplingError, TURN_COSINE};
 pub use shader::{FarFieldSetup, HemiShader, ShaderError, ShaderFrame, ShaderSetup};
 pub use shading::{LOBE_CUTOFF, PhongLobe, glossy_transfer, mirror_direction, shade_glossy};
 pub use table::HalfSpaceTable;

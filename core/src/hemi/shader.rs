@@ -21,6 +21,7 @@ use super::clusters::{ClusteredMesh, TriangleClusters};
 use super::far_field::{FarField, FarLevels};
 use super::far_mesh::FarMeshError;
 use super::lod::{BatchOptions, HemiScene};
+use super::receivers::{ReceiverLod, ReceiverSampling, ReceiverSamplingError, SparseReceivers};
 use super::transfer::TransferMethod;
 use crate::fallible;
 use crate::geom::MeshView;
@@ -52,16 +53,22 @@ pub struct ShaderSetup {
     pub near_radius: f32,
     /// Keep a per-vertex shading buffer for [`ShaderFrame::shade`].
     pub shading: bool,
+    /// Rasterize only some receivers in [`ShaderFrame::transfer`] and
+    /// interpolate the rest (see [`ReceiverLod`]); `None` rasterizes every
+    /// vertex.
+    pub receivers: Option<ReceiverLod>,
 }
 
 impl Default for ShaderSetup {
-    /// Clusters, no far field, the full mesh everywhere, no shading buffer.
+    /// Clusters, no far field, the full mesh everywhere, no shading buffer,
+    /// every receiver rasterized.
     fn default() -> Self {
         ShaderSetup {
             clusters: true,
             far_field: None,
             near_radius: f32::INFINITY,
             shading: false,
+            receivers: None,
         }
     }
 }
@@ -73,6 +80,8 @@ pub enum ShaderError {
     FarField(FarMeshError),
     /// A far mesh was given together with a far field of the library's.
     FarMeshAndFarField,
+    /// The receiver sampling could not be made.
+    Receivers(ReceiverSamplingError),
     /// The frame's mesh has another vertex count than the shader's.
     VertexCount {
         /// The shader's.
@@ -100,6 +109,7 @@ impl fmt::Display for ShaderError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             ShaderError::FarField(e) => write!(f, "{e}"),
+            ShaderError::Receivers(e) => write!(f, "{e}"),
             ShaderError::FarMeshAndFarField => {
                 write!(f, "a far mesh was given to a shader that makes its own")
             }
@@ -130,6 +140,7 @@ pub struct HemiShader {
     far_clusters: Option<TriangleClusters>,
     far_field: Option<FarField>,
     near_radius: f32,
+    receivers: Option<SparseReceivers>,
 }
 
 /// One frame of a [`HemiShader`]: its meshes posed, its normals filled.
@@ -140,6 +151,7 @@ pub struct ShaderFrame<'a> {
     near_radius: f32,
     normals: &'a [Vec3],
     shading: &'a mut [VertexShading],
+    receivers: Option<&'a mut SparseReceivers>,
 }
 
 fn buffer<T: Clone>(count: usize, value: T, what: &'static str) -> Result<Vec<T>, ShaderError> {
@@ -190,6 +202,7 @@ impl HemiShader {
             far_clusters: far.filter(|_| setup.clusters).map(group),
             far_field,
             near_radius,
+            receivers: setup.receivers.map(|lod| sparse(mesh, lod)).transpose()?,
         })
     }
 
@@ -202,6 +215,25 @@ impl HemiShader {
     /// far field).
     pub fn near_radius(&self) -> f32 {
         self.near_radius
+    }
+
+    /// Sets how [`ShaderFrame::transfer`] spares receivers (`None`: every
+    /// vertex rasterized), measuring the keys' weights in `mesh` (the rest
+    /// pose, or any pose with the shader's topology). On error the old
+    /// setting stays.
+    pub fn set_receivers(
+        &mut self,
+        mesh: &MeshView<'_>,
+        lod: Option<ReceiverLod>,
+    ) -> Result<(), ShaderError> {
+        self.check_vertices(mesh)?;
+        self.receivers = lod.map(|lod| sparse(mesh, lod)).transpose()?;
+        Ok(())
+    }
+
+    /// The receiver sampling in use, if receivers are spared.
+    pub fn receiver_sampling(&self) -> Option<&ReceiverSampling> {
+        self.receivers.as_ref().map(SparseReceivers::sampling)
     }
 
     /// The library's far field, if it makes one.
@@ -266,6 +298,7 @@ impl HemiShader {
             far_clusters,
             far_field,
             near_radius,
+            receivers,
         } = self;
         let levels = match far_field.as_mut() {
             Some(field) => Some(field.pose(&mesh).map_err(ShaderError::FarField)?),
@@ -295,6 +328,7 @@ impl HemiShader {
             near_radius: *near_radius,
             normals: own_normals,
             shading,
+            receivers: receivers.as_mut(),
         })
     }
 }
@@ -311,19 +345,34 @@ impl ShaderFrame<'_> {
         self.normals
     }
 
-    /// [`transfer_batch`] over every vertex of the frame.
-    pub fn transfer<const N: usize, T: From<Sh<N>> + Copy + Send + Sync>(
-        &self,
+    /// [`transfer_batch`] over every vertex of the frame, or, when the shader
+    /// spares receivers ([`ShaderSetup::receivers`]), over its keys and the
+    /// vertices whose keys disagree, the others interpolated. Returns how many
+    /// receivers were rasterized. Allocation-free.
+    pub fn transfer<const N: usize, T>(
+        &mut self,
         options: &BatchOptions<'_>,
         method: TransferMethod<'_, N>,
         space: TransferSpace,
         out: &mut [T],
-    ) -> Result<(), BatchError> {
-        transfer_batch(&self.scene(), self.normals, options, method, space, out)
+    ) -> Result<usize, BatchError>
+    where
+        T: From<Sh<N>> + Copy + Send + Sync,
+        Sh<N>: From<T>,
+    {
+        let scene = scene(self.mesh, self.far, self.levels.as_ref(), self.near_radius);
+        match self.receivers.as_deref_mut() {
+            Some(sparse) => sparse.transfer(&scene, self.normals, options, method, space, out),
+            None => {
+                transfer_batch(&scene, self.normals, options, method, space, out)?;
+                Ok(out.len())
+            }
+        }
     }
 
-    /// [`shade_batch_per_vertex`] over every vertex of the frame, into the
-    /// shader's buffer (empty unless it was set up for shading, which is then
+    /// [`shade_batch_per_vertex`] over every vertex of the frame (every one
+    /// rasterized, spared receivers or not: the glossy term follows each
+    /// vertex's own view), into the shader's buffer (empty unless it was set up for shading, which is then
     /// an [`BatchError::OutputLength`]).
     pub fn shade<'m, const N: usize>(
         &mut self,
@@ -344,6 +393,10 @@ impl ShaderFrame<'_> {
         )?;
         Ok(self.shading)
     }
+}
+
+fn sparse(mesh: &MeshView<'_>, lod: ReceiverLod) -> Result<SparseReceivers, ShaderError> {
+    SparseReceivers::new(mesh, lod).map_err(ShaderError::Receivers)
 }
 
 /// The scene of a frame's meshes: the library's far levels when there are,

@@ -183,6 +183,14 @@ impl<const N: usize> From<Sh<N>> for [f32; N] {
     }
 }
 
+impl<const N: usize> From<[f32; N]> for Sh<N> {
+    /// Wraps the coefficients ([`Sh::new`]).
+    #[inline]
+    fn from(coeffs: [f32; N]) -> Self {
+        Sh { coeffs }
+    }
+}
+
 /// One band (a constant function).
 pub type Sh1 = Sh<1>;
 /// Two bands (lmax 1).
