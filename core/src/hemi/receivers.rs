@@ -355,7 +355,8 @@ impl SparseReceivers {
             };
         });
         let occlusion: &[[f32; N]] = occlusion;
-        let limit = self.tolerance * open.dot(&open).sqrt();
+        // Compared squared: no square root per key.
+        let limit = self.tolerance * self.tolerance * open.dot(&open);
         let rasterized = AtomicUsize::new(keys);
         for_each_entry(out, options.parallel, |v, o| {
             let sources = sampling.sources(v);
@@ -376,7 +377,7 @@ impl SparseReceivers {
                     let key = sampling.keys[s.slot as usize] as usize;
                     let gap = Sh::new(occlusion[s.slot as usize]) - mean;
                     // Written so that NaN refuses.
-                    gap.dot(&gap).sqrt() <= limit && normals[key].dot(n) >= TURN_COSINE
+                    gap.dot(&gap) <= limit && normals[key].dot(n) >= TURN_COSINE
                 });
             *o = T::from(if agree {
                 let frame = Frame::from_normal(n);
