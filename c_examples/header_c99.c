@@ -49,6 +49,8 @@ extern const struct antumbra_api_table {
     void (*hemi_shader_destroy)(antumbra_hemi_shader *);
     antumbra_result (*hemi_shader_regroup)(antumbra_hemi_shader *, const antumbra_mesh_view *,
                                            const antumbra_mesh_view *);
+    antumbra_result (*hemi_shader_set_receivers)(antumbra_hemi_shader *, const antumbra_mesh_view *, uint32_t,
+                                                 float);
     antumbra_result (*hemi_shader_transfer)(antumbra_hemi_shader *, const antumbra_mesh_view *, const float *,
                                             const antumbra_mesh_view *, float *);
     antumbra_result (*hemi_shader_shade)(antumbra_hemi_shader *, const antumbra_mesh_view *, const float *,
@@ -86,6 +88,7 @@ const struct antumbra_api_table antumbra_api_table_c = {
     antumbra_hemi_shader_create,
     antumbra_hemi_shader_destroy,
     antumbra_hemi_shader_regroup,
+    antumbra_hemi_shader_set_receivers,
     antumbra_hemi_shader_transfer,
     antumbra_hemi_shader_shade,
     antumbra_hemi_transfer,

@@ -24,6 +24,9 @@
  * full one, and the diffuse colour equal to albedo/pi times the dot product of
  * antumbra_hemi_shader_transfer's vectors with the lighting.
  *
+ * On the first frame the transfer vectors are also made with sparse receivers
+ * (antumbra_hemi_shader_set_receivers): the keys exact, the rest interpolated.
+ *
  * The last frame is also rasterized with the table quality (the shared table,
  * on the library's worker threads, and a caller-owned table, on this thread),
  * which must agree with the exact masks on at least 99 % of the valid cells and
@@ -719,6 +722,43 @@ static void check_transfer(antumbra_hemi_shader *shader, const antumbra_mesh_vie
     }
 }
 
+/* Sparse receivers: with keys one edge apart and a tolerance of 0.05, every
+ * vertex either keeps its exact vector (keys, and vertices whose keys disagree)
+ * or gets its keys' interpolation, whose T_0 stays within the tolerance (times
+ * the open hemisphere's 0.886) of the exact one where occlusion varies
+ * smoothly; spacing 0 restores the exact vectors. A spacing above the maximum
+ * is refused. */
+static void check_sparse_receivers(antumbra_hemi_shader *shader, const antumbra_mesh_view *view, const mesh *m)
+{
+    static float exact[VERTEX_COUNT * SH_COEFFS], sparse[VERTEX_COUNT * SH_COEFFS];
+    const float tolerance = 0.05f, t0_open = 0.886226925f;
+    double sum = 0.0;
+    int v, same = 0;
+    check(antumbra_hemi_shader_transfer(shader, view, m->normals, NULL, exact), "antumbra_hemi_shader_transfer");
+    check(antumbra_hemi_shader_set_receivers(shader, view, 1, tolerance), "antumbra_hemi_shader_set_receivers");
+    check(antumbra_hemi_shader_transfer(shader, view, m->normals, NULL, sparse),
+          "antumbra_hemi_shader_transfer (sparse receivers)");
+    for (v = 0; v < VERTEX_COUNT; ++v) {
+        same += memcmp(&exact[v * SH_COEFFS], &sparse[v * SH_COEFFS], sizeof(float) * SH_COEFFS) == 0;
+        sum += fabs((double)sparse[v * SH_COEFFS] - (double)exact[v * SH_COEFFS]);
+    }
+    printf("hemi_shadows: sparse receivers (spacing 1, tolerance %.2f): %d of %d vertices exact, mean |T_0 "
+           "difference| %.5f\n",
+           (double)tolerance, same, VERTEX_COUNT, sum / VERTEX_COUNT);
+    if (same == 0 || !(sum / VERTEX_COUNT <= tolerance * t0_open)) {
+        fail("sparse receivers: %d exact vectors, mean T_0 difference %g", same, sum / VERTEX_COUNT);
+    }
+    if (antumbra_hemi_shader_set_receivers(shader, view, ANTUMBRA_HEMI_MAX_RECEIVER_SPACING + 1, tolerance) !=
+        ANTUMBRA_RESULT_INVALID_ARGUMENT) {
+        fail("a receiver spacing above ANTUMBRA_HEMI_MAX_RECEIVER_SPACING was not refused");
+    }
+    check(antumbra_hemi_shader_set_receivers(shader, view, 0, 0.0f), "antumbra_hemi_shader_set_receivers (off)");
+    check(antumbra_hemi_shader_transfer(shader, view, m->normals, NULL, sparse), "antumbra_hemi_shader_transfer");
+    if (memcmp(exact, sparse, sizeof exact) != 0) {
+        fail("spacing 0 did not restore the exact transfer vectors");
+    }
+}
+
 /* The far mesh stands in for the distant full mesh: the colours must stay close. */
 static void compare_far(int frame, const shaded *full, const shaded *far)
 {
@@ -1037,6 +1077,7 @@ int main(int argc, char **argv)
         compare_far(frame, full, lod);
         if (frame == 0) {
             check_transfer(full_shader, &view, m, sky_sh, full, s);
+            check_sparse_receivers(full_shader, &view, m);
         }
     }
     printf("hemi_shadows: shading every vertex on one thread: %.2f ms per frame (%.1f us per vertex) with the far "

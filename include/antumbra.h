@@ -152,6 +152,13 @@
  */
 #define ANTUMBRA_HEMI_MIN_NEAR_CELLS 1.7320508
 
+/**
+ * The widest spacing of a shader's key receivers, in mesh edges
+ * (`antumbra_hemi_shader_set_receivers`; core's
+ * `ReceiverSampling::MAX_SPACING`).
+ */
+#define ANTUMBRA_HEMI_MAX_RECEIVER_SPACING 4
+
 #if defined(ANTUMBRA_HAS_STD)
 /**
  * The largest side of a lightmap, in texels.
@@ -1521,6 +1528,58 @@ ANTUMBRA_NODISCARD
 antumbra_result antumbra_hemi_shader_regroup(struct antumbra_hemi_shader *shader,
                                              const struct antumbra_mesh_view *mesh,
                                              const struct antumbra_mesh_view *far_mesh);
+#endif
+
+#if defined(ANTUMBRA_HAS_STD)
+/**
+ * Makes a shader's transfer frames rasterize only some vertices (sparse
+ * receivers) and interpolate the rest, or every vertex again (`spacing` 0,
+ * the default at creation).
+ *
+ * The *keys* are vertices `spacing` mesh edges apart (every other vertex has
+ * one within `spacing` edges): about a quarter of a triangle mesh's vertices
+ * at 1, a tenth at 2. Each frame the keys are rasterized; every other vertex
+ * takes its open hemisphere's transfer less the weighted mean occlusion of
+ * the 3 to 8 nearest keys (weights by inverse squared distance in the pose
+ * given here), unless one of those keys' occlusion is more than `tolerance`
+ * times the open hemisphere's transfer (SH norms) from that mean, or its
+ * normal turns more than about 37° (cosine 0.8) from the vertex's: then that
+ * vertex is rasterized too. Keys and rasterized vertices get exactly the
+ * vectors of a shader without sparse receivers.
+ *
+ * The trade, on meshes of 15,000 to 89,000 triangles with 3 bands (docs/performance.md):
+ * spacing 1 with tolerance 0.05 rasterizes 60–89 % of the vertices and adds
+ * 0.3–0.5 % ambient-occlusion error; spacing 2 with tolerance 0.1 rasterizes
+ * 43–75 % and adds 0.6–1.4 %. Coarse meshes (a few thousand triangles) gain
+ * little: their neighbours differ too much. `antumbra_hemi_shader_shade`
+ * still rasterizes every vertex (its glossy term follows each vertex's view).
+ *
+ * @param shader the shader.
+ * @param mesh the mesh in a pose (the rest pose, or any with the shader's
+ *        counts) to measure the weights in.
+ * @param spacing 0 (every vertex rasterized) to
+ *        `ANTUMBRA_HEMI_MAX_RECEIVER_SPACING`.
+ * @param tolerance finite, >= 0 (read only with `spacing` > 0).
+ * @return ANTUMBRA_RESULT_OK; NULL_ARGUMENT; INVALID_ARGUMENT (`spacing`
+ *         above the maximum, a negative `tolerance`, counts differing from the
+ *         shader's, and the mesh checks of `antumbra_hemi_shader_create`);
+ *         INDEX_OUT_OF_RANGE; NON_FINITE (`tolerance` or a position);
+ *         OUT_OF_MEMORY; POISONED; PANIC (the shader is poisoned). On failure
+ *         the shader keeps its previous setting.
+ *
+ * Cost: a breadth-first search of a few rings around every vertex (about
+ * 0.3 µs per vertex at spacing 1); it allocates the sampling (about 40 bytes
+ * per vertex) and the keys' per-frame occlusion (256 bytes per key).
+ * Thread safety: calls on one shader run one at a time (an internal lock).
+ *
+ * # Safety
+ * `shader` must be NULL or a live shader; `mesh` NULL or valid.
+ */
+ANTUMBRA_NODISCARD
+antumbra_result antumbra_hemi_shader_set_receivers(struct antumbra_hemi_shader *shader,
+                                                   const struct antumbra_mesh_view *mesh,
+                                                   uint32_t spacing,
+                                                   float tolerance);
 #endif
 
 #if defined(ANTUMBRA_HAS_STD)

@@ -72,16 +72,17 @@ pub use hemi::{
 #[cfg(feature = "std")]
 pub use hemi::{antumbra_hemi_table_create, antumbra_hemi_table_destroy};
 pub use hemi_shading::{
-    ANTUMBRA_HEMI_MAX_FAR_LEVELS, ANTUMBRA_HEMI_METHOD_CELLS, ANTUMBRA_HEMI_METHOD_DOWNSAMPLED,
-    ANTUMBRA_HEMI_METHOD_LUT, ANTUMBRA_HEMI_MIN_NEAR_CELLS, ANTUMBRA_HEMI_NEAR_CELLS,
-    ANTUMBRA_HEMI_SPACE_LOCAL, ANTUMBRA_HEMI_SPACE_WORLD, antumbra_hemi_material,
-    antumbra_hemi_material_init, antumbra_hemi_shade, antumbra_hemi_shading_options,
-    antumbra_hemi_shading_options_init, antumbra_hemi_transfer,
+    ANTUMBRA_HEMI_MAX_FAR_LEVELS, ANTUMBRA_HEMI_MAX_RECEIVER_SPACING, ANTUMBRA_HEMI_METHOD_CELLS,
+    ANTUMBRA_HEMI_METHOD_DOWNSAMPLED, ANTUMBRA_HEMI_METHOD_LUT, ANTUMBRA_HEMI_MIN_NEAR_CELLS,
+    ANTUMBRA_HEMI_NEAR_CELLS, ANTUMBRA_HEMI_SPACE_LOCAL, ANTUMBRA_HEMI_SPACE_WORLD,
+    antumbra_hemi_material, antumbra_hemi_material_init, antumbra_hemi_shade,
+    antumbra_hemi_shading_options, antumbra_hemi_shading_options_init, antumbra_hemi_transfer,
 };
 #[cfg(feature = "std")]
 pub use hemi_shading::{
     antumbra_hemi_shader, antumbra_hemi_shader_create, antumbra_hemi_shader_destroy,
-    antumbra_hemi_shader_regroup, antumbra_hemi_shader_shade, antumbra_hemi_shader_transfer,
+    antumbra_hemi_shader_regroup, antumbra_hemi_shader_set_receivers, antumbra_hemi_shader_shade,
+    antumbra_hemi_shader_transfer,
 };
 #[cfg(feature = "std")]
 pub use lightmap::{

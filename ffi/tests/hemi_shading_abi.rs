@@ -2022,3 +2022,85 @@ fn every_bad_input_has_its_code_a_message_naming_it_and_leaves_outputs_untouched
     assert_eq!(r, ANTUMBRA_RESULT_OK, "{}", last_error());
     assert_eq!(last_error(), "");
 }
+
+/// Sparse receivers (`antumbra_hemi_shader_set_receivers`): the keys keep the
+/// exact bits, other vertices interpolate, spacing 0 restores every bit, and
+/// bad settings are refused with the argument named and the old setting kept.
+#[test]
+fn sparse_receivers_keep_the_keys_exact_and_refuse_bad_settings() {
+    let mesh = blob(48, 64, 0.0);
+    let view = mesh.view();
+    let shader = Shader::new(&view, None, None);
+    let (result, exact) = shader.transfer(&view, None, None, 3);
+    assert_eq!(result, ANTUMBRA_RESULT_OK, "{}", last_error());
+    let set = |mesh: *const antumbra_mesh_view, spacing: u32, tolerance: f32| {
+        // SAFETY: a live shader; the mesh NULL or valid.
+        unsafe { antumbra_hemi_shader_set_receivers(shader.0, mesh, spacing, tolerance) }
+    };
+    assert_eq!(set(&view, 1, 0.05), ANTUMBRA_RESULT_OK, "{}", last_error());
+    let (result, sparse) = shader.transfer(&view, None, None, 3);
+    assert_eq!(result, ANTUMBRA_RESULT_OK, "{}", last_error());
+    let sampling = antumbra_core::hemi::ReceiverSampling::new(&mesh.core(), 1).unwrap();
+    let vector = |t: &[f32], v: usize| bits(&t[9 * v..9 * v + 9]);
+    for &key in sampling.keys() {
+        assert_eq!(vector(&sparse, key as usize), vector(&exact, key as usize));
+    }
+    let interpolated = (0..mesh.vertex_count())
+        .filter(|&v| vector(&sparse, v) != vector(&exact, v))
+        .count();
+    assert!(
+        interpolated > 0 && interpolated < mesh.vertex_count() - sampling.keys().len(),
+        "{interpolated} of {} interpolated",
+        mesh.vertex_count()
+    );
+    let other = blob(9, 12, 0.0);
+    let refusals: [(*const antumbra_mesh_view, u32, f32, antumbra_result, &str); 5] = [
+        (
+            &view,
+            ANTUMBRA_HEMI_MAX_RECEIVER_SPACING + 1,
+            0.05,
+            ANTUMBRA_RESULT_INVALID_ARGUMENT,
+            "spacing is 5",
+        ),
+        (
+            &view,
+            1,
+            f32::NAN,
+            ANTUMBRA_RESULT_NON_FINITE,
+            "tolerance is NaN",
+        ),
+        (
+            &view,
+            2,
+            -0.5,
+            ANTUMBRA_RESULT_INVALID_ARGUMENT,
+            "tolerance is -0.5",
+        ),
+        (ptr::null(), 1, 0.05, ANTUMBRA_RESULT_NULL_ARGUMENT, "mesh"),
+        (
+            &other.view(),
+            1,
+            0.05,
+            ANTUMBRA_RESULT_INVALID_ARGUMENT,
+            "vertices",
+        ),
+    ];
+    for (mesh_arg, spacing, tolerance, code, needle) in refusals {
+        assert_eq!(set(mesh_arg, spacing, tolerance), code, "{needle}");
+        assert!(last_error().contains(needle), "{needle}: {}", last_error());
+        let (_, again) = shader.transfer(&view, None, None, 3);
+        assert_bits_eq(&again, &sparse, "the old setting stays");
+    }
+    // SAFETY: a NULL shader is refused before anything is read.
+    let result = unsafe { antumbra_hemi_shader_set_receivers(ptr::null_mut(), &view, 1, 0.05) };
+    assert_eq!(result, ANTUMBRA_RESULT_NULL_ARGUMENT);
+    // Spacing 0 rasterizes every vertex again; its tolerance is not read.
+    assert_eq!(
+        set(&view, 0, f32::NAN),
+        ANTUMBRA_RESULT_OK,
+        "{}",
+        last_error()
+    );
+    let (_, every) = shader.transfer(&view, None, None, 3);
+    assert_bits_eq(&every, &exact, "spacing 0");
+}
