@@ -85,6 +85,9 @@ struct Row {
     error: Option<f64>,
     triangles: f64,
     nodes: f64,
+    /// For a sparse-receiver row, the time `HemiShader::set_receivers` takes
+    /// to make its sampling, per vertex.
+    sampling_micros: Option<f64>,
 }
 
 /// Runs the scaling table.
@@ -130,6 +133,8 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
         "nodes"
     );
     let mut worst: Option<(String, f64)> = None;
+    // Per mesh, the sparse-receiver settings' sampling times.
+    let mut samplings: Vec<String> = Vec::new();
     // The relative setting's time per vertex on meshes of at least
     // GROWTH_FROM triangles: (triangles, µs, name).
     let mut relative: Vec<(usize, f64, String)> = Vec::new();
@@ -154,6 +159,11 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
                 count(row.triangles),
                 count(row.nodes),
             );
+            if let Some(micros) = row.sampling_micros
+                && row.setting == "none"
+            {
+                samplings.push(format!("{name} {} {micros:.2} µs", row.receivers));
+            }
             if row.relative && mesh.triangle_count() >= GROWTH_FROM {
                 relative.push((mesh.triangle_count(), row.micros, name.clone()));
             }
@@ -169,6 +179,12 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
                 ));
             }
         }
+    }
+    if !samplings.is_empty() {
+        println!(
+            "making the sparse receivers' sampling (set_receivers), per vertex: {}",
+            samplings.join("; ")
+        );
     }
     if let Some((name, ratio)) = worst {
         println!("worst row: {name}, {ratio:.2}x Embree's frame");
@@ -289,6 +305,11 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
             }
         };
         if let Some(lod) = lod {
+            let sampling = time_per_call(min_time, || {
+                shader
+                    .set_receivers(&view, Some(lod))
+                    .expect("a valid sampling");
+            });
             if every_exact.is_empty() {
                 every_exact = every_vertex_ambient(mesh, method, &options)?;
             }
@@ -320,6 +341,7 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
                 error: Some(relative_rms(&every_exact, &ambient)),
                 triangles: f64::NAN,
                 nodes: f64::NAN,
+                sampling_micros: Some(1e6 * sampling.as_secs_f64() / n),
             });
             continue;
         }
@@ -385,6 +407,7 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
             error,
             triangles: triangles as f64 / n,
             nodes: nodes as f64 / n,
+            sampling_micros: None,
         });
     }
     Ok(rows)
