@@ -47,9 +47,8 @@ use std::sync::{Mutex, PoisonError};
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
     BatchOptions, FarFieldSetup, FarMesh, FarMeshError, HemiShader, MAX_FAR_LEVELS, Material,
-    PhongLobe, Quality, ReceiverLod, ReceiverSampling, ReceiverSamplingError, ShaderError,
-    ShaderFrame, ShaderSetup, TransferLut, TransferMethod, TransferSpace, TransferTable,
-    VertexSurface,
+    PhongLobe, Quality, ReceiverSampling, ReceiverSamplingError, ShaderError, ShaderFrame,
+    ShaderSetup, TransferLut, TransferMethod, TransferSpace, TransferTable, VertexSurface,
 };
 use antumbra_core::raycast::MAX_COORDINATE;
 use antumbra_core::sh::{Sh, ShRgb};
@@ -1366,11 +1365,14 @@ pub unsafe extern "C" fn antumbra_hemi_shader_regroup(
 /// vertex is rasterized too. Keys and rasterized vertices get exactly the
 /// vectors of a shader without sparse receivers.
 ///
-/// The trade, on meshes of 15,000 to 89,000 triangles with 3 bands (docs/performance.md):
-/// spacing 1 with tolerance 0.05 rasterizes 60–89 % of the vertices and adds
-/// 0.3–0.5 % ambient-occlusion error; spacing 2 with tolerance 0.1 rasterizes
-/// 43–75 % and adds 0.6–1.4 %. Coarse meshes (a few thousand triangles) gain
-/// little: their neighbours differ too much. `antumbra_hemi_shader_shade`
+/// The trade with spacing 1, one thread, 3 bands, on meshes of 15,000 to
+/// 89,000 triangles (`antumbra bench hemi --scaling`, docs/performance.md):
+/// tolerance 0.05 rasterizes 57–89 % of the vertices and makes a frame
+/// 1.1–1.4× as fast for 0.2–0.5 % ambient-occlusion error; 0.1 rasterizes
+/// 41–72 %, 1.3–2.3× for 0.4–1.2 %; 0.2 rasterizes 28–55 %, 1.7–3.7× for
+/// 0.6–2.0 %. Wider spacings rasterize as many vertices for more error on
+/// those meshes. Coarse meshes (a few thousand triangles, sharp creases) gain
+/// little, and a loose tolerance costs them more. `antumbra_hemi_shader_shade`
 /// still rasterizes every vertex (its glossy term follows each vertex's view).
 ///
 /// @param shader the shader.
@@ -1387,7 +1389,7 @@ pub unsafe extern "C" fn antumbra_hemi_shader_regroup(
 ///         the shader keeps its previous setting.
 ///
 /// Cost: a breadth-first search of a few rings around every vertex (0.1 to
-/// 1.4 µs per vertex at spacing 1 and 2, `antumbra bench hemi --scaling`); it
+/// 0.9 µs per vertex at spacing 1, `antumbra bench hemi --scaling`); it
 /// allocates the sampling (about 50 bytes per vertex) and the keys' per-frame
 /// occlusion (256 bytes per key). A frame then allocates nothing.
 /// Thread safety: calls on one shader run one at a time (an internal lock).
@@ -1428,7 +1430,8 @@ pub unsafe extern "C" fn antumbra_hemi_shader_set_receivers(
             // SAFETY: caller contract on the mesh.
             let input = unsafe { read_frame(mesh, core::ptr::null(), core::ptr::null()) }?;
             shader.check_topology(&input)?;
-            let lod = (spacing > 0).then_some(ReceiverLod { spacing, tolerance });
+            let lod =
+                (spacing > 0).then_some(antumbra_core::hemi::ReceiverLod { spacing, tolerance });
             workspace
                 .shader
                 .set_receivers(&input.mesh, lod)

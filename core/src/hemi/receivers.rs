@@ -1,19 +1,24 @@
 //! Receiver level of detail: a deforming frame rasterizes only a subset of the
 //! vertices (the *key* receivers, no two within `spacing` edges of each other
 //! and every vertex within `spacing` edges of one) and gives every other vertex
-//! the inverse-distance-weighted mean of the keys around it, unless those keys
-//! disagree (a shadow's edge, a crease) or turn away from it, where it is
-//! rasterized too.
+//! its open hemisphere's transfer less the inverse-distance-weighted mean
+//! occlusion of the keys around it (a key's occlusion: its open transfer less
+//! its rasterized one), unless those keys disagree (a shadow's edge, a
+//! crease) or turn away from it, where it is rasterized too.
 //!
 //! Low-frequency transfer varies slowly over a finely tessellated surface, so
-//! on scanned meshes most vertices take the mean of their keys; the test on
-//! the keys' ambient occlusion keeps the interpolation off the places where it
-//! varies fast. The subset and the weights are made once from the rest pose
-//! (the topology a deforming mesh keeps); each frame only reads them.
+//! on scanned meshes many vertices take their keys' mean; the test on the
+//! keys' occlusion vectors keeps the interpolation off the places where it
+//! varies fast. Interpolating the occlusion rather than the transfer keeps
+//! each vertex's own cosine lobe exact: only the blocked part is borrowed. The
+//! subset and the weights are made once from the rest pose (the topology a
+//! deforming mesh keeps); each frame only reads them.
 
 use alloc::vec::Vec;
 use core::fmt;
 use core::sync::atomic::{AtomicUsize, Ordering};
+
+use glam::Vec3;
 
 use super::batch::{BatchError, TransferSpace, check, for_each_entry, usable, vertex_transfer};
 use super::lod::{BatchOptions, HemiScene};
@@ -21,8 +26,6 @@ use super::mask::HemiMask;
 use super::transfer::{TransferMethod, TransferRotation, frame_matrix};
 use crate::fallible;
 use crate::geom::{Frame, MeshView};
-use glam::Vec3;
-
 use crate::sh::{MAX_COEFFS, Sh, ShRotation};
 
 /// Why a [`ReceiverSampling`] could not be made.
