@@ -24,8 +24,9 @@
  * full one, and the diffuse colour equal to albedo/pi times the dot product of
  * antumbra_hemi_shader_transfer's vectors with the lighting.
  *
- * On the first frame the transfer vectors are also made with sparse receivers
- * (antumbra_hemi_shader_set_receivers): the keys exact, the rest interpolated.
+ * On the first frame the transfer vectors and colours are also made with sparse
+ * receivers (antumbra_hemi_shader_set_receivers): the keys exact, the rest
+ * interpolated where their keys agree.
  *
  * The last frame is also rasterized with the table quality (the shared table,
  * on the library's worker threads, and a caller-owned table, on this thread),
@@ -728,12 +729,14 @@ static void check_transfer(antumbra_hemi_shader *shader, const antumbra_mesh_vie
  * the open hemisphere's 0.886) of the exact one where occlusion varies
  * smoothly; spacing 0 restores the exact vectors. A spacing above the maximum
  * is refused. */
-static void check_sparse_receivers(antumbra_hemi_shader *shader, const antumbra_mesh_view *view, const mesh *m)
+static void check_sparse_receivers(antumbra_hemi_shader *shader, const antumbra_mesh_view *view, const mesh *m,
+                                   const float *sky_sh, const antumbra_hemi_material *material, const shaded *full)
 {
     static float exact[VERTEX_COUNT * SH_COEFFS], sparse[VERTEX_COUNT * SH_COEFFS];
+    static shaded sparse_colours;
     const float tolerance = 0.05f, t0_open = 0.886226925f;
-    double sum = 0.0;
-    int v, same = 0;
+    double sum = 0.0, colour_difference = 0.0, colour_total = 0.0;
+    int v, i, same = 0, same_colours = 0;
     check(antumbra_hemi_shader_transfer(shader, view, m->normals, NULL, exact), "antumbra_hemi_shader_transfer");
     check(antumbra_hemi_shader_set_receivers(shader, view, 1, tolerance), "antumbra_hemi_shader_set_receivers");
     check(antumbra_hemi_shader_transfer(shader, view, m->normals, NULL, sparse),
@@ -747,6 +750,22 @@ static void check_sparse_receivers(antumbra_hemi_shader *shader, const antumbra_
            (double)tolerance, same, VERTEX_COUNT, sum / VERTEX_COUNT);
     if (same == 0 || !(sum / VERTEX_COUNT <= tolerance * t0_open)) {
         fail("sparse receivers: %d exact vectors, mean T_0 difference %g", same, sum / VERTEX_COUNT);
+    }
+    /* Shading borrows the diffuse and glossy occlusion the same way. */
+    shade_timed(shader, view, m, sky_sh, material, &sparse_colours,
+                "antumbra_hemi_shader_shade (sparse receivers)");
+    for (v = 0; v < VERTEX_COUNT; ++v) {
+        same_colours += memcmp(&sparse_colours.rgb[3 * v], &full->rgb[3 * v], 3 * sizeof(float)) == 0;
+        for (i = 3 * v; i < 3 * v + 3; ++i) {
+            colour_difference += fabs((double)sparse_colours.rgb[i] - (double)full->rgb[i]);
+            colour_total += fabs((double)full->rgb[i]);
+        }
+    }
+    printf("hemi_shadows: sparse receivers shading: %d of %d colours exact, mean difference %.3f%%\n", same_colours,
+           VERTEX_COUNT, 100.0 * colour_difference / colour_total);
+    if (same_colours == 0 || !(colour_difference <= tolerance * colour_total)) {
+        fail("sparse receivers: %d exact colours, mean difference %g", same_colours,
+             colour_difference / colour_total);
     }
     if (antumbra_hemi_shader_set_receivers(shader, view, ANTUMBRA_HEMI_MAX_RECEIVER_SPACING + 1, tolerance) !=
         ANTUMBRA_RESULT_INVALID_ARGUMENT) {
@@ -1077,7 +1096,7 @@ int main(int argc, char **argv)
         compare_far(frame, full, lod);
         if (frame == 0) {
             check_transfer(full_shader, &view, m, sky_sh, full, s);
-            check_sparse_receivers(full_shader, &view, m);
+            check_sparse_receivers(full_shader, &view, m, sky_sh, &material, full);
         }
     }
     printf("hemi_shadows: shading every vertex on one thread: %.2f ms per frame (%.1f us per vertex) with the far "

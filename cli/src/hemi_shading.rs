@@ -49,7 +49,8 @@ use std::time::{Duration, Instant};
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
     BatchOptions, FarField, FarFieldSetup, FarMesh, HalfSpaceTable, HemiShader, Material,
-    PhongLobe, Quality, ShaderSetup, TransferMethod, TransferTable, VertexShading, VertexSurface,
+    PhongLobe, Quality, ReceiverLod, ShaderSetup, TransferMethod, TransferTable, VertexShading,
+    VertexSurface,
 };
 use antumbra_core::sh::{EquirectMapping, Sh, ShRgb, ZonalKernel, project_equirect};
 use glam::{Quat, Vec3};
@@ -262,6 +263,8 @@ pub struct FrameTime {
     pub pose: Duration,
     /// Shading every vertex.
     pub shade: Duration,
+    /// Receivers rasterized (all but those a sparse shader interpolated).
+    pub rasterized: usize,
 }
 
 impl FrameTime {
@@ -310,6 +313,15 @@ impl<'m> Posed<'m> {
             },
             shader,
         })
+    }
+
+    /// Shades only the keys of `receivers` and the vertices whose keys
+    /// disagree, the rest from their keys' occlusion (`None`: every vertex;
+    /// core's `HemiShader::set_receivers`, weights from the rest pose).
+    pub fn set_receivers(&mut self, receivers: Option<ReceiverLod>) -> Result<()> {
+        self.shader
+            .set_receivers(&self.lod.full.view(), receivers)
+            .map_err(|e| Error::msg(format!("{}: {e}", self.lod.full.name())))
     }
 
     /// Current positions of the full mesh.
@@ -385,6 +397,7 @@ impl<'m> Posed<'m> {
         Ok(FrameTime {
             pose: posed - started,
             shade: posed.elapsed(),
+            rasterized: frame.rasterized(),
         })
     }
 
@@ -404,7 +417,7 @@ impl<'m> Posed<'m> {
         let time = self.shade(shader, quality, lighting, material, out)?;
         Ok(FrameTime {
             pose: deformed + time.pose,
-            shade: time.shade,
+            ..time
         })
     }
 }

@@ -639,6 +639,8 @@ fn bench_hemi_reports_ratios_against_the_bvh() {
         "1 thread",
         "far mesh speed-up",
         "far levels speed-up",
+        "sparse receivers speed-up",
+        "colour error",
     ] {
         assert!(text.contains(needle), "{needle} missing:\n{text}");
     }
@@ -646,12 +648,24 @@ fn bench_hemi_reports_ratios_against_the_bvh() {
         "full mesh ",
         "full near + far mesh ",
         "full near + 3 far levels ",
+        "full mesh, sparse receivers (1, 0.1) ",
+        "far mesh, sparse receivers (1, 0.1) ",
     ] {
         let line = text
             .lines()
             .find(|line| line.starts_with(row))
             .unwrap_or_else(|| panic!("no row {row}:\n{text}"));
         assert_eq!(line.matches(" fps (").count(), 2, "{line}");
+        // The full mesh's colours are the reference; every row says its error.
+        let error = line
+            .trim_end()
+            .strip_suffix('%')
+            .and_then(|l| l.rsplit(' ').next());
+        let error: f64 = error.and_then(|e| e.parse().ok()).unwrap_or(f64::NAN);
+        assert!(
+            error >= 0.0 && (row != "full mesh " || error == 0.0),
+            "{line}"
+        );
     }
 }
 

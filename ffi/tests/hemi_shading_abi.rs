@@ -1386,11 +1386,13 @@ fn a_frame_through_a_shader_allocates_nothing() {
     let mesh = blob(8, 10, 0.3);
     let far = blob(4, 6, 0.3);
     let (view, far_view) = (mesh.view(), far.view());
-    // The caller's far mesh with two transfer methods, then the library's own.
-    for (method, far_triangles) in [
-        (ANTUMBRA_HEMI_METHOD_CELLS, 0),
-        (ANTUMBRA_HEMI_METHOD_LUT, 0),
-        (ANTUMBRA_HEMI_METHOD_CELLS, 60),
+    // The caller's far mesh with two transfer methods, then the library's own,
+    // then that with sparse receivers.
+    for (method, far_triangles, sparse) in [
+        (ANTUMBRA_HEMI_METHOD_CELLS, 0, false),
+        (ANTUMBRA_HEMI_METHOD_LUT, 0, false),
+        (ANTUMBRA_HEMI_METHOD_CELLS, 60, false),
+        (ANTUMBRA_HEMI_METHOD_CELLS, 60, true),
     ] {
         let options = options_with(|o| {
             // The library's own far mesh takes its own rule.
@@ -1413,6 +1415,11 @@ fn a_frame_through_a_shader_allocates_nothing() {
             (far_triangles == 0).then_some(&far_view),
             Some(&options),
         );
+        if sparse {
+            // SAFETY: a live shader and a valid mesh.
+            let result = unsafe { antumbra_hemi_shader_set_receivers(shader.0, &view, 1, 0.1) };
+            assert_eq!(result, ANTUMBRA_RESULT_OK, "{}", last_error());
+        }
         let light = lighting(3);
         let mut material = glossy_material();
         let count = mesh.vertex_count();
@@ -1452,7 +1459,7 @@ fn a_frame_through_a_shader_allocates_nothing() {
             assert_eq!(results, [ANTUMBRA_RESULT_OK; 2], "{}", last_error());
             assert_eq!(
                 allocated, 0,
-                "method {method} frame {frame}: {allocated} allocations"
+                "method {method} (sparse {sparse}) frame {frame}: {allocated} allocations"
             );
         }
     }
@@ -2052,6 +2059,30 @@ fn sparse_receivers_keep_the_keys_exact_and_refuse_bad_settings() {
         interpolated > 0 && interpolated < mesh.vertex_count() - sampling.keys().len(),
         "{interpolated} of {} interpolated",
         mesh.vertex_count()
+    );
+    // Shading borrows occlusion too: the keys keep their colours (rgb,
+    // diffuse and glossy), and some other vertices are interpolated.
+    let light = lighting(3);
+    let glossy = glossy_material();
+    let (result, sparse_colours) = shader.shade(&view, None, None, &light, &glossy);
+    assert_eq!(result, ANTUMBRA_RESULT_OK, "{}", last_error());
+    assert_eq!(set(&view, 0, 0.0), ANTUMBRA_RESULT_OK);
+    let (_, exact_colours) = shader.shade(&view, None, None, &light, &glossy);
+    assert_eq!(set(&view, 1, 0.05), ANTUMBRA_RESULT_OK);
+    let colour = |c: &[f32], v: usize| bits(&c[3 * v..3 * v + 3]);
+    for k in 0..3 {
+        for &key in sampling.keys() {
+            let key = key as usize;
+            assert_eq!(
+                colour(&sparse_colours[k], key),
+                colour(&exact_colours[k], key)
+            );
+        }
+    }
+    assert!(
+        (0..mesh.vertex_count())
+            .any(|v| colour(&sparse_colours[0], v) != colour(&exact_colours[0], v)),
+        "some colours interpolated"
     );
     let other = blob(9, 12, 0.0);
     let refusals: [(*const antumbra_mesh_view, u32, f32, antumbra_result, &str); 5] = [

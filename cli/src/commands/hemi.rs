@@ -17,9 +17,9 @@ use std::time::{Duration, Instant};
 use antumbra_core::Frame;
 use antumbra_core::hemi::{
     BatchOptions, FarField, FarMesh, HemiMask, HemiScene, Material, Quality, RasterOptions,
-    Receiver, TransferMethod, TransferRotation, TransferSpace, TransferTable, TriangleClusters,
-    VertexShading, cell_direction, cell_directions, rasterize_receiver_with_counts,
-    scene_mask_with_counts, vertex_transfer,
+    Receiver, ReceiverLod, TransferMethod, TransferRotation, TransferSpace, TransferTable,
+    TriangleClusters, VertexShading, cell_direction, cell_directions,
+    rasterize_receiver_with_counts, scene_mask_with_counts, vertex_transfer,
 };
 use antumbra_core::raycast::BvhScene;
 use antumbra_core::sh::Sh;
@@ -571,6 +571,10 @@ fn far_mesh_table(
 /// Far levels of the frames-per-second table's third row.
 const FRAME_FAR_LEVELS: usize = 3;
 
+/// The sparse receivers' tolerance in the frames-per-second table's last two
+/// rows (keys one edge apart).
+const FRAME_SPARSE_TOLERANCE: f32 = 0.1;
+
 /// Twist angles the benchmark's frames cycle through, in degrees.
 const FRAME_TWIST_DEGREES: [f32; 4] = [0.0, 40.0, 80.0, 120.0];
 
@@ -645,12 +649,25 @@ fn frame_rates(
     let mut out = vec![VertexShading::default(); lod.full.vertex_count()];
     let mut rates = Vec::new();
     let mut levels_built = 0;
-    for occluders in [
-        Occluders::Full,
-        Occluders::FarMesh,
-        Occluders::FarLevels(FRAME_FAR_LEVELS),
-    ] {
+    // Each row's colours in the first twist's pose, for their error against
+    // the full mesh's (the first row).
+    let mut colours: Vec<Vec<VertexShading>> = Vec::new();
+    // Each row's receivers rasterized in that pose.
+    let mut rasterized: Vec<usize> = Vec::new();
+    let sparse = ReceiverLod {
+        spacing: 1,
+        tolerance: FRAME_SPARSE_TOLERANCE,
+    };
+    let settings = [
+        (Occluders::Full, None),
+        (Occluders::FarMesh, None),
+        (Occluders::FarLevels(FRAME_FAR_LEVELS), None),
+        (Occluders::Full, Some(sparse)),
+        (Occluders::FarMesh, Some(sparse)),
+    ];
+    for (occluders, receivers) in settings {
         let mut posed = Posed::new(&lod, occluders)?;
+        posed.set_receivers(receivers)?;
         if let Some(field) = posed.far_field() {
             levels_built = field.level_count();
             println!(
@@ -662,6 +679,17 @@ fn frame_rates(
                 field.near_radius(0)
             );
         }
+        let first = FRAME_TWIST_DEGREES[0].to_radians();
+        let time = posed.frame(
+            |p| twist.apply(p, first),
+            &shader,
+            quality,
+            &lighting,
+            &material,
+            &mut out,
+        )?;
+        colours.push(out.clone());
+        rasterized.push(time.rasterized);
         let mut row = Vec::new();
         for pool in [Some(&one), None] {
             let mut frame = |k: usize| -> Result<Duration> {
@@ -692,25 +720,52 @@ fn frame_rates(
         let digits = (2 - fps.log10().floor() as i32).clamp(1, 6) as usize;
         format!("{fps:.digits$} fps ({})", format_duration(d))
     };
+    // Relative RMS of the colours against the full mesh's.
+    let error = |row: &[VertexShading]| {
+        let (mut squared, mut total) = (0.0f64, 0.0f64);
+        for (got, want) in row.iter().zip(&colours[0]) {
+            let (got, want) = (got.diffuse + got.glossy, want.diffuse + want.glossy);
+            squared += f64::from((got - want).length_squared());
+            total += f64::from(want.length_squared());
+        }
+        (squared / total.max(f64::MIN_POSITIVE)).sqrt()
+    };
     println!();
     println!(
-        "{:<26} {:>24} {:>24}",
+        "{:<34} {:>24} {:>24} {:>14} {:>11}",
         "occluders",
         "1 thread",
-        format!("{threads} threads")
+        format!("{threads} threads"),
+        "colour error",
+        "rasterized"
     );
+    let sparse_name = format!("sparse receivers (1, {FRAME_SPARSE_TOLERANCE})");
     let names = [
         "full mesh".to_string(),
         "full near + far mesh".to_string(),
         format!("full near + {levels_built} far levels"),
+        format!("full mesh, {sparse_name}"),
+        format!("far mesh, {sparse_name}"),
     ];
-    for (name, row) in names.iter().zip(&rates) {
-        println!("{name:<26} {:>24} {:>24}", cell(row[0]), cell(row[1]));
+    let vertices = lod.full.vertex_count().max(1) as f64;
+    for (((name, row), shaded), count) in names.iter().zip(&rates).zip(&colours).zip(&rasterized) {
+        println!(
+            "{name:<34} {:>24} {:>24} {:>13.2}% {:>10.0}%",
+            cell(row[0]),
+            cell(row[1]),
+            100.0 * error(shaded),
+            100.0 * *count as f64 / vertices
+        );
     }
     let speed_up = |r: usize, k: usize| rates[0][k].as_secs_f64() / rates[r][k].as_secs_f64();
-    for (r, name) in [(1, "far mesh speed-up"), (2, "far levels speed-up")] {
+    for (r, name) in [
+        (1, "far mesh speed-up"),
+        (2, "far levels speed-up"),
+        (3, "sparse receivers speed-up"),
+        (4, "far mesh + sparse speed-up"),
+    ] {
         println!(
-            "{name:<26} {:>24} {:>24}",
+            "{name:<34} {:>24} {:>24}",
             format!("{:.2}x", speed_up(r, 0)),
             format!("{:.2}x", speed_up(r, 1))
         );

@@ -186,21 +186,65 @@ pub fn shade_vertex_towards<const N: usize>(
     to_eye: Vec3,
 ) -> VertexShading {
     let mask = scene_mask(scene, position, normal, options);
+    shade_mask(&mask, normal, method, lighting, material, to_eye).shading
+}
+
+/// A receiver's shading from its mask, with what made it (for sparse
+/// receivers, which borrow a key's occlusion).
+pub(super) struct ShadedMask<const N: usize> {
+    /// What [`shade_vertex_towards`] returns.
+    pub shading: VertexShading,
+    /// The receiver frame's SH rotation to world space.
+    pub rotation: TransferRotation<N>,
+    /// The local transfer vector.
+    pub transfer: Sh<N>,
+    /// The glossy lobe's local direction and transfer vector, when the
+    /// material has a glossy term.
+    pub glossy: Option<(Vec3, Sh<N>)>,
+}
+
+/// The steps of [`shade_vertex_towards`] after the mask.
+#[inline]
+pub(super) fn shade_mask<const N: usize>(
+    mask: &HemiMask,
+    normal: Vec3,
+    method: TransferMethod<'_, N>,
+    lighting: &ShRgb<N>,
+    material: &Material<'_>,
+    to_eye: Vec3,
+) -> ShadedMask<N> {
     let frame = crate::Frame::from_normal(normal);
     // One SH rotation per vertex, applied to the one or two local vectors: cheaper
     // than rotating the three lighting channels into the local frame.
     let rotation = TransferRotation::new(&frame);
-    let transfer = rotation.to_world(&method.transfer(&mask));
-    let diffuse = shade_diffuse(&transfer, lighting, material.albedo);
-    let glossy = match material.lobe {
+    let transfer = method.transfer(mask);
+    let diffuse = shade_diffuse(&rotation.to_world(&transfer), lighting, material.albedo);
+    let (glossy, parts) = match material.lobe {
         Some(lobe) if material.specular != Vec3::ZERO => {
             let mirror = frame.to_local(mirror_direction(normal, to_eye));
-            let g = glossy_transfer(method.table(), &mask, lobe, mirror);
-            shade_glossy(&rotation.to_world(&g), lighting, material.specular)
+            let g = glossy_transfer(method.table(), mask, lobe, mirror);
+            (
+                shade_glossy(&rotation.to_world(&g), lighting, material.specular),
+                Some((mirror, g)),
+            )
         }
-        _ => Vec3::ZERO,
+        _ => (Vec3::ZERO, None),
     };
-    VertexShading { diffuse, glossy }
+    ShadedMask {
+        shading: VertexShading { diffuse, glossy },
+        rotation,
+        transfer,
+        glossy: parts,
+    }
+}
+
+/// The unit direction towards the viewer of [`shade_batch_per_vertex`]'s
+/// vertex at `position`.
+#[inline]
+pub(super) fn towards_eye(surface: &VertexSurface<'_>, position: Vec3) -> Vec3 {
+    surface
+        .to_eye
+        .unwrap_or_else(|| unit_or_zero(surface.material.eye - position))
 }
 
 pub(super) fn check(

@@ -20,13 +20,19 @@ use core::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::Vec3;
 
-use super::batch::{BatchError, TransferSpace, check, for_each_entry, usable, vertex_transfer};
+use super::batch::{
+    BatchError, TransferSpace, VertexShading, VertexSurface, check, for_each_entry, shade_mask,
+    towards_eye, usable, vertex_transfer,
+};
+use super::lod::scene_mask;
 use super::lod::{BatchOptions, HemiScene};
 use super::mask::HemiMask;
+use super::shading::{glossy_transfer, mirror_direction, shade_glossy};
+use super::transfer::shade_diffuse;
 use super::transfer::{TransferMethod, TransferRotation, frame_matrix};
 use crate::fallible;
 use crate::geom::{Frame, MeshView};
-use crate::sh::{MAX_COEFFS, Sh, ShRotation};
+use crate::sh::{MAX_COEFFS, Sh, ShRgb, ShRotation};
 
 /// Why a [`ReceiverSampling`] could not be made.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -265,21 +271,29 @@ pub(super) struct SparseReceivers {
     sampling: ReceiverSampling,
     tolerance: f32,
     /// Per key, [`MAX_COEFFS`] floats: the world-space occlusion, the open
-    /// hemisphere's transfer minus the key's, in the first `N`.
+    /// hemisphere's transfer minus the key's, in the first `N`. With shading,
+    /// [`SHADING_STRIDE`] floats per key instead (see [`Self::shade`]).
     occlusion: Vec<f32>,
 }
 
+/// Floats per key when shading: the diffuse and the glossy occlusion (up to
+/// [`MAX_COEFFS`] each) and the key's own diffuse and glossy colours.
+const SHADING_STRIDE: usize = 2 * MAX_COEFFS + 6;
+
 impl SparseReceivers {
-    /// The sampling of `mesh` for `lod`, with its buffer.
+    /// The sampling of `mesh` for `lod`, with its buffer (room for
+    /// [`Self::shade`] when `shading`).
     pub(super) fn new(
         mesh: &MeshView<'_>,
         lod: ReceiverLod,
+        shading: bool,
     ) -> Result<Self, ReceiverSamplingError> {
         if !(lod.tolerance >= 0.0 && lod.tolerance.is_finite()) {
             return Err(ReceiverSamplingError::Tolerance(lod.tolerance));
         }
         let sampling = ReceiverSampling::new(mesh, lod.spacing)?;
-        let floats = sampling.keys.len().saturating_mul(MAX_COEFFS);
+        let per_key = if shading { SHADING_STRIDE } else { MAX_COEFFS };
+        let floats = sampling.keys.len().saturating_mul(per_key);
         let occlusion = fallible::filled(0.0, floats)
             .map_err(|_| ReceiverSamplingError::OutOfMemory { bytes: 4 * floats })?;
         Ok(SparseReceivers {
@@ -396,6 +410,181 @@ impl SparseReceivers {
             });
         });
         Ok(rasterized.into_inner())
+    }
+}
+
+impl SparseReceivers {
+    /// [`shade_batch_per_vertex`](super::shade_batch_per_vertex)'s output
+    /// with only the keys and the vertices whose keys disagree rasterized;
+    /// returns how many receivers were. Keys and rasterized vertices get
+    /// exactly its colours. Every other vertex is shaded from borrowed
+    /// occlusion: its diffuse transfer is `R_v open − Σ w_k D_k` and its
+    /// glossy one `R_v G_v − Σ w_k O_k`, with `G_v` the open hemisphere's
+    /// glossy transfer about its own mirror direction and `D_k`, `O_k` key
+    /// `k`'s world-space diffuse and glossy occlusion (the open transfer less
+    /// the rasterized one, about the key's own mirror direction). A vertex with
+    /// a glossy term is rasterized unless every key has one with the same
+    /// lobe, and the glossy gaps pass the test the diffuse ones do, measured
+    /// against `|G_v|`. Allocation-free; the shader must have been set up for
+    /// shading (else [`BatchError::OutputLength`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn shade<'m, const N: usize>(
+        &mut self,
+        scene: &HemiScene<'_>,
+        normals: &[Vec3],
+        options: &BatchOptions<'_>,
+        method: TransferMethod<'_, N>,
+        lighting: &ShRgb<N>,
+        surface: impl Fn(usize) -> VertexSurface<'m> + Sync,
+        out: &mut [VertexShading],
+    ) -> Result<usize, BatchError> {
+        check(scene, normals, out.len())?;
+        let keys = self.sampling.keys.len();
+        if self.sampling.vertex_count() != out.len() || self.occlusion.len() < keys * SHADING_STRIDE
+        {
+            return Err(BatchError::OutputLength {
+                expected: self.sampling.vertex_count(),
+                got: if self.occlusion.len() < keys * SHADING_STRIDE {
+                    0
+                } else {
+                    out.len()
+                },
+            });
+        }
+        let mesh = scene.mesh.mesh;
+        let sampling = &self.sampling;
+        let table = method.table();
+        let open = method.transfer(&HemiMask::EMPTY);
+        let stride = 2 * N + 6;
+        // The keys: their colours and their occlusion, from one mask each.
+        let buffer = &mut self.occlusion[..keys * stride];
+        for_each_chunk(buffer, stride, options.parallel, |slot, chunk| {
+            let v = sampling.keys[slot] as usize;
+            let n = normals[v];
+            chunk.fill(f32::NAN);
+            if !usable(n) {
+                chunk[2 * N..].fill(0.0);
+                return;
+            }
+            let position = mesh.position(v);
+            let here = surface(v);
+            let to_eye = towards_eye(&here, position);
+            let mask = scene_mask(scene, position, n, options);
+            let parts = shade_mask(&mask, n, method, lighting, &here.material, to_eye);
+            // As the world-space transfer frames compute it (the same bits).
+            let blocked = parts.rotation.to_world(&open) - parts.rotation.to_world(&parts.transfer);
+            chunk[..N].copy_from_slice(&blocked.coeffs);
+            if let (Some((mirror, glossy)), Some(lobe)) = (parts.glossy, here.material.lobe) {
+                let unblocked = glossy_transfer(table, &HemiMask::EMPTY, lobe, mirror);
+                chunk[N..2 * N]
+                    .copy_from_slice(&parts.rotation.to_world(&(unblocked - glossy)).coeffs);
+            }
+            let VertexShading { diffuse, glossy } = parts.shading;
+            chunk[2 * N..2 * N + 3].copy_from_slice(&diffuse.to_array());
+            chunk[2 * N + 3..2 * N + 6].copy_from_slice(&glossy.to_array());
+        });
+        let buffer: &[f32] = buffer;
+        let key = |slot: u32| &buffer[slot as usize * stride..(slot as usize + 1) * stride];
+        let diffuse_of = |chunk: &[f32]| Sh::<N>::new(core::array::from_fn(|i| chunk[i]));
+        let glossy_of = |chunk: &[f32]| Sh::<N>::new(core::array::from_fn(|i| chunk[N + i]));
+        let limit = self.tolerance * self.tolerance * open.dot(&open);
+        let tolerance = self.tolerance;
+        let rasterized = AtomicUsize::new(keys);
+        for_each_entry(out, options.parallel, |v, o| {
+            if sampling.is_key(v) {
+                let chunk = key(sampling.slot_of[v]);
+                *o = VertexShading {
+                    diffuse: Vec3::from_slice(&chunk[2 * N..]),
+                    glossy: Vec3::from_slice(&chunk[2 * N + 3..]),
+                };
+                return;
+            }
+            let n = normals[v];
+            if !usable(n) {
+                *o = VertexShading::default();
+                return;
+            }
+            let sources = sampling.sources(v);
+            let position = mesh.position(v);
+            let here = surface(v);
+            let material = &here.material;
+            let glossy_lobe = material.lobe.filter(|_| material.specular != Vec3::ZERO);
+            let mut diffuse_mean = Sh::<N>::ZERO;
+            let mut glossy_mean = Sh::<N>::ZERO;
+            for s in sources {
+                diffuse_mean += diffuse_of(key(s.slot)) * s.weight;
+                glossy_mean += glossy_of(key(s.slot)) * s.weight;
+            }
+            let frame = Frame::from_normal(n);
+            let mut agree = !sources.is_empty()
+                && sources.iter().all(|s| {
+                    let gap = diffuse_of(key(s.slot)) - diffuse_mean;
+                    let k = sampling.keys[s.slot as usize] as usize;
+                    // Written so that NaN refuses.
+                    gap.dot(&gap) <= limit && normals[k].dot(n) >= TURN_COSINE
+                });
+            let mut unblocked = Sh::<N>::ZERO;
+            let rotation = TransferRotation::new(&frame);
+            if agree && let Some(lobe) = glossy_lobe {
+                let mirror = frame.to_local(mirror_direction(n, towards_eye(&here, position)));
+                unblocked =
+                    rotation.to_world(&glossy_transfer(table, &HemiMask::EMPTY, lobe, mirror));
+                let glossy_limit = tolerance * tolerance * unblocked.dot(&unblocked);
+                agree = sources.iter().all(|s| {
+                    let k = sampling.keys[s.slot as usize] as usize;
+                    let same_lobe = surface(k)
+                        .material
+                        .lobe
+                        .is_some_and(|l| core::ptr::eq(l, lobe));
+                    let gap = glossy_of(key(s.slot)) - glossy_mean;
+                    same_lobe && gap.dot(&gap) <= glossy_limit
+                });
+            }
+            *o = if agree {
+                let diffuse = shade_diffuse(
+                    &(rotation.to_world(&open) - diffuse_mean),
+                    lighting,
+                    material.albedo,
+                );
+                let glossy = match glossy_lobe {
+                    Some(_) => {
+                        shade_glossy(&(unblocked - glossy_mean), lighting, material.specular)
+                    }
+                    None => Vec3::ZERO,
+                };
+                VertexShading { diffuse, glossy }
+            } else {
+                rasterized.fetch_add(1, Ordering::Relaxed);
+                let mask = scene_mask(scene, position, n, options);
+                let to_eye = towards_eye(&here, position);
+                shade_mask(&mask, n, method, lighting, material, to_eye).shading
+            };
+        });
+        Ok(rasterized.into_inner())
+    }
+}
+
+/// `f(k, chunk k)` for every `stride`-float chunk of `buffer`, over rayon's
+/// pool when `parallel` is set and the `parallel` feature is on.
+fn for_each_chunk(
+    buffer: &mut [f32],
+    stride: usize,
+    parallel: bool,
+    f: impl Fn(usize, &mut [f32]) + Sync,
+) {
+    #[cfg(feature = "parallel")]
+    if parallel {
+        use rayon::prelude::*;
+        buffer
+            .par_chunks_exact_mut(stride)
+            .enumerate()
+            .with_min_len(4)
+            .for_each(|(k, chunk)| f(k, chunk));
+        return;
+    }
+    let _ = parallel;
+    for (k, chunk) in buffer.chunks_exact_mut(stride).enumerate() {
+        f(k, chunk);
     }
 }
 
@@ -718,6 +907,129 @@ mod tests {
             }
         }
         assert!(dependents > 0);
+    }
+
+    #[test]
+    fn sparse_shading_is_exact_at_keys_and_borrows_occlusion_elsewhere() {
+        use super::super::{Material, PhongLobe, VertexSurface};
+        let (rest, indices) = bumpy_sphere(64, 96, 0.15, 0.0);
+        let rest_mesh = MeshView::new(&rest, &indices).unwrap();
+        let table = TransferTable::<9>::new();
+        let method = TransferMethod::Cells(&table);
+        let (positions, _) = bumpy_sphere(64, 96, 0.15, 0.6);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let mut light = ShRgb::<9>::ZERO;
+        light.r[0] = 1.0;
+        light.g[0] = 0.8;
+        light.b[0] = 0.6;
+        light.r[2] = 0.5;
+        light.b[3] = -0.3;
+        let (sharp, broad) = (PhongLobe::new(20.0).unwrap(), PhongLobe::new(4.0).unwrap());
+        let material = |lobe: Option<&'static PhongLobe>| Material {
+            albedo: Vec3::new(0.8, 0.6, 0.4),
+            specular: Vec3::splat(0.3),
+            lobe,
+            eye: Vec3::new(0.5, -4.0, 2.0),
+        };
+        // 'static lobes for the closures below.
+        let sharp: &'static PhongLobe = alloc::boxed::Box::leak(alloc::boxed::Box::new(sharp));
+        let broad: &'static PhongLobe = alloc::boxed::Box::leak(alloc::boxed::Box::new(broad));
+        let lod = ReceiverLod {
+            spacing: 1,
+            tolerance: 0.1,
+        };
+        let shading = ShaderSetup {
+            shading: true,
+            ..ShaderSetup::default()
+        };
+        let mut plain = HemiShader::new(&rest_mesh, None, &shading).unwrap();
+        let mut sparse = HemiShader::new(
+            &rest_mesh,
+            None,
+            &ShaderSetup {
+                receivers: Some(lod),
+                ..shading
+            },
+        )
+        .unwrap();
+        let sampling = sparse.receiver_sampling().unwrap().clone();
+        let n = mesh.vertex_count();
+        for (what, lobes) in [
+            ("matte", [None, None]),
+            ("glossy", [Some(sharp), Some(sharp)]),
+            ("two lobes", [Some(sharp), Some(broad)]),
+        ] {
+            let surface = |v: usize| VertexSurface {
+                material: material(lobes[v % 2]),
+                to_eye: None,
+            };
+            let exact = plain
+                .frame(mesh, None, None)
+                .unwrap()
+                .shade(&options(false), method, &light, surface)
+                .unwrap()
+                .to_vec();
+            let mut frame = sparse.frame(mesh, None, None).unwrap();
+            let got = frame
+                .shade(&options(false), method, &light, surface)
+                .unwrap()
+                .to_vec();
+            let rasterized = frame.rasterized();
+            let pooled = frame
+                .shade(&options(true), method, &light, surface)
+                .unwrap()
+                .to_vec();
+            assert_eq!(got, pooled, "{what}: the pool changes nothing");
+            let mut transfer = vec![Sh::<9>::ZERO; n];
+            frame
+                .transfer(&options(false), method, TransferSpace::World, &mut transfer)
+                .unwrap();
+            let same = (0..n).filter(|&v| got[v] == exact[v]).count();
+            assert!(
+                same >= rasterized && rasterized < n,
+                "{what}: {same} exact, {rasterized} rasterized of {n}"
+            );
+            let (mut diffuse_error, mut glossy_error) = (0.0f64, 0.0f64);
+            let (mut diffuse_total, mut glossy_total) = (0.0f64, 0.0f64);
+            for v in 0..n {
+                if sampling.is_key(v) {
+                    assert_eq!(got[v], exact[v], "{what}: key {v}");
+                }
+                if got[v] != exact[v] {
+                    // Interpolated: its diffuse is the sparse transfer's
+                    // (the same borrowed occlusion), whose keys agreed too.
+                    let m = material(lobes[v % 2]);
+                    let diffuse = shade_diffuse(&transfer[v], &light, m.albedo);
+                    assert_eq!(got[v].diffuse, diffuse, "{what}: vertex {v}");
+                }
+                diffuse_error += f64::from((got[v].diffuse - exact[v].diffuse).length_squared());
+                glossy_error += f64::from((got[v].glossy - exact[v].glossy).length_squared());
+                diffuse_total += f64::from(exact[v].diffuse.length_squared());
+                glossy_total += f64::from(exact[v].glossy.length_squared());
+            }
+            if what == "two lobes" {
+                // A vertex borrows only from keys with its own lobe.
+                for v in (0..n).filter(|&v| got[v] != exact[v]) {
+                    for k in sampling.sources(v) {
+                        let key = sampling.keys()[k.slot as usize] as usize;
+                        assert_eq!(key % 2, v % 2, "vertex {v} borrows from key {key}");
+                    }
+                }
+            }
+            // The borrowed occlusion lies within the tolerance of the open
+            // transfer from each key's, so the colours' RMS error stays under it.
+            let bound = f64::from(lod.tolerance);
+            assert!(
+                (diffuse_error / diffuse_total).sqrt() <= bound,
+                "{what}: diffuse"
+            );
+            if glossy_total > 0.0 {
+                assert!(
+                    (glossy_error / glossy_total).sqrt() <= bound,
+                    "{what}: glossy"
+                );
+            }
+        }
     }
 
     #[test]

@@ -54,8 +54,8 @@ pub struct ShaderSetup {
     /// Keep a per-vertex shading buffer for [`ShaderFrame::shade`].
     pub shading: bool,
     /// Rasterize only some receivers in [`ShaderFrame::transfer`] and
-    /// interpolate the rest (see [`ReceiverLod`]); `None` rasterizes every
-    /// vertex.
+    /// [`ShaderFrame::shade`] and interpolate the rest (see [`ReceiverLod`]);
+    /// `None` rasterizes every vertex.
     pub receivers: Option<ReceiverLod>,
 }
 
@@ -152,6 +152,7 @@ pub struct ShaderFrame<'a> {
     normals: &'a [Vec3],
     shading: &'a mut [VertexShading],
     receivers: Option<&'a mut SparseReceivers>,
+    rasterized: usize,
 }
 
 fn buffer<T: Clone>(count: usize, value: T, what: &'static str) -> Result<Vec<T>, ShaderError> {
@@ -202,7 +203,10 @@ impl HemiShader {
             far_clusters: far.filter(|_| setup.clusters).map(group),
             far_field,
             near_radius,
-            receivers: setup.receivers.map(|lod| sparse(mesh, lod)).transpose()?,
+            receivers: setup
+                .receivers
+                .map(|lod| sparse(mesh, lod, setup.shading))
+                .transpose()?,
         })
     }
 
@@ -227,7 +231,8 @@ impl HemiShader {
         lod: Option<ReceiverLod>,
     ) -> Result<(), ShaderError> {
         self.check_vertices(mesh)?;
-        self.receivers = lod.map(|lod| sparse(mesh, lod)).transpose()?;
+        let shading = !self.shading.is_empty();
+        self.receivers = lod.map(|lod| sparse(mesh, lod, shading)).transpose()?;
         Ok(())
     }
 
@@ -329,6 +334,7 @@ impl HemiShader {
             normals: own_normals,
             shading,
             receivers: receivers.as_mut(),
+            rasterized: 0,
         })
     }
 }
@@ -361,19 +367,22 @@ impl ShaderFrame<'_> {
         Sh<N>: From<T>,
     {
         let scene = scene(self.mesh, self.far, self.levels.as_ref(), self.near_radius);
-        match self.receivers.as_deref_mut() {
-            Some(sparse) => sparse.transfer(&scene, self.normals, options, method, space, out),
+        self.rasterized = match self.receivers.as_deref_mut() {
+            Some(sparse) => sparse.transfer(&scene, self.normals, options, method, space, out)?,
             None => {
                 transfer_batch(&scene, self.normals, options, method, space, out)?;
-                Ok(out.len())
+                out.len()
             }
-        }
+        };
+        Ok(self.rasterized)
     }
 
-    /// [`shade_batch_per_vertex`] over every vertex of the frame (every one
-    /// rasterized, spared receivers or not: the glossy term follows each
-    /// vertex's own view), into the shader's buffer (empty unless it was set up for shading, which is then
-    /// an [`BatchError::OutputLength`]).
+    /// [`shade_batch_per_vertex`] over every vertex of the frame, or, when the
+    /// shader spares receivers, over its keys and the vertices whose keys
+    /// disagree, the others shaded from their keys' occlusion (see
+    /// [`ReceiverLod`]), into the shader's buffer (empty unless it was set up
+    /// for shading, which is then an [`BatchError::OutputLength`]).
+    /// [`ShaderFrame::rasterized`] then tells how many were rasterized.
     pub fn shade<'m, const N: usize>(
         &mut self,
         options: &BatchOptions<'_>,
@@ -382,21 +391,45 @@ impl ShaderFrame<'_> {
         surface: impl Fn(usize) -> VertexSurface<'m> + Sync,
     ) -> Result<&[VertexShading], BatchError> {
         let scene = scene(self.mesh, self.far, self.levels.as_ref(), self.near_radius);
-        shade_batch_per_vertex(
-            &scene,
-            self.normals,
-            options,
-            method,
-            lighting,
-            surface,
-            self.shading,
-        )?;
+        self.rasterized = match self.receivers.as_deref_mut() {
+            Some(sparse) => sparse.shade(
+                &scene,
+                self.normals,
+                options,
+                method,
+                lighting,
+                surface,
+                self.shading,
+            )?,
+            None => {
+                shade_batch_per_vertex(
+                    &scene,
+                    self.normals,
+                    options,
+                    method,
+                    lighting,
+                    surface,
+                    self.shading,
+                )?;
+                self.shading.len()
+            }
+        };
         Ok(self.shading)
+    }
+
+    /// How many receivers the last [`ShaderFrame::shade`] or
+    /// [`ShaderFrame::transfer`] of this frame rasterized (0 before either).
+    pub fn rasterized(&self) -> usize {
+        self.rasterized
     }
 }
 
-fn sparse(mesh: &MeshView<'_>, lod: ReceiverLod) -> Result<SparseReceivers, ShaderError> {
-    SparseReceivers::new(mesh, lod).map_err(ShaderError::Receivers)
+fn sparse(
+    mesh: &MeshView<'_>,
+    lod: ReceiverLod,
+    shading: bool,
+) -> Result<SparseReceivers, ShaderError> {
+    SparseReceivers::new(mesh, lod, shading).map_err(ShaderError::Receivers)
 }
 
 /// The scene of a frame's meshes: the library's far levels when there are,
