@@ -450,11 +450,18 @@ pub fn shade_batch_per_vertex<'a, const N: usize>(
 ) -> Result<(), BatchError> {
     let zero = VertexShading::default();
     for_each_receiver(scene, normals, options, out, zero, |v, p, n| {
-        let VertexSurface { material, to_eye } = surface(v);
-        match to_eye {
-            None => shade_vertex(scene, p, n, options, method, lighting, &material),
-            Some(d) => shade_vertex_towards(scene, p, n, options, method, lighting, &material, d),
-        }
+        let here = surface(v);
+        let to_eye = towards_eye(&here, p);
+        shade_vertex_towards(
+            scene,
+            p,
+            n,
+            options,
+            method,
+            lighting,
+            &here.material,
+            to_eye,
+        )
     })
 }
 
