@@ -656,14 +656,22 @@ fn bench_hemi_reports_ratios_against_the_bvh() {
             .find(|line| line.starts_with(row))
             .unwrap_or_else(|| panic!("no row {row}:\n{text}"));
         assert_eq!(line.matches(" fps (").count(), 2, "{line}");
-        // The full mesh's colours are the reference; every row says its error.
-        let error = line
-            .trim_end()
-            .strip_suffix('%')
-            .and_then(|l| l.rsplit(' ').next());
-        let error: f64 = error.and_then(|e| e.parse().ok()).unwrap_or(f64::NAN);
+        // The last two fields: the colour error against the full mesh's colours
+        // (the reference, so 0 on its own row) and the share rasterized.
+        let percents: Vec<f64> = line
+            .split('%')
+            .filter_map(|piece| piece.split_whitespace().last()?.parse().ok())
+            .collect();
+        let [.., error, share] = percents[..] else {
+            panic!("no error and share in {line}");
+        };
         assert!(
             error >= 0.0 && (row != "full mesh " || error == 0.0),
+            "{line}"
+        );
+        let sparse = row.contains("sparse");
+        assert!(
+            share > 0.0 && share <= 100.0 && (sparse || share == 100.0),
             "{line}"
         );
     }

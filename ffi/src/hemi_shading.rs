@@ -1372,8 +1372,8 @@ pub unsafe extern "C" fn antumbra_hemi_shader_regroup(
 /// rasterized unless every key has the same glossy lobe and their blocked
 /// lobes pass the same test against its open one.
 ///
-/// The trade with spacing 1, one thread, 3 bands, on meshes of 15,000 to
-/// 89,000 triangles (`antumbra bench hemi --scaling`, docs/performance.md):
+/// The trade with spacing 1, one thread, 3 bands, on meshes of about 15,000
+/// to 89,000 triangles (`antumbra bench hemi --scaling`, docs/performance.md):
 /// tolerance 0.05 rasterizes 57–89 % of the vertices and makes a frame
 /// 1.1–1.4× as fast for 0.2–0.5 % ambient-occlusion error; 0.1 rasterizes
 /// 41–72 %, 1.3–2.3× for 0.4–1.2 %; 0.2 rasterizes 28–55 %, 1.7–3.7× for
@@ -1454,11 +1454,15 @@ pub unsafe extern "C" fn antumbra_hemi_shader_set_receivers(
 /// Transfer vectors of every vertex of a mesh in its current pose, through a
 /// shader: as `antumbra_hemi_transfer` with the shader's options, allocating
 /// nothing and skipping whole clusters of triangles below each receiver's
-/// horizon (the results are identical).
+/// horizon (the results are identical), unless sparse receivers are set
+/// (`antumbra_hemi_shader_set_receivers`: then only the keys and the vertices
+/// whose keys disagree get those results, the rest interpolated).
 ///
 /// @param shader the shader, created for this mesh's topology.
 /// @param mesh the current pose: the vertex and triangle counts given at creation
-///        (the indices may differ; they are validated every call).
+///        (the indices may differ; they are validated every call; with sparse
+///        receivers the keys and weights stay those of the mesh given to
+///        `antumbra_hemi_shader_set_receivers`).
 /// @param normals NULL (area-weighted normals are computed) or 3 floats per vertex,
 ///        as for `antumbra_hemi_transfer`.
 /// @param far_mesh NULL (no far mesh this frame, or the shader's own when created
@@ -1513,7 +1517,9 @@ pub unsafe extern "C" fn antumbra_hemi_shader_transfer(
 /// Shaded colours of every vertex of a mesh in its current pose, through a
 /// shader: as `antumbra_hemi_shade` with the shader's options, allocating nothing
 /// per frame and skipping whole clusters of triangles below each receiver's
-/// horizon (the results are identical).
+/// horizon (the results are identical), unless sparse receivers are set
+/// (`antumbra_hemi_shader_set_receivers`: then only the keys and the vertices
+/// whose keys disagree get those results, the rest interpolated).
 ///
 /// @param shader the shader, created for this mesh's topology.
 /// @param mesh the current pose: the vertex and triangle counts given at creation.

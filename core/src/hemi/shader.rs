@@ -221,8 +221,8 @@ impl HemiShader {
         self.near_radius
     }
 
-    /// Sets how [`ShaderFrame::transfer`] spares receivers (`None`: every
-    /// vertex rasterized), measuring the keys' weights in `mesh` (the rest
+    /// Sets how [`ShaderFrame::transfer`] and [`ShaderFrame::shade`] spare
+    /// receivers (`None`: every vertex rasterized), measuring the keys' weights in `mesh` (the rest
     /// pose, or any pose with the shader's topology). On error the old
     /// setting stays.
     pub fn set_receivers(
