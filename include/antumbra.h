@@ -1564,8 +1564,8 @@ antumbra_result antumbra_hemi_shader_regroup(struct antumbra_hemi_shader *shader
  * little, and a loose tolerance costs them more. The vertices interpolated
  * are mostly the open, cheap ones, so a frame gains less than the share
  * skipped: shading the deforming bunny (diffuse + glossy, `antumbra bench
- * hemi`) at tolerance 0.1 rasterizes 65 % for 1.1× the frame rate, CGAL's
- * bear (27,648 triangles) 51 % for 1.5–1.6×, at 0.2–0.4 % colour error.
+ * hemi`) at tolerance 0.1 rasterizes 67 % for 1.1× the frame rate, CGAL's
+ * bear (27,648 triangles) 52 % for 1.5–1.6×, at 0.2–0.3 % colour error.
  *
  * @param shader the shader.
  * @param mesh the mesh in a pose (the rest pose, or any with the shader's
