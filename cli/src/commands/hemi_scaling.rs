@@ -19,6 +19,11 @@
 //!   constant coefficient (ambient occlusion) against the full mesh's exact
 //!   one, divided by its mean;
 //! - **tested**: triangles and hierarchy nodes tested per receiver.
+//!
+//! Then the whole frame (posing, then every vertex, one thread), timed alike:
+//! the exact path (`every`), and sparse receivers (`spacing/tolerance` and
+//! the share rasterized) with the full mesh and the `(n/4)` far field, their
+//! error over every vertex against the exact full mesh.
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -79,11 +84,22 @@ const RECEIVER_LODS: [ReceiverLod; 3] = [
     },
 ];
 
+/// How a row's frame is timed.
+#[derive(Clone, Copy)]
+enum Timing {
+    /// Posing over every vertex, then the timed receivers only.
+    Sampled,
+    /// The whole frame (posing, then every vertex), with sparse receivers
+    /// or (`None`) every vertex rasterized.
+    Frame(Option<ReceiverLod>),
+}
+
 /// One row: a setting's frame and error.
 struct Row {
     setting: String,
-    /// `all`, or the sparse-receiver setting and the share of vertices it
-    /// rasterized.
+    /// `all` (the timed receivers), `every` (the whole frame, every vertex
+    /// rasterized), or the sparse-receiver setting and the share of vertices
+    /// it rasterized (the whole frame).
     receivers: String,
     /// The setting that follows the mesh's size ([`RELATIVE_DIVISOR`]).
     relative: bool,
@@ -263,12 +279,16 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
         ..BatchOptions::default()
     };
     // Each setting, and whether it is the one that follows the mesh's size.
-    let mut settings = vec![(None, false, None)];
+    let mut settings = vec![(None, false, Timing::Sampled)];
     for triangles in FAR_TRIANGLES {
         if 4 * triangles <= mesh.triangle_count() {
-            settings.extend(
-                FAR_LEVELS.map(|levels| (Some(FarFieldSetup { triangles, levels }), false, None)),
-            );
+            settings.extend(FAR_LEVELS.map(|levels| {
+                (
+                    Some(FarFieldSetup { triangles, levels }),
+                    false,
+                    Timing::Sampled,
+                )
+            }));
         }
     }
     let quarter = mesh.triangle_count() / RELATIVE_DIVISOR;
@@ -277,12 +297,14 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
         levels: MAX_FAR_LEVELS,
     });
     if relative.is_some() {
-        settings.push((relative, true, None));
+        settings.push((relative, true, Timing::Sampled));
     }
+    // The exact path timed as the sparse rows are, their baseline.
+    settings.push((None, false, Timing::Frame(None)));
     for lod in RECEIVER_LODS {
-        settings.push((None, false, Some(lod)));
+        settings.push((None, false, Timing::Frame(Some(lod))));
         if relative.is_some() {
-            settings.push((relative, true, Some(lod)));
+            settings.push((relative, true, Timing::Frame(Some(lod))));
         }
     }
     let frame_view = || {
@@ -294,10 +316,9 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
     // (made when the first one needs it, on every thread: untimed).
     let mut every_exact: Vec<f64> = Vec::new();
     let mut rows = Vec::new();
-    for (far_field, relative, lod) in settings {
+    for (far_field, relative, timing) in settings {
         let setup = ShaderSetup {
             far_field,
-            receivers: lod,
             ..ShaderSetup::default()
         };
         let mut shader = HemiShader::new(&view, None, &setup)
@@ -310,11 +331,9 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
                 format!("{triangles} x {built}{mark}")
             }
         };
-        if let Some(lod) = lod {
+        if let Timing::Frame(lod) = timing {
             let sampling = time_per_call(min_time, || {
-                shader
-                    .set_receivers(&view, Some(lod))
-                    .expect("a valid sampling");
+                shader.set_receivers(&view, lod).expect("a valid sampling");
             });
             if every_exact.is_empty() {
                 every_exact = every_vertex_ambient(mesh, method, &options)?;
@@ -334,20 +353,19 @@ fn rows(mesh: &TriangleMesh, count: usize, min_time: Duration) -> Result<Vec<Row
             });
             let n = mesh.vertex_count().max(1) as f64;
             let ambient: Vec<f64> = out.iter().map(|t| f64::from(t[0])).collect();
+            let share = 100.0 * rasterized as f64 / n;
             rows.push(Row {
                 setting: far_label,
-                receivers: format!(
-                    "{}/{} {:.0}%",
-                    lod.spacing,
-                    lod.tolerance,
-                    100.0 * rasterized as f64 / n
-                ),
+                receivers: match lod {
+                    Some(lod) => format!("{}/{} {share:.0}%", lod.spacing, lod.tolerance),
+                    None => "every".to_string(),
+                },
                 relative: false,
                 micros: 1e6 * frame_time.as_secs_f64() / n,
-                error: Some(relative_rms(&every_exact, &ambient)),
+                error: lod.map(|_| relative_rms(&every_exact, &ambient)),
                 triangles: f64::NAN,
                 nodes: f64::NAN,
-                sampling_micros: Some(1e6 * sampling.as_secs_f64() / n),
+                sampling_micros: lod.map(|_| 1e6 * sampling.as_secs_f64() / n),
             });
             continue;
         }
