@@ -1557,8 +1557,8 @@ antumbra_result antumbra_hemi_shader_regroup(struct antumbra_hemi_shader *shader
  * The trade with spacing 1, one thread, 3 bands, on meshes of about 15,000
  * to 89,000 triangles (`antumbra bench hemi --scaling`, docs/performance.md):
  * tolerance 0.05 rasterizes 57–89 % of the vertices and makes a frame
- * 1.1–1.4× as fast for 0.2–0.5 % ambient-occlusion error; 0.1 rasterizes
- * 41–72 %, 1.3–2.3× for 0.4–1.2 %; 0.2 rasterizes 28–55 %, 1.7–3.7× for
+ * 1.0–1.4× as fast for 0.2–0.5 % ambient-occlusion error; 0.1 rasterizes
+ * 41–72 %, 1.2–2.1× for 0.4–1.2 %; 0.2 rasterizes 28–55 %, 1.7–3.4× for
  * 0.6–2.0 %. Wider spacings rasterize as many vertices for more error on
  * those meshes. Coarse meshes (a few thousand triangles, sharp creases) gain
  * little, and a loose tolerance costs them more. The vertices interpolated
