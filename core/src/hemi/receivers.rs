@@ -383,7 +383,6 @@ impl SparseReceivers {
         let limit = self.tolerance * self.tolerance * open.dot(&open);
         let rasterized = AtomicUsize::new(keys);
         for_each_entry(out, options.parallel, |v, o| {
-            let sources = sampling.sources(v);
             if sampling.is_key(v) {
                 return;
             }
@@ -392,18 +391,13 @@ impl SparseReceivers {
                 *o = T::from(Sh::ZERO);
                 return;
             }
-            let mut mean = Sh::<N>::ZERO;
-            for s in sources {
-                mean += Sh::new(occlusion[s.slot as usize]) * s.weight;
-            }
-            let agree = !sources.is_empty()
-                && sources.iter().all(|s| {
-                    let key = sampling.keys[s.slot as usize] as usize;
-                    let gap = Sh::new(occlusion[s.slot as usize]) - mean;
-                    // Written so that NaN refuses.
-                    gap.dot(&gap) <= limit && normals[key].dot(n) >= TURN_COSINE
-                });
-            *o = T::from(if agree {
+            let agreed = agreed_mean(
+                sampling.sources(v),
+                |slot| Sh::new(occlusion[slot]),
+                limit,
+                |slot| normals[sampling.keys[slot] as usize].dot(n) >= TURN_COSINE,
+            );
+            *o = T::from(if let Some(mean) = agreed {
                 let frame = Frame::from_normal(n);
                 match space {
                     TransferSpace::World => TransferRotation::new(&frame).to_world(&open) - mean,
@@ -447,15 +441,13 @@ impl SparseReceivers {
     ) -> Result<usize, BatchError> {
         check(scene, normals, out.len())?;
         let keys = self.sampling.keys.len();
+        // A shader set up without shading has no shading buffer either, so
+        // `check` refused it already; this guards direct use.
         if self.sampling.vertex_count() != out.len() || self.occlusion.len() < keys * SHADING_STRIDE
         {
             return Err(BatchError::OutputLength {
                 expected: self.sampling.vertex_count(),
-                got: if self.occlusion.len() < keys * SHADING_STRIDE {
-                    0
-                } else {
-                    out.len()
-                },
+                got: out.len(),
             });
         }
         let mesh = scene.mesh.mesh;
@@ -496,7 +488,7 @@ impl SparseReceivers {
             chunk[2 * N + 3..2 * N + 6].copy_from_slice(&glossy.to_array());
         });
         let buffer: &[f32] = buffer;
-        let key = |slot: u32| &buffer[slot as usize * stride..(slot as usize + 1) * stride];
+        let key = |slot: usize| &buffer[slot * stride..(slot + 1) * stride];
         let diffuse_of = |chunk: &[f32]| Sh::<N>::new(core::array::from_fn(|i| chunk[i]));
         let glossy_of = |chunk: &[f32]| Sh::<N>::new(core::array::from_fn(|i| chunk[N + i]));
         let limit = self.tolerance * self.tolerance * open.dot(&open);
@@ -504,7 +496,7 @@ impl SparseReceivers {
         let rasterized = AtomicUsize::new(keys);
         for_each_entry(out, options.parallel, |v, o| {
             if sampling.is_key(v) {
-                let chunk = key(sampling.slot_of[v]);
+                let chunk = key(sampling.slot_of[v] as usize);
                 *o = VertexShading {
                     diffuse: Vec3::from_slice(&chunk[2 * N..]),
                     glossy: Vec3::from_slice(&chunk[2 * N + 3..]),
@@ -521,52 +513,59 @@ impl SparseReceivers {
             let here = surface(v);
             let material = &here.material;
             let glossy_lobe = material.lobe.filter(|_| material.specular != Vec3::ZERO);
-            let mut diffuse_mean = Sh::<N>::ZERO;
-            let mut glossy_mean = Sh::<N>::ZERO;
-            for s in sources {
-                diffuse_mean += diffuse_of(key(s.slot)) * s.weight;
-                glossy_mean += glossy_of(key(s.slot)) * s.weight;
-            }
             let frame = Frame::from_normal(n);
-            let mut agree = !sources.is_empty()
-                && sources.iter().all(|s| {
-                    let gap = diffuse_of(key(s.slot)) - diffuse_mean;
-                    let k = sampling.keys[s.slot as usize] as usize;
-                    // Written so that NaN refuses.
-                    gap.dot(&gap) <= limit && normals[k].dot(n) >= TURN_COSINE
-                });
-            let mut unblocked = Sh::<N>::ZERO;
-            let rotation = TransferRotation::new(&frame);
+            let diffuse_mean = agreed_mean(
+                sources,
+                |slot| diffuse_of(key(slot)),
+                limit,
+                |slot| normals[sampling.keys[slot] as usize].dot(n) >= TURN_COSINE,
+            );
             // This vertex's glossy lobe, when it has one: a viewer behind it
             // (or at it) sees no glossy term, as in the exact path.
             let lobe_here = glossy_lobe.and_then(|lobe| {
                 let mirror = frame.to_local(mirror_direction(n, towards_eye(&here, position)));
                 (mirror.is_finite() && mirror.z >= 0.0).then_some((lobe, mirror))
             });
-            if agree && let Some((lobe, mirror)) = lobe_here {
-                unblocked =
-                    rotation.to_world(&glossy_transfer(table, &HemiMask::EMPTY, lobe, mirror));
-                let glossy_limit = tolerance * tolerance * unblocked.dot(&unblocked);
-                agree = sources.iter().all(|s| {
-                    let k = sampling.keys[s.slot as usize] as usize;
-                    let same_lobe = surface(k)
-                        .material
-                        .lobe
-                        .is_some_and(|l| core::ptr::eq(l, lobe));
-                    let gap = glossy_of(key(s.slot)) - glossy_mean;
-                    same_lobe && gap.dot(&gap) <= glossy_limit
-                });
-            }
-            *o = if agree {
+            // The rotation and the open glossy lobe only for vertices whose
+            // keys agree on the diffuse occlusion.
+            let borrowed = diffuse_mean.and_then(|diffuse_mean| {
+                let rotation = TransferRotation::new(&frame);
+                let glossy = match lobe_here {
+                    None => None,
+                    Some((lobe, mirror)) => {
+                        let unblocked = rotation.to_world(&glossy_transfer(
+                            table,
+                            &HemiMask::EMPTY,
+                            lobe,
+                            mirror,
+                        ));
+                        let glossy_limit = tolerance * tolerance * unblocked.dot(&unblocked);
+                        let same_lobe = |slot: usize| {
+                            let k = sampling.keys[slot] as usize;
+                            surface(k)
+                                .material
+                                .lobe
+                                .is_some_and(|l| core::ptr::eq(l, lobe))
+                        };
+                        let mean = agreed_mean(
+                            sources,
+                            |slot| glossy_of(key(slot)),
+                            glossy_limit,
+                            same_lobe,
+                        )?;
+                        Some(unblocked - mean)
+                    }
+                };
+                Some((rotation, diffuse_mean, glossy))
+            });
+            *o = if let Some((rotation, diffuse_mean, glossy)) = borrowed {
                 let diffuse = shade_diffuse(
                     &(rotation.to_world(&open) - diffuse_mean),
                     lighting,
                     material.albedo,
                 );
-                let glossy = match lobe_here {
-                    Some(_) => {
-                        shade_glossy(&(unblocked - glossy_mean), lighting, material.specular)
-                    }
+                let glossy = match glossy {
+                    Some(glossy) => shade_glossy(&glossy, lighting, material.specular),
                     None => Vec3::ZERO,
                 };
                 VertexShading { diffuse, glossy }
@@ -579,6 +578,29 @@ impl SparseReceivers {
         });
         Ok(rasterized.into_inner())
     }
+}
+
+/// The weighted mean of the keys' vectors (`vector(slot)`) when every key
+/// passes `accept(slot)` and lies within `limit` (a squared SH norm) of it;
+/// `None` otherwise, and for a vertex without keys. A NaN vector refuses.
+#[inline]
+fn agreed_mean<const N: usize>(
+    sources: &[KeySource],
+    vector: impl Fn(usize) -> Sh<N>,
+    limit: f32,
+    accept: impl Fn(usize) -> bool,
+) -> Option<Sh<N>> {
+    let mut mean = Sh::<N>::ZERO;
+    for s in sources {
+        mean += vector(s.slot as usize) * s.weight;
+    }
+    let agree = !sources.is_empty()
+        && sources.iter().all(|s| {
+            let gap = vector(s.slot as usize) - mean;
+            // Written so that NaN refuses.
+            gap.dot(&gap) <= limit && accept(s.slot as usize)
+        });
+    agree.then_some(mean)
 }
 
 /// `f(k, chunk k)` for every `stride`-float chunk of `buffer`, over rayon's
