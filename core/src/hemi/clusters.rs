@@ -83,10 +83,14 @@ impl Aabb {
 #[derive(Clone, Debug)]
 pub struct TriangleClusters {
     pub(super) size: usize,
-    /// Triangle indices in cluster order.
+    /// Triangle indices in cluster order: the triangles of ordinary size,
+    /// then, from `large_start`, those far larger than their neighbours
+    /// ([`LARGE_EXTENT`]), each group in its own clusters.
     pub(super) order: Vec<u32>,
+    pub(super) large_start: usize,
     /// The hierarchy's boxes, finest first: `nodes[0]` has one box per
-    /// cluster of `size` consecutive entries of `order`, and each level above
+    /// cluster (runs of `size` consecutive entries of `order` from the start
+    /// of each group, the group's last run shorter), and each level above
     /// one box per [`GROUP`] consecutive boxes of the level below (neighbours
     /// in the k-d order), their union, up to a top level of at most
     /// [`GROUP`] boxes. A receiver skips a node with one test exactly when it
@@ -127,6 +131,16 @@ pub(super) const SPAN: usize = 4;
 
 /// Span boxes per chunk at most.
 pub(super) const CHUNK_SPANS: usize = CHUNK.div_ceil(SPAN);
+
+/// A triangle whose bounding box is more than this many times as wide as
+/// the median of its cluster's (in the k-d order) is clustered apart from
+/// the rest: a cluster of 32 triangles on a surface is about six of them
+/// across, and one large triangle among them (a ground quad beside a
+/// scanned object) stretches the cluster's box over the whole ground, so
+/// that receivers far from the object open it for its small triangles. A
+/// mesh whose sizes change gradually (a ground whose rings grow outwards)
+/// keeps its order.
+pub(super) const LARGE_EXTENT: f32 = 8.0;
 
 /// Children per node of [`TriangleClusters::nodes`] above the clusters.
 pub(super) const GROUP: usize = 16;
@@ -172,11 +186,15 @@ impl TriangleClusters {
     /// Groups the triangles of `mesh` into clusters of `triangles_per_cluster`
     /// (at least 1) by a k-d order of their centroids in these positions
     /// (`split_order`), the runs of 4 triangles (span boxes) inside each cluster
-    /// ordered the same way.
+    /// ordered the same way. A triangle far wider than the others of its
+    /// cluster (more than 8 times their median, such as a ground quad of two
+    /// triangles beside a detailed object) goes to clusters of its own, so
+    /// that it does not stretch the boxes of small triangles.
     pub fn new(mesh: &MeshView<'_>, triangles_per_cluster: usize) -> Self {
         let mut clusters = TriangleClusters {
             size: triangles_per_cluster.max(1),
             order: Vec::new(),
+            large_start: 0,
             nodes: Vec::new(),
             chunks: Vec::new(),
             cluster_chunks: Vec::new(),
@@ -194,20 +212,37 @@ impl TriangleClusters {
     /// compact). Allocates when the triangle count grew.
     pub fn reorder(&mut self, mesh: &MeshView<'_>) {
         let count = mesh.triangle_count();
-        let mut keyed: Vec<(Vec3, u32)> = (0..count)
-            .map(|t| {
-                let [a, b, c] = mesh.triangle(t);
-                ((a + b + c) * (1.0 / 3.0), t as u32)
-            })
-            .collect();
+        let keyed_of = |t: usize| {
+            let [a, b, c] = mesh.triangle(t);
+            ((a + b + c) * (1.0 / 3.0), t as u32)
+        };
+        let mut keyed: Vec<(Vec3, u32)> = (0..count).map(keyed_of).collect();
         split_order(&mut keyed, self.size);
-        for cluster in keyed.chunks_mut(self.size) {
-            split_order(cluster, SPAN);
+        // Triangles far larger than their cluster's others go to clusters of
+        // their own, and the rest are ordered again without them.
+        let large = large_in_their_clusters(mesh, &keyed, self.size);
+        let mut large: Vec<(Vec3, u32)> = if large.iter().any(|&l| l) {
+            let (ordinary, large): (Vec<_>, Vec<_>) = (0..count)
+                .map(keyed_of)
+                .partition(|&(_, t)| !large[t as usize]);
+            keyed = ordinary;
+            split_order(&mut keyed, self.size);
+            large
+        } else {
+            Vec::new()
+        };
+        self.large_start = keyed.len();
+        split_order(&mut large, self.size);
+        for group in [&mut keyed, &mut large] {
+            for cluster in group.chunks_mut(self.size) {
+                split_order(cluster, SPAN);
+            }
         }
+        keyed.append(&mut large);
         self.order.clear();
         self.order.extend(keyed.iter().map(|&(_, t)| t));
         self.nodes.clear();
-        let mut boxes = count.div_ceil(self.size);
+        let mut boxes = self.cluster_ranges().count();
         loop {
             self.nodes.push(alloc::vec![Aabb::EMPTY; boxes]);
             if boxes <= GROUP {
@@ -231,11 +266,10 @@ impl TriangleClusters {
         // Position of each mesh vertex in the current chunk's list, u32::MAX
         // when absent (reset after each chunk).
         let mut slot = alloc::vec![u32::MAX; mesh.vertex_count()];
-        let count = self.order.len();
-        let mut start = 0;
-        while start < count {
+        let ranges: Vec<_> = self.cluster_ranges().collect();
+        for cluster in ranges {
             self.cluster_chunks.push(self.chunks.len() as u32);
-            let cluster_end = (start + self.size).min(count);
+            let (mut start, cluster_end) = (cluster.start, cluster.end);
             while start < cluster_end {
                 let end = (start + CHUNK).min(cluster_end);
                 let first_vertex = self.chunk_vertices.len();
@@ -289,6 +323,19 @@ impl TriangleClusters {
         self.size
     }
 
+    /// Each cluster's entries of `order`: runs of `size` from the start of
+    /// each group (ordinary, then large triangles).
+    pub(super) fn cluster_ranges(&self) -> impl Iterator<Item = core::ops::Range<usize>> + '_ {
+        let size = self.size;
+        let runs = |group: core::ops::Range<usize>| {
+            group
+                .clone()
+                .step_by(size)
+                .map(move |start| start..(start + size).min(group.end))
+        };
+        runs(0..self.large_start).chain(runs(self.large_start..self.order.len()))
+    }
+
     /// Number of clusters.
     #[inline]
     pub fn cluster_count(&self) -> usize {
@@ -340,6 +387,28 @@ impl TriangleClusters {
             below = level;
         }
     }
+}
+
+/// Per triangle, whether its bounding box is more than [`LARGE_EXTENT`] times
+/// as wide as the median of its cluster's (the runs of `size` of `keyed`, in
+/// k-d order).
+fn large_in_their_clusters(mesh: &MeshView<'_>, keyed: &[(Vec3, u32)], size: usize) -> Vec<bool> {
+    let extent = |t: u32| {
+        let [a, b, c] = mesh.triangle(t as usize);
+        (a.max(b).max(c) - a.min(b).min(c)).max_element()
+    };
+    let mut large = alloc::vec![false; keyed.len()];
+    let mut extents = Vec::with_capacity(size);
+    for cluster in keyed.chunks(size) {
+        extents.clear();
+        extents.extend(cluster.iter().map(|&(_, t)| extent(t)));
+        let middle = extents.len() / 2;
+        let typical = *extents.select_nth_unstable_by(middle, f32::total_cmp).1;
+        for &(_, t) in cluster {
+            large[t as usize] = extent(t) > LARGE_EXTENT * typical;
+        }
+    }
+    large
 }
 
 /// Orders `keyed` (centroids and triangles) so that every run of `unit`
@@ -465,10 +534,10 @@ mod tests {
                     }
                 }
                 assert_eq!(spans_seen, clusters.spans.len(), "size {size}");
-                for (c, triangles) in clusters.order.chunks(clusters.size).enumerate() {
+                for (c, range) in clusters.cluster_ranges().enumerate() {
                     assert_eq!(
                         clusters.nodes[0][c],
-                        bounds_of(&mesh, triangles),
+                        bounds_of(&mesh, &clusters.order[range]),
                         "size {size}"
                     );
                 }
@@ -544,11 +613,72 @@ mod tests {
                         (a + b + c) * (1.0 / 3.0)
                     })
                     .collect();
-                assert!(split_by_planes(&centroids, size), "size {size}");
-                for cluster in centroids.chunks(size) {
-                    assert!(split_by_planes(cluster, SPAN), "size {size}");
+                let (ordinary, large) = centroids.split_at(clusters.large_start);
+                assert!(split_by_planes(ordinary, size), "size {size}");
+                assert!(split_by_planes(large, size), "size {size}");
+                for range in clusters.cluster_ranges() {
+                    assert!(split_by_planes(&centroids[range], SPAN), "size {size}");
                 }
             }
         }
+    }
+
+    /// A ground quad of two triangles beside a detailed object (a layout
+    /// users have) is clustered apart from the object: its triangles fill a
+    /// cluster of their own, so a receiver on the ground far away, none of
+    /// whose cell rays comes near the object, rasterizes none of the
+    /// object's triangles; its mask equals the unclustered loop's. (With the
+    /// quad among the object's triangles, their cluster's box spanned the
+    /// ground and that receiver rasterized them all.)
+    #[test]
+    fn a_ground_quad_is_clustered_apart_from_the_object() {
+        use crate::hemi::{BatchOptions, HemiScene, Receiver, scene_mask_with_counts};
+        let (mut positions, mut indices) = bumpy_sphere(23, 37, 0.3, 0.0);
+        let ground = positions.len() as u32;
+        let (half, floor) = (200.0, -1.5);
+        positions.extend([
+            [-half, -half, floor],
+            [half, -half, floor],
+            [half, half, floor],
+            [-half, half, floor],
+        ]);
+        indices.extend([0, 1, 2, 0, 2, 3].map(|k| ground + k));
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let quad = [mesh.triangle_count() - 2, mesh.triangle_count() - 1];
+        let mut clusters = TriangleClusters::new(&mesh, TriangleClusters::DEFAULT_SIZE);
+        let order = &clusters.order;
+        assert_eq!(order.len() - clusters.large_start, 2);
+        assert!(
+            order[clusters.large_start..]
+                .iter()
+                .all(|&t| quad.contains(&(t as usize)))
+        );
+        let last = clusters.cluster_ranges().last().unwrap();
+        assert_eq!(last, clusters.large_start..order.len());
+        // On the ground 120 away, looking up: the sphere (radius at most 1.3
+        // about the origin) is within 0.011 rad of its center's direction.
+        let (position, normal) = (Vec3::new(120.0, 0.0, floor), Vec3::Z);
+        let options = BatchOptions::default();
+        let receiver = Receiver::new(position, normal, options.normal_offset);
+        let toward = (Vec3::ZERO - receiver.origin).normalize();
+        let nearest = crate::hemi::cell_directions()
+            .filter_map(|(i, j, _)| receiver.cell_ray(i, j))
+            .map(|ray| ray.direction.normalize().dot(toward))
+            .fold(f32::NEG_INFINITY, f32::max);
+        assert!(
+            nearest < libm::cosf(0.03),
+            "a cell ray passes near the sphere"
+        );
+        let clustered = clusters.update(mesh);
+        let (mask, counts) =
+            scene_mask_with_counts(&HemiScene::new(clustered), position, normal, &options);
+        let (plain, _) = scene_mask_with_counts(
+            &HemiScene::new(ClusteredMesh::unclustered(mesh)),
+            position,
+            normal,
+            &options,
+        );
+        assert_eq!(mask, plain);
+        assert_eq!(counts.rasterized, 0, "{counts:?}");
     }
 }
