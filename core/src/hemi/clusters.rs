@@ -92,7 +92,8 @@ pub struct TriangleClusters {
     /// cluster (runs of `size` consecutive entries of `order` from the start
     /// of each group, the group's last run shorter), and each level above
     /// one box per [`GROUP`] consecutive boxes of the level below (neighbours
-    /// in the k-d order), their union, up to a top level of at most
+    /// in the k-d order, but for the node at the seam between the two
+    /// groups, which holds some of each), their union, up to a top level of at most
     /// [`GROUP`] boxes. A receiver skips a node with one test exactly when it
     /// would skip each box below it.
     pub(super) nodes: Vec<Vec<Aabb>>,
@@ -186,10 +187,11 @@ impl TriangleClusters {
     /// Groups the triangles of `mesh` into clusters of `triangles_per_cluster`
     /// (at least 1) by a k-d order of their centroids in these positions
     /// (`split_order`), the runs of 4 triangles (span boxes) inside each cluster
-    /// ordered the same way. A triangle far wider than the others of its
-    /// cluster (more than 8 times their median, such as a ground quad of two
-    /// triangles beside a detailed object) goes to clusters of its own, so
-    /// that it does not stretch the boxes of small triangles.
+    /// ordered the same way. The triangles far wider than the others of
+    /// their cluster (more than 8 times their median, such as a ground quad
+    /// of two triangles beside a detailed object) are taken out and grouped
+    /// among themselves, so that they do not stretch the boxes of small
+    /// triangles.
     pub fn new(mesh: &MeshView<'_>, triangles_per_cluster: usize) -> Self {
         let mut clusters = TriangleClusters {
             size: triangles_per_cluster.max(1),
@@ -209,7 +211,7 @@ impl TriangleClusters {
 
     /// Recomputes the grouping from the current positions of `mesh` (for a mesh
     /// whose shape changed so much that the rest-pose clusters are no longer
-    /// compact). Allocates when the triangle count grew.
+    /// compact). Allocates.
     pub fn reorder(&mut self, mesh: &MeshView<'_>) {
         let count = mesh.triangle_count();
         let keyed_of = |t: usize| {
@@ -391,7 +393,7 @@ impl TriangleClusters {
 
 /// Per triangle, whether its bounding box is more than [`LARGE_EXTENT`] times
 /// as wide as the median of its cluster's (the runs of `size` of `keyed`, in
-/// k-d order).
+/// k-d order), leaving out those of zero width.
 fn large_in_their_clusters(mesh: &MeshView<'_>, keyed: &[(Vec3, u32)], size: usize) -> Vec<bool> {
     let extent = |t: u32| {
         let [a, b, c] = mesh.triangle(t as usize);
@@ -400,8 +402,13 @@ fn large_in_their_clusters(mesh: &MeshView<'_>, keyed: &[(Vec3, u32)], size: usi
     let mut large = alloc::vec![false; keyed.len()];
     let mut extents = Vec::with_capacity(size);
     for cluster in keyed.chunks(size) {
+        // Triangles collapsed to a point do not count: a cluster of mostly
+        // such would otherwise call every other triangle large.
         extents.clear();
-        extents.extend(cluster.iter().map(|&(_, t)| extent(t)));
+        extents.extend(cluster.iter().map(|&(_, t)| extent(t)).filter(|&e| e > 0.0));
+        if extents.is_empty() {
+            continue;
+        }
         let middle = extents.len() / 2;
         let typical = *extents.select_nth_unstable_by(middle, f32::total_cmp).1;
         for &(_, t) in cluster {
@@ -507,6 +514,28 @@ mod tests {
         b
     }
 
+    /// The bumpy sphere on a ground quad 400 wide, with 40 needles through
+    /// it (triangles 100 long whose centroids lie among the sphere's small
+    /// ones: with the quad, 42 wide triangles, each in a cluster of small
+    /// ones) and 300 triangles collapsed to a point (zero width, which no
+    /// median may be made of).
+    fn sphere_on_ground() -> (Vec<[f32; 3]>, Vec<u32>) {
+        let (mut positions, mut indices) = bumpy_sphere(23, 37, 0.3, 0.0);
+        let floor = -1.5;
+        let quad = positions.len() as u32;
+        positions.extend([[-200.0, -200.0, floor], [200.0, -200.0, floor]]);
+        positions.extend([[200.0, 200.0, floor], [-200.0, 200.0, floor]]);
+        indices.extend([0, 1, 2, 0, 2, 3].map(|k| quad + k));
+        for k in 0..40 {
+            let [x, y, z] = positions[20 * k];
+            let first = positions.len() as u32;
+            positions.extend([[x, y, z - 50.0], [x, y, z + 50.0], [x + 0.01, y, z]]);
+            indices.extend([first, first + 1, first + 2]);
+        }
+        indices.extend((0..300).flat_map(|k| [k, k, k]));
+        (positions, indices)
+    }
+
     /// The slow twin of `compute_bounds`: every span box is the box of its
     /// triangles, every cluster box the box of its `size` triangles (so the
     /// union of its spans), for cluster sizes that do and do not fill whole
@@ -515,11 +544,18 @@ mod tests {
     fn span_and_cluster_boxes_are_the_boxes_of_their_triangles() {
         let (rest, indices) = bumpy_sphere(23, 37, 0.3, 0.0);
         let (twisted, _) = bumpy_sphere(23, 37, 0.3, 0.9);
-        for size in [1, 5, 8, 32, 40, 100] {
-            let mut clusters =
-                TriangleClusters::new(&MeshView::new(&rest, &indices).unwrap(), size);
-            for positions in [&rest, &twisted] {
-                let mesh = MeshView::new(positions, &indices).unwrap();
+        let (staged, staged_indices) = sphere_on_ground();
+        let cases = [
+            (&rest, &indices, &twisted),
+            (&staged, &staged_indices, &staged),
+        ];
+        for (size, (rest, indices, moved)) in [1, 5, 8, 32, 40, 100]
+            .into_iter()
+            .flat_map(|size| cases.map(|case| (size, case)))
+        {
+            let mut clusters = TriangleClusters::new(&MeshView::new(rest, indices).unwrap(), size);
+            for positions in [rest, moved] {
+                let mesh = MeshView::new(positions, indices).unwrap();
                 let clustered = clusters.update(mesh);
                 let clusters = clustered.clusters.unwrap();
                 let mut spans_seen = 0;
@@ -592,9 +628,11 @@ mod tests {
                 [v, v + 1, v + 22, v, v + 22, v + 21]
             })
             .collect();
+        let (staged, staged_indices) = sphere_on_ground();
         for (positions, indices) in [
             (&sphere, &sphere_indices),
             (&grid, &grid_indices),
+            (&staged, &staged_indices),
             (&Vec::new(), &Vec::new()),
         ] {
             let mesh = MeshView::new(positions, indices).unwrap();
@@ -613,6 +651,14 @@ mod tests {
                         (a + b + c) * (1.0 / 3.0)
                     })
                     .collect();
+                // In clusters of a few triangles, wide ones may be the most.
+                if indices.len() == staged_indices.len() && size >= 32 {
+                    assert_eq!(
+                        mesh.triangle_count() - clusters.large_start,
+                        42,
+                        "size {size}"
+                    );
+                }
                 let (ordinary, large) = centroids.split_at(clusters.large_start);
                 assert!(split_by_planes(ordinary, size), "size {size}");
                 assert!(split_by_planes(large, size), "size {size}");
