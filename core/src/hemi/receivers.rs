@@ -22,7 +22,7 @@ use glam::Vec3;
 
 use super::batch::{
     BatchError, TransferSpace, VertexShading, VertexSurface, check, for_each_entry, shade_mask,
-    towards_eye, usable, vertex_transfer,
+    shade_vertex_towards, towards_eye, usable, vertex_transfer,
 };
 use super::lod::scene_mask;
 use super::lod::{BatchOptions, HemiScene};
@@ -512,6 +512,7 @@ impl SparseReceivers {
             let position = mesh.position(v);
             let here = surface(v);
             let material = &here.material;
+            let to_eye = towards_eye(&here, position);
             let glossy_lobe = material.lobe.filter(|_| material.specular != Vec3::ZERO);
             let frame = Frame::from_normal(n);
             let diffuse_mean = agreed_mean(
@@ -523,7 +524,7 @@ impl SparseReceivers {
             // This vertex's glossy lobe, when it has one: a viewer behind it
             // (or at it) sees no glossy term, as in the exact path.
             let lobe_here = glossy_lobe.and_then(|lobe| {
-                let mirror = frame.to_local(mirror_direction(n, towards_eye(&here, position)));
+                let mirror = frame.to_local(mirror_direction(n, to_eye));
                 (mirror.is_finite() && mirror.z >= 0.0).then_some((lobe, mirror))
             });
             // The rotation and the open glossy lobe only for vertices whose
@@ -571,9 +572,9 @@ impl SparseReceivers {
                 VertexShading { diffuse, glossy }
             } else {
                 rasterized.fetch_add(1, Ordering::Relaxed);
-                let mask = scene_mask(scene, position, n, options);
-                let to_eye = towards_eye(&here, position);
-                shade_mask(&mask, n, method, lighting, material, to_eye).shading
+                shade_vertex_towards(
+                    scene, position, n, options, method, lighting, material, to_eye,
+                )
             };
         });
         Ok(rasterized.into_inner())
