@@ -554,16 +554,15 @@ impl<const N: usize> RayCells<N> {
     }
 }
 
-/// The widening of boxes for [`RayCells::meet_into`] in a receiver's pass
-/// over a mesh with bounds `root`: [`RAY_SLACK`] times the mesh's diagonal
-/// plus the origin's distance to its center, so every box of the mesh (and
-/// all its children) gets the same pad, at least the slack times its
-/// distance from the origin in angle.
+/// The widening of `bounds` for [`RayCells::meet_into`]: [`RAY_SLACK`] times
+/// the distance from `origin` to the box's farthest corner, so every point of
+/// the box gets at least the slack times its own distance, in angle. The
+/// parent's pad holds its children's, though each test stands on its own: a
+/// box's rays are all those its triangles may set.
 #[inline(always)]
-pub(crate) fn ray_pad(root: &Aabb, origin: Vec3) -> f32 {
-    let diagonal = length(root.max - root.min);
-    let distance = length(origin - (root.min + root.max) * 0.5);
-    RAY_SLACK * (diagonal + distance)
+pub(crate) fn ray_pad(bounds: &Aabb, origin: Vec3) -> f32 {
+    let farthest = (bounds.min - origin).abs().max((bounds.max - origin).abs());
+    RAY_SLACK * length(farthest)
 }
 
 /// The angle, in radians, by which a box is widened as seen from a receiver
@@ -631,8 +630,7 @@ mod tests {
                 let (a, b, c) = (corner(), corner(), corner());
                 let _ = TriangleCone::or_exact_into(a, b, c, false, &mut inside);
             }
-            // The ray test keeps every cell they set, with the smallest pad
-            // a box of the mesh gets (the box as the whole mesh).
+            // The ray test keeps every cell they set, with the box's own pad.
             let mut every = OpenCells::<812> {
                 cells: [(0, 0); 812],
                 len: 0,

@@ -38,7 +38,8 @@ use crate::geom::MeshView;
 
 /// The few cells a cluster's triangles can still set, with what tests their
 /// rays against the cluster's span boxes: the center of projection and the
-/// pass's box pad ([`ray_pad`](super::box_cells::ray_pad)).
+/// cluster's pad ([`ray_pad`](super::box_cells::ray_pad); its spans lie inside
+/// it, so it holds theirs).
 #[derive(Clone, Copy)]
 pub(super) struct CellPath<'c> {
     /// At most 32 cells, clear when listed.

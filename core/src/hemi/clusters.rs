@@ -43,15 +43,6 @@ impl Aabb {
         n.dot(q - o) <= 0.0
     }
 
-    /// The smallest box holding both.
-    #[inline]
-    pub(super) fn union(&self, other: &Aabb) -> Aabb {
-        Aabb {
-            min: self.min.min(other.min),
-            max: self.max.max(other.max),
-        }
-    }
-
     /// The squared distance from `p` to the nearest point of the box: the
     /// nearest bound of [`Aabb::distance_range_sq`].
     #[inline(always)]

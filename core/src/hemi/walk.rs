@@ -77,13 +77,6 @@ pub(super) fn mesh_loop<M: ConeMask, const N: usize>(
     } = walk;
     let mut len = 0;
     let top = clusters.nodes.len() - 1;
-    let pad = match clusters.nodes[top].split_first() {
-        Some((first, rest)) => {
-            let root = rest.iter().fold(*first, |all, b| all.union(b));
-            ray_pad(&root, o)
-        }
-        None => 0.0,
-    };
     let roots = Push {
         boxes: &clusters.nodes[top],
         level: top,
@@ -104,6 +97,10 @@ pub(super) fn mesh_loop<M: ConeMask, const N: usize>(
         // Tested here rather than when pushed: the mask has grown since.
         let bounds = &clusters.nodes[level][index];
         acc.counts.nodes += 1;
+        // Each box its own pad: one for the whole mesh would be set by its
+        // farthest part (a wide ground), and would widen every small box
+        // near the receiver by as much.
+        let pad = ray_pad(bounds, o);
         let mut listed = false;
         if pass.skip_hidden {
             let met = if inherits {
