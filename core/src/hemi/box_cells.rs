@@ -455,12 +455,14 @@ pub(crate) struct PaddedBox {
 }
 
 impl PaddedBox {
-    /// `bounds` widened by `pad`, relative to `origin`.
+    /// `bounds` widened by `pad`, relative to `origin`: moved first, then
+    /// widened, so that the pad (a small fraction of the box's distance) is
+    /// not lost to the rounding of world coordinates far larger than it.
     #[inline(always)]
     pub(crate) fn new(bounds: &Aabb, origin: Vec3, pad: f32) -> PaddedBox {
         PaddedBox {
-            lo: bounds.min - pad - origin,
-            hi: bounds.max + pad - origin,
+            lo: (bounds.min - origin) - pad,
+            hi: (bounds.max - origin) + pad,
         }
     }
 }

@@ -624,6 +624,35 @@ mod tests {
         }
     }
 
+    /// Far from the world's origin a box's pad (a thousandth of its distance
+    /// from the receiver) is far smaller than the rounding of its corners'
+    /// coordinates: the clustered walk still gives the plain loop's masks.
+    #[test]
+    fn clusters_far_from_the_world_origin_match_the_plain_loop() {
+        let (rest, indices) = bumpy_sphere(14, 22, 0.25, 0.4);
+        for shift in [Vec3::new(1e3, -2e3, 5e2), Vec3::new(-3e4, 1e4, 2e4)] {
+            let positions: Vec<[f32; 3]> = rest
+                .iter()
+                .map(|&p| (Vec3::from(p) + shift).to_array())
+                .collect();
+            let mesh = MeshView::new(&positions, &indices).unwrap();
+            let normals = normals_of(&mesh);
+            let mut clusters = TriangleClusters::new(&mesh, TriangleClusters::DEFAULT_SIZE);
+            let plain = HemiScene::new(ClusteredMesh::unclustered(mesh));
+            let fast = HemiScene::new(clusters.update(mesh));
+            let options = BatchOptions {
+                normal_offset: 0.003,
+                ..BatchOptions::default()
+            };
+            for (v, &n) in normals.iter().enumerate() {
+                let p = mesh.position(v);
+                let a = scene_mask_with_counts(&plain, p, n, &options).0;
+                let b = scene_mask_with_counts(&fast, p, n, &options).0;
+                assert_eq!(a, b, "shift {shift} vertex {v}");
+            }
+        }
+    }
+
     /// The per-cell path's slow twin: the triangles' edge planes tested on
     /// every valid cell set the bits [`classify_batch`] rasterizes, with the
     /// same counts, for triangles of every kind (small, tiny, seen edge-on,
