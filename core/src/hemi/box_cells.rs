@@ -20,7 +20,7 @@ use glam::{Vec3, Vec3A, Vec4};
 
 use super::clusters::Aabb;
 use super::mask::{CELL_COORD, CELL_Z, HemiMask};
-use crate::geom::{Frame, length, sqrt4};
+use crate::geom::{Frame, sqrt4};
 
 /// Widening of the box's local coordinates, relative to their largest
 /// magnitude (`f32` rounding of the corners' transforms is below `1e-6`).
@@ -557,14 +557,16 @@ impl<const N: usize> RayCells<N> {
 }
 
 /// The widening of `bounds` for [`RayCells::meet_into`]: [`RAY_SLACK`] times
-/// the distance from `origin` to the box's farthest corner, so every point of
-/// the box gets at least the slack times its own distance, in angle. The
-/// parent's pad holds its children's, though each test stands on its own: a
-/// box's rays are all those its triangles may set.
+/// the sum of the farthest corner's offsets from `origin` along the axes (at
+/// least its distance, at most √3 times it, without a square root that
+/// could overflow or underflow), so every point of the box gets at least the
+/// slack times its own distance, in angle. The parent's pad holds its
+/// children's, though each test stands on its own: a box's rays are all
+/// those its triangles may set.
 #[inline(always)]
 pub(crate) fn ray_pad(bounds: &Aabb, origin: Vec3) -> f32 {
     let farthest = (bounds.min - origin).abs().max((bounds.max - origin).abs());
-    RAY_SLACK * length(farthest)
+    RAY_SLACK * ((farthest.x + farthest.y) + farthest.z)
 }
 
 /// The angle, in radians, by which a box is widened as seen from a receiver
