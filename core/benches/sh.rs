@@ -69,7 +69,7 @@ fn rotation() -> Mat3 {
     Mat3::from_quat(Quat::from_euler(glam::EulerRot::ZYX, 0.3, -1.1, 2.0))
 }
 
-#[divan::bench(consts = [9, 25, 49, 64])]
+#[divan::bench(consts = [9, 16, 25, 49, 64])]
 fn rotation_build<const N: usize>() -> ShRotation<N> {
     ShRotation::<N>::new(divan::black_box(rotation()))
 }

@@ -131,29 +131,14 @@ impl<const N: usize> ShRotation<N> {
             -r(0, 2),
             r(0, 0),
         ]);
+        // Bands 2 and 3 (the sizes shading uses) with the band a constant, so
+        // the indices and trip counts fold; the same operations in the same
+        // order as the general loop, so the same bits.
         for l in 2..bands {
-            let (done, rest) = matrices.split_at_mut(band_offset(l));
-            let size = 2 * l + 1;
-            let current = &mut rest[..size * size];
-            let uvw = &UVW[band_offset(l)..band_offset(l) + size * size];
-            let li = l as isize;
-            for m in -li..=li {
-                for n in -li..=li {
-                    let at = (m + li) as usize * size + (n + li) as usize;
-                    let [u, v, w] = uvw[at];
-                    // Zero coefficients guard terms whose indices leave band l - 1.
-                    let mut value = 0.0;
-                    if u != 0.0 {
-                        value += u * term_u(done, l, m, n);
-                    }
-                    if v != 0.0 {
-                        value += v * term_v(done, l, m, n);
-                    }
-                    if w != 0.0 {
-                        value += w * term_w(done, l, m, n);
-                    }
-                    current[at] = value;
-                }
+            match l {
+                2 => fill_band(&mut matrices, 2),
+                3 => fill_band(&mut matrices, 3),
+                _ => fill_band_general(&mut matrices, l),
             }
         }
         if reflected {
@@ -217,8 +202,43 @@ impl<const N: usize> ShRotation<N> {
     }
 }
 
+/// Band `l`'s matrix from band 1's and band `l - 1`'s (Ivanic–Ruedenberg),
+/// inlined so that a constant `l` folds its indices.
+#[inline(always)]
+fn fill_band(matrices: &mut [f32; ROTATION_ENTRIES], l: usize) {
+    let (done, rest) = matrices.split_at_mut(band_offset(l));
+    let size = 2 * l + 1;
+    let current = &mut rest[..size * size];
+    let uvw = &UVW[band_offset(l)..band_offset(l) + size * size];
+    let li = l as isize;
+    for m in -li..=li {
+        for n in -li..=li {
+            let at = (m + li) as usize * size + (n + li) as usize;
+            let [u, v, w] = uvw[at];
+            // Zero coefficients guard terms whose indices leave band l - 1.
+            let mut value = 0.0;
+            if u != 0.0 {
+                value += u * term_u(done, l, m, n);
+            }
+            if v != 0.0 {
+                value += v * term_v(done, l, m, n);
+            }
+            if w != 0.0 {
+                value += w * term_w(done, l, m, n);
+            }
+            current[at] = value;
+        }
+    }
+}
+
+/// [`fill_band`] for any band, not inlined.
+#[inline(never)]
+fn fill_band_general(matrices: &mut [f32; ROTATION_ENTRIES], l: usize) {
+    fill_band(matrices, l);
+}
+
 /// Element `(m, n)` of band `l` in the packed storage.
-#[inline]
+#[inline(always)]
 fn element(matrices: &[f32], l: usize, m: isize, n: isize) -> f32 {
     let li = l as isize;
     let size = 2 * l + 1;
@@ -226,7 +246,7 @@ fn element(matrices: &[f32], l: usize, m: isize, n: isize) -> f32 {
 }
 
 /// Ivanic–Ruedenberg's `P_i^{a,b}` for band `l`, from band 1 and band `l - 1`.
-#[inline]
+#[inline(always)]
 fn term_p(done: &[f32], l: usize, i: isize, a: isize, b: isize) -> f32 {
     let li = l as isize;
     let r1 = |n: isize| element(done, 1, i, n);
@@ -240,12 +260,12 @@ fn term_p(done: &[f32], l: usize, i: isize, a: isize, b: isize) -> f32 {
     }
 }
 
-#[inline]
+#[inline(always)]
 fn term_u(done: &[f32], l: usize, m: isize, n: isize) -> f32 {
     term_p(done, l, 0, m, n)
 }
 
-#[inline]
+#[inline(always)]
 fn term_v(done: &[f32], l: usize, m: isize, n: isize) -> f32 {
     const SQRT_2: f32 = core::f32::consts::SQRT_2;
     match m {
@@ -259,7 +279,7 @@ fn term_v(done: &[f32], l: usize, m: isize, n: isize) -> f32 {
     }
 }
 
-#[inline]
+#[inline(always)]
 fn term_w(done: &[f32], l: usize, m: isize, n: isize) -> f32 {
     // w = 0 whenever m = 0, so W's value there never matters.
     match m {
