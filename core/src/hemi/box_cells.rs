@@ -19,7 +19,10 @@
 use glam::{Vec3, Vec3A, Vec4};
 
 use super::clusters::Aabb;
-use super::mask::{CELL_COORD, CELL_Z, HemiMask};
+#[cfg(test)]
+use super::mask::CELL_COORD;
+use super::mask::{GRID, HemiMask};
+use super::rays::{LIST_CAPACITY, OpenCells};
 use crate::geom::{Frame, sqrt4};
 
 /// Widening of the box's local coordinates, relative to their largest
@@ -143,34 +146,34 @@ impl BoxCells {
     /// cell. Few cells are cheaper to test one by one against the box's
     /// triangles than the triangles are to rasterize.
     #[inline(always)]
-    pub(crate) fn open_cells<const N: usize>(self, mask: &HemiMask) -> Option<OpenCells<N>> {
-        let mut open = OpenCells {
-            cells: [(0, 0); N],
-            len: 0,
-        };
+    pub(crate) fn open_cells<const N: usize>(self, mask: &HemiMask) -> Option<OpenCells> {
+        const { assert!(N <= LIST_CAPACITY) };
         let BoxCells::Cells {
             rect: (i0, i1, j0, j1),
             ring,
         } = self
         else {
-            return (self == BoxCells::None).then_some(open);
+            return (self == BoxCells::None).then_some(OpenCells::NONE);
+        };
+        let mut open = OpenCells {
+            bits: [0; GRID],
+            rows: (j0, j1),
         };
         let rect = HemiMask::columns(i0, i1);
         let band = RingBand::new(ring);
+        let mut count = 0;
+        // Counted before any cell is written out: the nodes near a receiver
+        // reach many.
         for j in j0..=j1 {
             let clear = rect & HemiMask::VALID.rows[j] & !mask.rows[j];
             if clear == 0 {
                 continue;
             }
-            let mut row = clear & band.row(j);
-            if open.len + row.count_ones() as usize > N {
+            let row = clear & band.row(j);
+            open.bits[j] = row;
+            count += row.count_ones() as usize;
+            if count > N {
                 return None;
-            }
-            while row != 0 {
-                let i = row.trailing_zeros() as usize;
-                row &= row - 1;
-                open.cells[open.len] = (i as u8, j as u8);
-                open.len += 1;
             }
         }
         Some(open)
@@ -332,252 +335,10 @@ fn centered_columns(c: u8) -> u32 {
     (((1u64 << (2 * c)) - 1) << (16 - c)) as u32
 }
 
-/// At most `N` cells of the grid, as (column, row).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct OpenCells<const N: usize> {
-    cells: [(u8, u8); N],
-    len: usize,
-}
-
-impl<const N: usize> OpenCells<N> {
-    /// The cells, in row order and left to right within a row.
-    #[inline(always)]
-    pub(crate) fn as_slice(&self) -> &[(u8, u8)] {
-        &self.cells[..self.len]
-    }
-}
-
-/// A cell with the inverse of its center direction in world axes, for the
-/// slab test of [`RayCells::meet_into`].
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct RayCell {
-    /// Column.
-    pub(crate) i: u8,
-    /// Row.
-    pub(crate) j: u8,
-    /// `1 / d` per axis for the center direction `d` in world axes (`±inf`
-    /// for a zero component).
-    inverse: Vec3,
-}
-
-impl RayCell {
-    /// Cell `(i, j)` without its ray, for tests of what uses only the cell.
-    #[cfg(test)]
-    pub(crate) fn at(i: u8, j: u8) -> RayCell {
-        RayCell {
-            i,
-            j,
-            inverse: Vec3::ZERO,
-        }
-    }
-
-    /// Whether the cell's center ray meets `padded`: the slow twin of
-    /// [`RaysFour::meet`].
-    #[cfg(test)]
-    fn meets(&self, padded: &PaddedBox) -> bool {
-        // The slabs' parameter intervals. An axis with a zero direction
-        // component and the origin on a face multiplies 0 by infinity: NaN.
-        // Vec3's min and max take the second operand when the comparison
-        // fails, so the ray then reads as met (NaN bounds compare false) or
-        // as running along the padded face, outside the box by the pad:
-        // either way no triangle inside the box is missed.
-        let (t0, t1) = (padded.lo * self.inverse, padded.hi * self.inverse);
-        let near = t0.min(t1).max_element();
-        let far = t0.max(t1).min_element();
-        // Not `near > far` or `far < 0` (NaN included): met.
-        !(near > far || far < 0.0)
-    }
-}
-
-/// Four cells' center rays as lanes (their inverse directions, one vector
-/// per axis), tested against a box at once: a cluster's spans and a node's
-/// children test the same few rays against many boxes.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct RaysFour {
-    inverse: [Vec4; 3],
-    /// A bit per lane holding one of the rays given.
-    used: u32,
-}
-
-impl RaysFour {
-    /// No ray: lanes not yet written.
-    pub(crate) const EMPTY: RaysFour = RaysFour {
-        inverse: [Vec4::ZERO; 3],
-        used: 0,
-    };
-
-    /// The rays of `cells`, one to four of them (missing lanes repeat the
-    /// first; [`RaysFour::meet`] leaves their bits out).
-    #[inline(always)]
-    pub(crate) fn new(cells: &[RayCell]) -> RaysFour {
-        let last = cells.len() - 1;
-        let lane = |k: usize| cells[k.min(last)].inverse;
-        let (a, b, c, d) = (lane(0), lane(1), lane(2), lane(3));
-        RaysFour {
-            inverse: [
-                Vec4::new(a.x, b.x, c.x, d.x),
-                Vec4::new(a.y, b.y, c.y, d.y),
-                Vec4::new(a.z, b.z, c.z, d.z),
-            ],
-            used: (1 << cells.len().min(4)) - 1,
-        }
-    }
-
-    /// Bit `k` set when ray `k` meets `padded`, for the rays given:
-    /// lane by lane the expressions of [`RayCell::meets`]. Vec3's `min` and
-    /// `max` take their second operand unless the first compares smaller
-    /// (larger), as the vector instructions do, so a NaN lane gives the same
-    /// verdict.
-    #[inline(always)]
-    pub(crate) fn meet(&self, padded: &PaddedBox) -> u32 {
-        let slab = |axis: usize, lo: f32, hi: f32| {
-            let inverse = self.inverse[axis];
-            let (t0, t1) = (Vec4::splat(lo) * inverse, Vec4::splat(hi) * inverse);
-            (t0.min(t1), t0.max(t1))
-        };
-        let (near_x, far_x) = slab(0, padded.lo.x, padded.hi.x);
-        let (near_y, far_y) = slab(1, padded.lo.y, padded.hi.y);
-        let (near_z, far_z) = slab(2, padded.lo.z, padded.hi.z);
-        // `max_element` and `min_element` of Vec3: x against (y against z).
-        let near = near_x.max(near_y.max(near_z));
-        let far = far_x.min(far_y.min(far_z));
-        let missed = near.cmpgt(far) | far.cmplt(Vec4::ZERO);
-        !missed.bitmask() & self.used
-    }
-}
-
-/// A box widened by a pad on every side ([`ray_pad`]), relative to the
-/// center of projection: what [`RayCell::meets`] tests.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct PaddedBox {
-    lo: Vec3,
-    hi: Vec3,
-}
-
-impl PaddedBox {
-    /// `bounds` widened by `pad`, relative to `origin`: moved first, then
-    /// widened, so that the pad (a small fraction of the box's distance) is
-    /// not lost to the rounding of world coordinates far larger than it.
-    #[inline(always)]
-    pub(crate) fn new(bounds: &Aabb, origin: Vec3, pad: f32) -> PaddedBox {
-        PaddedBox {
-            lo: (bounds.min - origin) - pad,
-            hi: (bounds.max - origin) + pad,
-        }
-    }
-}
-
-/// At most `N` cells whose center rays a box met: the open cells of a node,
-/// which its children test again (a child's box is inside its parent's, so
-/// the rays meeting it are among its parent's).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct RayCells<const N: usize> {
-    cells: [RayCell; N],
-    len: usize,
-}
-
-impl<const N: usize> RayCells<N> {
-    /// No cell.
-    pub(crate) const EMPTY: RayCells<N> = RayCells {
-        cells: [RayCell {
-            i: 0,
-            j: 0,
-            inverse: Vec3::ZERO,
-        }; N],
-        len: 0,
-    };
-
-    /// Makes this list the cells of `open` with their rays from the center of projection,
-    /// `frame` the (scaled) frame the rasterizers use: the center direction
-    /// in world axes is `frame`'s axes weighted by the cell's `(u, v, z)`
-    /// (the frame's scale does not move where a ray meets a box).
-    #[inline(always)]
-    pub(crate) fn set_from(&mut self, open: &OpenCells<N>, frame: &Frame) {
-        for (ray, &(i, j)) in self.cells.iter_mut().zip(open.as_slice()) {
-            let (iu, ju) = (usize::from(i), usize::from(j));
-            let d = frame.to_world(Vec3::new(CELL_COORD[iu], CELL_COORD[ju], CELL_Z[ju][iu]));
-            *ray = RayCell {
-                i,
-                j,
-                inverse: d.recip(),
-            };
-        }
-        self.len = open.len;
-    }
-
-    /// Writes into `out` the cells still clear in `mask` whose center rays
-    /// from `origin` meet `bounds` widened by `pad` on every side
-    /// ([`ray_pad`]); returns how many. A triangle inside the box sets only
-    /// cells whose center direction points into it (within the predicate's
-    /// rounding, far below the pad); the rectangle of [`BoxCells::of`] holds
-    /// about seven times the cells whose rays meet a small box.
-    #[inline(always)]
-    pub(crate) fn meet_into(
-        &self,
-        bounds: &Aabb,
-        origin: Vec3,
-        pad: f32,
-        mask: &HemiMask,
-        out: &mut Self,
-    ) -> usize {
-        let padded = PaddedBox::new(bounds, origin, pad);
-        let mut kept = 0;
-        for four in self.as_slice().chunks(4) {
-            let met = RaysFour::new(four).meet(&padded);
-            for (k, ray) in four.iter().enumerate() {
-                let clear = mask.rows[usize::from(ray.j)] >> ray.i & 1 == 0;
-                out.cells[kept] = *ray;
-                kept += usize::from((met >> k & 1 == 1) & clear);
-            }
-        }
-        out.len = kept;
-        kept
-    }
-
-    /// [`RayCells::meet_into`] a new list.
-    #[cfg(test)]
-    fn meeting(&self, bounds: &Aabb, origin: Vec3, pad: f32, mask: &HemiMask) -> Self {
-        let mut out = Self::EMPTY;
-        self.meet_into(bounds, origin, pad, mask, &mut out);
-        out
-    }
-
-    /// Makes this list a copy of `other` (only its cells are copied).
-    #[inline(always)]
-    pub(crate) fn copy_from(&mut self, other: &Self) {
-        self.cells[..other.len].copy_from_slice(other.as_slice());
-        self.len = other.len;
-    }
-
-    /// The cells, in the order given.
-    #[inline(always)]
-    pub(crate) fn as_slice(&self) -> &[RayCell] {
-        &self.cells[..self.len]
-    }
-}
-
-/// The widening of `bounds` for [`RayCells::meet_into`]: [`RAY_SLACK`] times
-/// the sum of the farthest corner's offsets from `origin` along the axes (at
-/// least its distance, at most √3 times it, without a square root that
-/// could overflow or underflow), so every point of the box gets at least the
-/// slack times its own distance, in angle. The parent's pad holds its
-/// children's, though each test stands on its own: a box's rays are all
-/// those its triangles may set.
-#[inline(always)]
-pub(crate) fn ray_pad(bounds: &Aabb, origin: Vec3) -> f32 {
-    let farthest = (bounds.min - origin).abs().max((bounds.max - origin).abs());
-    RAY_SLACK * ((farthest.x + farthest.y) + farthest.z)
-}
-
-/// The angle, in radians, by which a box is widened as seen from a receiver
-/// for the ray test: far above the predicate's rounding (about `1e-6` for all
-/// but cones of nearly flat triangles seen edge on) and near the rectangle's
-/// own slack ([`CELL_SLACK`] of a cell, `6e-4`).
-const RAY_SLACK: f32 = 1e-3;
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::hemi::rays::{PaddedBox, RayCell, ray_pad};
     use crate::hemi::{Receiver, TriangleCone};
     use alloc::vec::Vec;
 
@@ -635,24 +396,17 @@ mod tests {
                 let _ = TriangleCone::or_exact_into(a, b, c, false, &mut inside);
             }
             // The ray test keeps every cell they set, with the box's own pad.
-            let mut every = OpenCells::<812> {
-                cells: [(0, 0); 812],
-                len: 0,
-            };
-            for (i, j, _) in crate::hemi::cell_directions() {
-                every.cells[every.len] = (i as u8, j as u8);
-                every.len += 1;
-            }
-            let pad = ray_pad(&bounds, receiver.origin);
-            let mut rays = RayCells::EMPTY;
-            rays.set_from(&every, &frame);
-            let every = rays.meeting(&bounds, receiver.origin, pad, &HemiMask::EMPTY);
-            let hit = every.as_slice().iter().fold(HemiMask::EMPTY, |mut m, ray| {
-                m.set(usize::from(ray.i), usize::from(ray.j), true);
-                m
-            });
+            let padded =
+                PaddedBox::new(&bounds, receiver.origin, ray_pad(&bounds, receiver.origin));
+            let hit = crate::hemi::cell_directions()
+                .filter(|&(i, j, _)| RayCell::of(i, j, &frame).meets(&padded))
+                .fold(HemiMask::EMPTY, |mut m, (i, j, _)| {
+                    m.set(i, j, true);
+                    m
+                });
             assert_eq!(inside & hit, inside, "case {case}: set cells missed");
-            missed_some += usize::from(inside != HemiMask::EMPTY && every.len < 400);
+            let met = hit.count_occluded();
+            missed_some += usize::from(inside != HemiMask::EMPTY && met < 400);
             match cells {
                 BoxCells::Any => {}
                 BoxCells::None => assert_eq!(inside, HemiMask::EMPTY, "case {case}"),
@@ -693,16 +447,6 @@ mod tests {
             for (i, j, _) in crate::hemi::cell_directions() {
                 random.set(i, j, rng.next() < 0.9);
             }
-            // The cells met again, against a mask: those still clear.
-            let again = every.meeting(&bounds, receiver.origin, pad, &random);
-            let clear_met: Vec<(u8, u8)> = every
-                .as_slice()
-                .iter()
-                .filter(|ray| !random.get(usize::from(ray.i), usize::from(ray.j)))
-                .map(|ray| (ray.i, ray.j))
-                .collect();
-            let again: Vec<(u8, u8)> = again.as_slice().iter().map(|r| (r.i, r.j)).collect();
-            assert_eq!(again, clear_met, "case {case}");
             let open = reached.iter().any(|&(i, j, _)| !random.get(i, j));
             assert!(!open || cells.can_add_to(&random), "case {case}");
             // The open cells listed: the reached ones still clear, in row
@@ -718,13 +462,13 @@ mod tests {
                 (_, Some(listed)) => {
                     // Every clear reached cell, and only valid clear cells of
                     // the rectangle (its band's slack may add a few).
-                    let listed = listed.as_slice();
+                    let listed = listed.cells();
                     assert!(clear.iter().all(|c| listed.contains(c)), "case {case}");
                     let BoxCells::Cells { rect, .. } = cells else {
                         assert!(listed.is_empty(), "case {case}");
                         continue;
                     };
-                    for &(i, j) in listed {
+                    for &(i, j) in &listed {
                         let (i, j) = (usize::from(i), usize::from(j));
                         assert!(
                             HemiMask::VALID.get(i, j) && !random.get(i, j),
@@ -736,7 +480,7 @@ mod tests {
                 }
                 (_, None) => assert!(cells.can_add_to(&random), "case {case}"),
             }
-            listed_some += usize::from(listed.is_some_and(|l| !l.as_slice().is_empty()));
+            listed_some += usize::from(listed.is_some_and(|l| !l.cells().is_empty()));
         }
         // The test means something only if many boxes get a rectangle and
         // some none.
@@ -745,69 +489,6 @@ mod tests {
             "{rects} rectangles, {nones} none, {listed_some} short lists, \
              {missed_some} boxes setting cells whose rays miss most cells"
         );
-    }
-
-    /// The slow twin of [`RaysFour::meet`]: each ray's own slab test, on
-    /// random boxes and directions and on the cases that make NaN (a zero
-    /// direction component with the origin on a face), with one to four
-    /// rays.
-    #[test]
-    fn four_rays_meet_a_box_as_each_ray_does() {
-        let mut rng = Rng(0x7261_7973);
-        let component = |rng: &mut Rng| match (rng.next() * 8.0) as u32 {
-            0 => 0.0,
-            1 => -0.0,
-            _ => rng.next() * 2.0 - 1.0,
-        };
-        let mut checked = 0;
-        for _ in 0..20_000 {
-            let rays: Vec<RayCell> = (0..1 + (rng.next() * 4.0) as usize)
-                .map(|_| {
-                    let d = Vec3::new(
-                        component(&mut rng),
-                        component(&mut rng),
-                        component(&mut rng),
-                    );
-                    RayCell {
-                        i: 0,
-                        j: 0,
-                        inverse: d.recip(),
-                    }
-                })
-                .collect();
-            // Faces through the origin, boxes around it, beside it, behind it.
-            let coordinate = |rng: &mut Rng| match (rng.next() * 6.0) as u32 {
-                0 => 0.0,
-                _ => rng.next() * 4.0 - 2.0,
-            };
-            let (a, b) = (
-                Vec3::new(
-                    coordinate(&mut rng),
-                    coordinate(&mut rng),
-                    coordinate(&mut rng),
-                ),
-                Vec3::new(
-                    coordinate(&mut rng),
-                    coordinate(&mut rng),
-                    coordinate(&mut rng),
-                ),
-            );
-            let padded = PaddedBox {
-                lo: a.min(b),
-                hi: a.max(b),
-            };
-            let lanes = RaysFour::new(&rays).meet(&padded);
-            for (k, ray) in rays.iter().enumerate() {
-                assert_eq!(
-                    lanes >> k & 1 == 1,
-                    ray.meets(&padded),
-                    "ray {k} of {rays:?}, {padded:?}"
-                );
-                checked += 1;
-            }
-            assert_eq!(lanes >> rays.len(), 0, "bits past the rays");
-        }
-        assert!(checked > 40_000);
     }
 
     /// The slow twin of [`ring_band`]: each cell's squared radius compared

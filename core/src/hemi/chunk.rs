@@ -25,31 +25,28 @@
 
 use glam::{Vec3, Vec4};
 
-use super::box_cells::{PaddedBox, RayCell, RaysFour};
 use super::clusters::{CHUNK, CHUNK_SPANS, CHUNK_VERTICES, Chunk, SPAN, TriangleClusters};
 #[cfg(feature = "std")]
 use super::cone_mask::TableCones;
 use super::cone_mask::{ConeMask, ExactCones};
 use super::lod::{Pass, Select};
 use super::mask::{CELL_COORD, CELL_Z, HemiMask};
+use super::rays::{PaddedBox, PathRays};
 use super::triangle::{ConesFour, classify_four};
 use super::{Accumulator, Quality, Receiver, TriangleCone, TriangleCounts};
 use crate::geom::MeshView;
 
 /// The few cells a cluster's triangles can still set, with what tests their
 /// rays against the cluster's span boxes: the center of projection and the
-/// cluster's pad ([`ray_pad`](super::box_cells::ray_pad); its spans lie inside
+/// cluster's pad ([`ray_pad`](super::rays::ray_pad); its spans lie inside
 /// it, so it holds theirs).
 #[derive(Clone, Copy)]
 pub(super) struct CellPath<'c> {
-    /// At most 32 cells, clear when listed.
-    pub(super) cells: &'c [RayCell],
+    /// At most 32 cells, clear when gathered.
+    pub(super) rays: &'c PathRays,
     pub(super) origin: Vec3,
     pub(super) pad: f32,
 }
-
-/// Groups of four rays of a [`CellPath`]: at most 32 cells.
-const CELL_LANES: usize = 8;
 
 /// One chunk's vertices moved into the receiver's frame: local positions and
 /// flags, indexed by position in the chunk's list.
@@ -104,17 +101,14 @@ pub(super) fn chunk_loop<M: ConeMask>(
     if let Some(path) = &cells {
         let spans = &clusters.spans[chunk.span_range()];
         let mut any = 0;
-        // The rays as lanes once, then four of them against each span.
-        let mut lanes = [RaysFour::EMPTY; CELL_LANES];
-        for (lane, four) in lanes.iter_mut().zip(path.cells.chunks(4)) {
-            *lane = RaysFour::new(four);
-        }
-        let groups = path.cells.len().div_ceil(4);
+        // Four rays at a time against each span.
+        let (lanes, all) = (path.rays.lanes(), path.rays.all());
         for (met, bounds) in span_cells.iter_mut().zip(spans) {
             let padded = PaddedBox::new(bounds, path.origin, path.pad);
-            for (g, lane) in lanes[..groups].iter().enumerate() {
+            for (g, lane) in lanes.iter().enumerate() {
                 *met |= lane.meet(&padded) << (4 * g);
             }
+            *met &= all;
             any |= *met;
         }
         if any == 0 {
@@ -182,7 +176,7 @@ pub(super) fn chunk_loop<M: ConeMask>(
         ]
     };
     match cells {
-        Some(path) => test_cells(batched, corners, |t| picks[t], path.cells, acc, pass),
+        Some(path) => test_cells(batched, corners, |t| picks[t], path.rays.cells(), acc, pass),
         None => classify_batch(batched, corners, acc, pass),
     }
 }
@@ -226,7 +220,7 @@ fn test_cells<M: ConeMask>(
     count: usize,
     corners: impl Fn(usize) -> [Vec4; 3],
     picks: impl Fn(usize) -> u32,
-    cells: &[RayCell],
+    cells: &[(u8, u8)],
     acc: &mut Accumulator<'_>,
     pass: &Pass<M>,
 ) {
@@ -249,9 +243,9 @@ fn test_cells<M: ConeMask>(
         }
         if tested != 0 {
             while pick != 0 {
-                let cell = &cells[pick.trailing_zeros() as usize];
+                let (i, j) = cells[pick.trailing_zeros() as usize];
                 pick &= pick - 1;
-                let (i, j) = (usize::from(cell.i), usize::from(cell.j));
+                let (i, j) = (usize::from(i), usize::from(j));
                 if acc.mask.rows[j] >> i & 1 == 1 {
                     continue;
                 }
@@ -662,8 +656,8 @@ mod tests {
         use rand::{Rng, SeedableRng, rngs::SmallRng};
         let mut rng = SmallRng::seed_from_u64(0x5eed_ce11);
         let receiver = Receiver::new(Vec3::ZERO, Vec3::Z, 0.0);
-        let every_cell: Vec<RayCell> = crate::hemi::cell_directions()
-            .map(|(i, j, _)| RayCell::at(i as u8, j as u8))
+        let every_cell: Vec<(u8, u8)> = crate::hemi::cell_directions()
+            .map(|(i, j, _)| (i as u8, j as u8))
             .collect();
         let mut differing_lanes = 0;
         for case in 0..400 {

@@ -54,7 +54,7 @@ use super::chunk::{Projected, rasterize_mesh_batched};
 use super::clusters::ClusteredMesh;
 use super::cone_mask::{ConeMask, ExactCones, TableCones};
 use super::mask::HemiMask;
-use super::walk::{LISTED, LISTED_WITH_FAR_FIELD, Walk, mesh_loop};
+use super::walk::{Walk, mesh_loop};
 use super::{Accumulator, Quality, Receiver, TriangleCounts};
 
 /// One frame of a deforming mesh as the receivers see it: the full mesh (whose
@@ -285,8 +285,8 @@ fn scene_loop<M: ConeMask>(
         cone_mask,
     };
     let mut projected = Projected::EMPTY;
+    let mut walk = Walk::EMPTY;
     let Some(far) = &scene.far else {
-        let mut walk = Walk::<LISTED>::EMPTY;
         let all = pass(f32::INFINITY, f32::INFINITY);
         mesh_loop(
             &scene.mesh,
@@ -298,7 +298,6 @@ fn scene_loop<M: ConeMask>(
         );
         return (acc.mask, acc.counts);
     };
-    let mut walk = Walk::<LISTED_WITH_FAR_FIELD>::EMPTY;
     let near = pass(0.0, scene.near_radius);
     mesh_loop(
         &scene.mesh,

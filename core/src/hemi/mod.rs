@@ -106,6 +106,7 @@ mod far_mesh;
 mod half_space;
 mod lod;
 mod mask;
+mod rays;
 mod receivers;
 mod shader;
 mod shading;

@@ -15,7 +15,7 @@
 //! center, is skipped whole (exact quality: a table mask may set cells just
 //! outside its cone), since the mask, an OR, would not change. A node whose
 //! rectangle and ring hold at most [`LISTED`] clear cells lists them and keeps
-//! those whose center rays meet its box ([`RayCells`]; the rectangle of a small
+//! those whose center rays meet its box ([`RayList`]; the rectangle of a small
 //! far box holds about seven times the cells its rays meet); its children then
 //! test only those rays, as a ray tracer's traversal would, instead of bounding
 //! their own rectangles. A cluster met by at most [`CELL_PATH`] rays tests the
@@ -37,23 +37,23 @@
 use glam::Vec3;
 
 use super::Accumulator;
-use super::box_cells::{BoxCells, RayCells, ray_pad};
+use super::box_cells::BoxCells;
 use super::chunk::{CellPath, Projected, chunk_loop, take};
 use super::clusters::{Aabb, ClusteredMesh, GROUP};
 use super::cone_mask::ConeMask;
 use super::lod::{Pass, Select};
-use super::mask::HemiMask;
+use super::rays::{LIST_CAPACITY, PATH_CAPACITY, PaddedBox, PathRays, RayList, RaySet, ray_pad};
 
 /// Adds the triangles of `mesh` that `select` takes, cluster by cluster when there
 /// are clusters.
 #[inline(always)]
-pub(super) fn mesh_loop<M: ConeMask, const N: usize>(
+pub(super) fn mesh_loop<M: ConeMask>(
     mesh: &ClusteredMesh<'_>,
     acc: &mut Accumulator<'_>,
     pass: &Pass<M>,
     select: Select,
     projected: &mut Projected,
-    walk: &mut Walk<N>,
+    walk: &mut Walk,
 ) {
     let view = &mesh.mesh;
     let Some(clusters) = mesh.clusters else {
@@ -72,8 +72,8 @@ pub(super) fn mesh_loop<M: ConeMask, const N: usize>(
     let Walk {
         stack,
         inherited,
-        rays,
-        listing,
+        list,
+        path,
     } = walk;
     let mut len = 0;
     let top = clusters.nodes.len() - 1;
@@ -101,36 +101,38 @@ pub(super) fn mesh_loop<M: ConeMask, const N: usize>(
         // farthest part (a wide ground), and would widen every small box
         // near the receiver by as much.
         let pad = ray_pad(bounds, o);
-        let mut listed = false;
+        // The rays of `list` meeting the box and still clear, when listed.
+        let mut met: Option<RaySet> = None;
         if pass.skip_hidden {
-            let met = if inherits {
+            let padded = PaddedBox::new(bounds, o, pad);
+            met = if inherits {
                 // The parent's rays that meet this box, still clear.
-                Some(inherited[level].meet_into(bounds, o, pad, &acc.mask, rays))
+                Some(list.meet(inherited[level], &padded, &acc.mask))
             } else {
                 // A few open cells in reach: those whose rays meet the box.
                 // Many: every triangle is looked at.
                 let reach = BoxCells::of(bounds, &acc.frame, o);
-                reach.open_cells::<N>(&acc.mask).map(|cells| {
-                    listing.set_from(&cells, &acc.frame);
-                    listing.meet_into(bounds, o, pad, &HemiMask::EMPTY, rays)
+                reach.open_cells::<LISTED>(&acc.mask).map(|cells| {
+                    let all = list.set_from(&cells, &acc.frame);
+                    list.meet(all, &padded, &acc.mask)
                 })
             };
-            match met {
-                Some(0) => continue,
-                Some(_) => listed = true,
-                None => {}
+            if met == Some(0) {
+                continue;
             }
         }
         if level == 0 {
             // A cluster whose rays are few: its triangles tested on those
             // cells alone.
-            let cells = listed
-                .then(|| rays.as_slice())
-                .filter(|cells| cells.len() <= CELL_PATH)
-                .map(|cells| CellPath {
-                    cells,
-                    origin: o,
-                    pad,
+            let cells = met
+                .filter(|met| met.count_ones() as usize <= CELL_PATH)
+                .map(|met| {
+                    path.gather(list, met);
+                    CellPath {
+                        rays: path,
+                        origin: o,
+                        pad,
+                    }
                 });
             let chunks = clusters.cluster_chunks[index] as usize
                 ..clusters.cluster_chunks[index + 1] as usize;
@@ -138,8 +140,8 @@ pub(super) fn mesh_loop<M: ConeMask, const N: usize>(
                 chunk_loop(view, clusters, chunk, acc, pass, select, projected, cells);
             }
         } else {
-            if listed {
-                inherited[level - 1].copy_from(rays);
+            if let Some(met) = met {
+                inherited[level - 1] = met;
             }
             let below = &clusters.nodes[level - 1];
             let children = Push {
@@ -147,7 +149,7 @@ pub(super) fn mesh_loop<M: ConeMask, const N: usize>(
                 level: level - 1,
                 children: index * GROUP..((index + 1) * GROUP).min(below.len()),
                 select,
-                inherits: listed,
+                inherits: met.is_some(),
             };
             push_nearest_first(children, (n, o), pass, stack, &mut len);
         }
@@ -155,23 +157,11 @@ pub(super) fn mesh_loop<M: ConeMask, const N: usize>(
 }
 
 /// The most open cells a node may reach for them to be listed and tested
-/// ray by ray against its box ([`BoxCells::open_cells`], [`RayCells`]) and
-/// then its children's, in a walk over the full mesh alone: 128 is 4–9 %
-/// faster than 64 on meshes of 10k–90k triangles and as fast on the bunny
-/// (256 is slower there). Without `std` (bare metal) 64: the lists are most
-/// of the walk's state, which lives on the stack, and small devices have
-/// small stacks.
-#[cfg(feature = "std")]
-pub(super) const LISTED: usize = 128;
-#[cfg(not(feature = "std"))]
-pub(super) const LISTED: usize = 64;
-
-/// [`LISTED`] in a walk with far levels: their boxes are large and hold few
-/// triangles, cheaper to rasterize than to list many rays for, and the
-/// smaller state keeps the passes' working set in the first-level cache (128
-/// makes such a frame about a tenth slower, even when only the walk over the
-/// full mesh lists that many).
-pub(super) const LISTED_WITH_FAR_FIELD: usize = 64;
+/// ray by ray against its box ([`BoxCells::open_cells`], [`RayList`]) and
+/// then its children's: 128 is 4–9 % faster than 64 on meshes of 10k–90k
+/// triangles and as fast on the bunny (256 is slower there), with far
+/// levels or without (the walk keeps one list, so its state stays small).
+const LISTED: usize = LIST_CAPACITY;
 
 /// The most cells whose rays meet a cluster for its triangles to be tested on
 /// them one by one (`test_cells` (chunk.rs)) rather than rasterized: the three plane
@@ -180,7 +170,7 @@ pub(super) const LISTED_WITH_FAR_FIELD: usize = 64;
 /// (16, 24 and 32 cost the same on the armadillo, 64 two fifths more).
 const CELL_PATH: usize = 32;
 
-const _: () = assert!(CELL_PATH <= 32);
+const _: () = assert!(CELL_PATH <= PATH_CAPACITY);
 
 /// Levels of the hierarchy at most: nine levels of sixteen hold more than
 /// `u32::MAX` clusters.
@@ -189,30 +179,32 @@ const MAX_LEVELS: usize = 9;
 /// What a receiver's walk over a hierarchy keeps on the stack, made once per
 /// receiver and reused for each of its meshes: every entry is written before
 /// it is read.
-pub(super) struct Walk<const N: usize> {
+pub(super) struct Walk {
     /// Nodes still to visit.
     stack: [Visit; STACK],
-    /// Per level, the cells whose rays met the parent of the nodes of that
-    /// level on the stack (depth first, those nodes share one parent): a
-    /// child's rays are among them.
-    inherited: [RayCells<N>; MAX_LEVELS],
-    /// The rays meeting the node visited.
-    rays: RayCells<N>,
-    /// The cells of a node listed afresh.
-    listing: RayCells<N>,
+    /// Per level, the rays of `list` that met the parent of the nodes of
+    /// that level on the stack, clear then (depth first, those nodes share
+    /// one parent): a child's rays are among them.
+    inherited: [RaySet; MAX_LEVELS],
+    /// The cells listed by the node nearest the root on the path to the
+    /// node visited, when it inherits: the only list a walk needs (see
+    /// rays.rs).
+    list: RayList,
+    /// The few rays of the cluster visited.
+    path: PathRays,
 }
 
-impl<const N: usize> Walk<N> {
-    pub(super) const EMPTY: Walk<N> = Walk {
+impl Walk {
+    pub(super) const EMPTY: Walk = Walk {
         stack: [Visit {
             level: 0,
             index: 0,
             select: Select::All,
             inherits: false,
         }; STACK],
-        inherited: [RayCells::EMPTY; MAX_LEVELS],
-        rays: RayCells::EMPTY,
-        listing: RayCells::EMPTY,
+        inherited: [0; MAX_LEVELS],
+        list: RayList::EMPTY,
+        path: PathRays::EMPTY,
     };
 }
 
@@ -223,7 +215,7 @@ struct Visit {
     level: u32,
     index: u32,
     select: Select,
-    /// Whether the parent's rays (the level's entry of the inherited lists)
+    /// Whether the parent's rays (the level's entry of the inherited sets)
     /// hold every cell the node can still set.
     inherits: bool,
 }
