@@ -34,15 +34,18 @@ pub(crate) const PATH_CAPACITY: usize = 32;
 
 /// Four cells' center rays as lanes: the inverses of their directions, one
 /// vector per axis, tested against a box at once.
+/// Plain arrays rather than vectors: copying one lane is then a load and a
+/// store, where indexing a vector's lane is a jump through a table.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
 pub(crate) struct RayLanes {
-    inverse: [Vec4; 3],
+    inverse: [[f32; 4]; 3],
 }
 
 impl RayLanes {
     /// Lanes not yet written.
     pub(crate) const EMPTY: RayLanes = RayLanes {
-        inverse: [Vec4::ZERO; 3],
+        inverse: [[0.0; 4]; 3],
     };
 
     /// Bit `k` set when ray `k` meets `padded` (all four lanes): lane by
@@ -52,7 +55,7 @@ impl RayLanes {
     #[inline(always)]
     pub(crate) fn meet(&self, padded: &PaddedBox) -> u32 {
         let slab = |axis: usize, lo: f32, hi: f32| {
-            let inverse = self.inverse[axis];
+            let inverse = Vec4::from_array(self.inverse[axis]);
             let (t0, t1) = (Vec4::splat(lo) * inverse, Vec4::splat(hi) * inverse);
             (t0.min(t1), t0.max(t1))
         };
@@ -144,15 +147,18 @@ impl OpenCells {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct RayList {
     lanes: [RayLanes; LIST_LANES],
-    /// (column, row) of each ray.
-    cells: [(u8, u8); LIST_CAPACITY],
+    /// Column and row of each ray (eight more, written past the end when
+    /// listing).
+    columns: [u8; LIST_CAPACITY + 8],
+    rows: [u8; LIST_CAPACITY + 8],
 }
 
 impl RayList {
     /// No ray.
     pub(crate) const EMPTY: RayList = RayList {
         lanes: [RayLanes::EMPTY; LIST_LANES],
-        cells: [(0, 0); LIST_CAPACITY],
+        columns: [0; LIST_CAPACITY + 8],
+        rows: [0; LIST_CAPACITY + 8],
     };
 
     /// Makes this list the cells of `open` (at most [`LIST_CAPACITY`]), in
@@ -162,14 +168,17 @@ impl RayList {
     /// where a ray meets a box). Returns the set of them all.
     #[inline(always)]
     pub(crate) fn set_from(&mut self, open: &OpenCells, frame: &Frame) -> RaySet {
+        // A byte of a row at a time, without a branch per cell: the columns
+        // of its set bits from a table, eight written whatever their count.
         let mut len = 0;
         for j in open.rows.0..=open.rows.1 {
-            let mut row = open.bits[j];
-            while row != 0 {
-                let i = row.trailing_zeros() as u8;
-                row &= row - 1;
-                self.cells[len] = (i, j as u8);
-                len += 1;
+            let row = open.bits[j];
+            for byte in 0..4 {
+                let bits = (row >> (8 * byte)) as u8;
+                let columns = BYTE_COLUMNS[usize::from(bits)] + 0x0808_0808_0808_0808 * byte as u64;
+                self.columns[len..len + 8].copy_from_slice(&columns.to_le_bytes());
+                self.rows[len..len + 8].copy_from_slice(&[j as u8; 8]);
+                len += bits.count_ones() as usize;
             }
         }
         let splat = |v: Vec3| (Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z));
@@ -177,10 +186,12 @@ impl RayList {
         let (bx, by, bz) = splat(frame.bitangent);
         let (nx, ny, nz) = splat(frame.normal);
         // Lanes past the end hold earlier cells (valid ones): never in a set.
-        let used = &mut self.lanes[..len.div_ceil(4)];
-        for (lanes, four) in used.iter_mut().zip(self.cells.chunks_exact(4)) {
-            let [(i0, j0), (i1, j1), (i2, j2), (i3, j3)] =
-                [four[0], four[1], four[2], four[3]].map(|(i, j)| (usize::from(i), usize::from(j)));
+        for (lane, lanes) in self.lanes[..len.div_ceil(4)].iter_mut().enumerate() {
+            let cell = |k: usize| {
+                let (i, j) = (4 * lane + k, 4 * lane + k);
+                (usize::from(self.columns[i]), usize::from(self.rows[j]))
+            };
+            let [(i0, j0), (i1, j1), (i2, j2), (i3, j3)] = [cell(0), cell(1), cell(2), cell(3)];
             let u = Vec4::new(
                 CELL_COORD[i0],
                 CELL_COORD[i1],
@@ -202,7 +213,11 @@ impl RayList {
             let x = u * tx + v * bx + z * nx;
             let y = u * ty + v * by + z * ny;
             let w = u * tz + v * bz + z * nz;
-            lanes.inverse = [Vec4::ONE / x, Vec4::ONE / y, Vec4::ONE / w];
+            lanes.inverse = [
+                (Vec4::ONE / x).to_array(),
+                (Vec4::ONE / y).to_array(),
+                (Vec4::ONE / w).to_array(),
+            ];
         }
         if len == 0 {
             0
@@ -224,7 +239,8 @@ impl RayList {
             let met = self.lanes[lane].meet(padded) & wanted;
             // Clear cells, without a branch per ray.
             let mut clear = 0;
-            for (k, &(i, j)) in self.cells[4 * lane..4 * lane + 4].iter().enumerate() {
+            for k in 0..4 {
+                let (i, j) = (self.columns[4 * lane + k], self.rows[4 * lane + k]);
                 clear |= (!mask.rows[usize::from(j)] >> i & 1) << k;
             }
             kept |= RaySet::from(met & clear) << shift;
@@ -233,11 +249,31 @@ impl RayList {
     }
 
     /// The cell of ray `k`, as `(column, row)`.
-    #[cfg(test)]
-    pub(crate) fn cell(&self, k: usize) -> (u8, u8) {
-        self.cells[k]
+    #[inline(always)]
+    fn cell(&self, k: usize) -> (u8, u8) {
+        (self.columns[k], self.rows[k])
     }
 }
+
+/// Per byte value, the positions of its set bits, lowest first, one per
+/// byte of the entry.
+const BYTE_COLUMNS: [u64; 256] = {
+    let mut table = [0; 256];
+    let mut value = 0;
+    while value < 256 {
+        let (mut entry, mut count, mut bit) = (0u64, 0, 0);
+        while bit < 8 {
+            if value >> bit & 1 == 1 {
+                entry |= (bit as u64) << (8 * count);
+                count += 1;
+            }
+            bit += 1;
+        }
+        table[value] = entry;
+        value += 1;
+    }
+    table
+};
 
 /// At most [`PATH_CAPACITY`] rays of a [`RayList`], packed: those meeting a
 /// cluster, which its spans and triangles test (`chunk_loop` in chunk.rs).
@@ -269,7 +305,7 @@ impl PathRays {
             for axis in 0..3 {
                 to[axis][len % 4] = from[axis][k % 4];
             }
-            self.cells[len] = list.cells[k];
+            self.cells[len] = list.cell(k);
             len += 1;
         }
         self.len = len;
@@ -384,24 +420,24 @@ mod tests {
             });
             let lanes = RayLanes {
                 inverse: [
-                    Vec4::new(
+                    [
                         rays[0].inverse.x,
                         rays[1].inverse.x,
                         rays[2].inverse.x,
                         rays[3].inverse.x,
-                    ),
-                    Vec4::new(
+                    ],
+                    [
                         rays[0].inverse.y,
                         rays[1].inverse.y,
                         rays[2].inverse.y,
                         rays[3].inverse.y,
-                    ),
-                    Vec4::new(
+                    ],
+                    [
                         rays[0].inverse.z,
                         rays[1].inverse.z,
                         rays[2].inverse.z,
                         rays[3].inverse.z,
-                    ),
+                    ],
                 ],
             };
             let padded = random_box(&mut rng);
