@@ -147,22 +147,35 @@ pub(super) fn chunk_loop<M: ConeMask>(
     let (mut skipped, mut below) = (0u32, 0u32);
     // Per batch entry, the cells its span's box meets (cell path only).
     let mut picks = [0u32; CHUNK];
-    for (t, &corners) in clusters.corners[triangles].iter().enumerate() {
-        let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
-        let (inner, outer) = (&projected.inner, &projected.outer);
-        let taken = select.takes(
-            [inner[ia], inner[ib], inner[ic]],
-            [outer[ia], outer[ib], outer[ic]],
-        );
-        let above = projected.above[ia] | projected.above[ib] | projected.above[ic];
-        // Triangles of spans no listed ray meets are left out uncounted, as
-        // those of a skipped cluster are.
-        let wanted = cells.is_none() || span_cells[t / SPAN] != 0;
-        batch[batched] = corners;
-        picks[batched] = span_cells[t / SPAN];
-        batched += usize::from(taken & above & wanted);
-        skipped += u32::from(!taken & wanted);
-        below += u32::from(taken & !above & wanted);
+    let chunk_corners = &clusters.corners[triangles];
+    // Only the spans a listed ray meets: the triangles of the others are
+    // left out uncounted, as those of a skipped cluster are.
+    let mut spans = match cells {
+        Some(_) => span_cells
+            .iter()
+            .enumerate()
+            .fold(0u32, |spans, (s, &met)| spans | u32::from(met != 0) << s),
+        None => (1u32 << chunk_corners.len().div_ceil(SPAN)) - 1,
+    };
+    while spans != 0 {
+        let span = spans.trailing_zeros() as usize;
+        spans &= spans - 1;
+        let first = span * SPAN;
+        let run = &chunk_corners[first..(first + SPAN).min(chunk_corners.len())];
+        for &corners in run {
+            let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
+            let (inner, outer) = (&projected.inner, &projected.outer);
+            let taken = select.takes(
+                [inner[ia], inner[ib], inner[ic]],
+                [outer[ia], outer[ib], outer[ic]],
+            );
+            let above = projected.above[ia] | projected.above[ib] | projected.above[ic];
+            batch[batched] = corners;
+            picks[batched] = span_cells[span];
+            batched += usize::from(taken & above);
+            skipped += u32::from(!taken);
+            below += u32::from(taken & !above);
+        }
     }
     acc.counts.skipped += skipped;
     acc.counts.below_horizon += below;
