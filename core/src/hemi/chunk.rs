@@ -451,7 +451,13 @@ fn classify_batch<M: ConeMask>(
             );
             // Every cell the cone can set is in its box: when the box is
             // already occluded, ORing the cone in changes nothing.
-            if !acc.mask.box_is_full(cells) {
+            if acc.mask.box_is_full(cells) {
+                continue;
+            }
+            // Normals of ordinary scale: the lane's own, computed already.
+            if verdicts.scale_free >> k & 1 == 1 {
+                TriangleCone::or_planes_in_box(verdicts.lane_normals(k), cells, &mut acc.mask);
+            } else {
                 TriangleCone::or_exact_in_box(local(k), cells, &mut acc.mask);
             }
         }

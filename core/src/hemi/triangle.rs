@@ -196,11 +196,22 @@ impl TriangleCone {
         } else {
             [ab, bc, ca]
         };
-        let planes = [
-            PlaneRow::new(normalize_exponent(normals[0])),
-            PlaneRow::new(normalize_exponent(normals[1])),
-            PlaneRow::new(normalize_exponent(normals[2])),
-        ];
+        let normals = normals.map(normalize_exponent);
+        Self::or_planes_in_box(normals, (i0, i1, j0, j1), mask);
+    }
+
+    /// The cells of the inclusive box `(i0, i1, j0, j1)` on the inner side
+    /// of the three planes through the center of projection with normals
+    /// `normals` ORed into `mask`: [`TriangleCone::or_exact_in_box`]'s
+    /// evaluation, for a cone whose box is known and whose (scaled, or
+    /// scale-free: [`FourVerdicts::scale_free`]) normals are at hand.
+    #[inline(always)]
+    pub(crate) fn or_planes_in_box(
+        normals: [Vec3; 3],
+        (i0, i1, j0, j1): (usize, usize, usize, usize),
+        mask: &mut HemiMask,
+    ) {
+        let planes = normals.map(PlaneRow::new);
         if i1 < i0 + 4 && j1 <= j0 + 1 {
             let columns = HemiMask::columns(i0, i1);
             let bits =
@@ -210,12 +221,7 @@ impl TriangleCone {
             mask.rows[j1] |= (bits(j1) << i0) & columns & HemiMask::VALID.rows[j1];
             return;
         }
-        let cone = TriangleCone {
-            corners: [a, b, c],
-            normals: [planes[0].m, planes[1].m, planes[2].m],
-            det_abs: det.abs(),
-        };
-        cone.or_in_proven_box((i0, i1 + 1, j0, j1 + 1), mask);
+        or_planes_in_proven_box(&planes, (i0, i1 + 1, j0, j1 + 1), mask);
     }
 
     /// The corners as given.
@@ -428,18 +434,11 @@ impl TriangleCone {
         (i0, i_end, j0, j_end): (usize, usize, usize, usize),
         mask: &mut HemiMask,
     ) {
-        let columns = ((1u64 << i_end).wrapping_sub(1u64 << i0)) as u32;
-        let planes = self.normals.map(PlaneRow::new);
-        for j in j0..j_end {
-            let mut row = 0;
-            let mut i = i0;
-            while i < i_end {
-                let bits = planes[0].bits(i, j) & planes[1].bits(i, j) & planes[2].bits(i, j);
-                row |= bits << i;
-                i += 4;
-            }
-            mask.rows[j] |= row & columns & HemiMask::VALID.rows[j];
-        }
+        or_planes_in_proven_box(
+            &self.normals.map(PlaneRow::new),
+            (i0, i_end, j0, j_end),
+            mask,
+        );
     }
 
     /// [`TriangleCone::mask_exact_general`] ORed into `mask`, its box
@@ -783,6 +782,21 @@ pub(crate) struct FourVerdicts {
     /// meaningful for `small` lanes, before masking with the box and
     /// [`HemiMask::VALID`].
     pub(crate) window: [[u32; 2]; 4],
+    /// Lanes whose normals need no power-of-two scaling
+    /// ([`ConesFour::scale_free`]): the predicate on `normals` is the exact
+    /// mask's, bit for bit.
+    pub(crate) scale_free: u32,
+    /// The inward edge normals `a×b`, `b×c`, `c×a` of [`ConesFour`]:
+    /// `[plane][axis][lane]`.
+    pub(crate) normals: [[[f32; 4]; 3]; 3],
+}
+
+impl FourVerdicts {
+    /// Lane `k`'s three inward edge normals.
+    #[inline(always)]
+    pub(crate) fn lane_normals(&self, k: usize) -> [Vec3; 3] {
+        self.normals.map(|[x, y, z]| Vec3::new(x[k], y[k], z[k]))
+    }
 }
 
 /// Four triangles' cones as [`RawCone::new`] culls them and orients their
@@ -972,6 +986,8 @@ pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> Fo
         cells: [first_u, last_u, first_v, last_v],
         small,
         window,
+        scale_free: cones.scale_free,
+        normals: cones.normals.map(|m| m.map(|c| c.to_array())),
     }
 }
 
@@ -1262,6 +1278,26 @@ fn zenith_outside(ab: Vec4, bc: Vec4, ca: Vec4) -> BVec4A {
 fn below_every_cell(p: [Vec4; 3], q: [Vec4; 3], cosines: Vec4, slack: f32) -> bool {
     let (low, gz) = arc_below_cells(p, q, cosines, Vec4::splat(slack));
     low.all() && zenith_outside(gz.xxxx(), gz.yyyy(), gz.zzzz()).all()
+}
+
+/// [`TriangleCone::or_in_proven_box`] on the planes `planes`.
+#[inline(always)]
+fn or_planes_in_proven_box(
+    planes: &[PlaneRow; 3],
+    (i0, i_end, j0, j_end): (usize, usize, usize, usize),
+    mask: &mut HemiMask,
+) {
+    let columns = ((1u64 << i_end).wrapping_sub(1u64 << i0)) as u32;
+    for j in j0..j_end {
+        let mut row = 0;
+        let mut i = i0;
+        while i < i_end {
+            let bits = planes[0].bits(i, j) & planes[1].bits(i, j) & planes[2].bits(i, j);
+            row |= bits << i;
+            i += 4;
+        }
+        mask.rows[j] |= row & columns & HemiMask::VALID.rows[j];
+    }
 }
 
 /// One plane's predicate on four neighbouring cells of a row at once.
@@ -1830,6 +1866,15 @@ mod proven_box_tests {
                     lj[k] as usize,
                 );
                 TriangleCone::or_exact_in_box(triangles[k], cells, &mut mask);
+                if v.scale_free >> k & 1 == 1 {
+                    // The lane's own normals give the same bits.
+                    let mut planes = HemiMask::EMPTY;
+                    TriangleCone::or_planes_in_box(v.lane_normals(k), cells, &mut planes);
+                    assert_eq!(planes, mask, "lane {k}");
+                    if v.small >> k & 1 == 0 {
+                        LARGE_LANES.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+                    }
+                }
                 if v.small >> k & 1 == 1 {
                     // The window's bits, masked to the box, are the same.
                     let (i0, i1, j0, j1) = cells;
@@ -1981,6 +2026,29 @@ mod proven_box_tests {
         }
         let taken = SMALL_LANES.load(core::sync::atomic::Ordering::Relaxed) - before;
         assert!(taken >= 4 * 60, "{taken} small lanes");
+    }
+
+    /// Lanes whose box was larger than the window and whose own normals
+    /// were checked in `through_four`.
+    static LARGE_LANES: core::sync::atomic::AtomicUsize = core::sync::atomic::AtomicUsize::new(0);
+
+    #[test]
+    fn four_at_once_boxes_larger_than_the_window_take_the_lanes_normals() {
+        // Triangles about 0.3 rad across around every tenth cell center: boxes
+        // of several cells each way.
+        let before = LARGE_LANES.load(core::sync::atomic::Ordering::Relaxed);
+        for k in (0..VALID_CELL_COUNT as usize).step_by(10) {
+            let c = cell_dir(k, Vec3::new(0.004, 0.003, 0.0)) * 3.0;
+            let (e1, e2) = c.normalize().any_orthonormal_pair();
+            let s = 0.3;
+            let t = [c + e1 * s, c + e2 * s, c - (e1 + e2) * s];
+            let cone = TriangleCone::new(t[0], t[1], t[2], false).unwrap();
+            for got in through_four([t; 4], false) {
+                assert_eq!(got, Ok(Some(cone.mask_reference())), "cell {k}");
+            }
+        }
+        let taken = LARGE_LANES.load(core::sync::atomic::Ordering::Relaxed) - before;
+        assert!(taken >= 4 * 60, "{taken} large lanes");
     }
 
     #[test]
