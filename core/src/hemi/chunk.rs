@@ -54,21 +54,36 @@ pub(super) struct CellPath<'c> {
 pub(super) struct Projected {
     /// `(x, y, z, 0)`.
     local: [Vec4; CHUNK_VERTICES],
-    /// Not local `z <= 0`.
-    above: [bool; CHUNK_VERTICES],
-    /// Within the pass's inner radius.
-    inner: [bool; CHUNK_VERTICES],
-    /// Within the pass's outer radius.
-    outer: [bool; CHUNK_VERTICES],
+    /// [`ABOVE`], [`INNER`] and [`OUTER`]: one byte per vertex, so that a
+    /// triangle's three are ORed at once.
+    flags: [u8; CHUNK_VERTICES],
 }
+
+/// Not local `z <= 0`.
+const ABOVE: u8 = 1;
+/// Within the pass's inner radius.
+const INNER: u8 = 2;
+/// Within the pass's outer radius.
+const OUTER: u8 = 4;
 
 impl Projected {
     pub(super) const EMPTY: Projected = Projected {
         local: [Vec4::ZERO; CHUNK_VERTICES],
-        above: [false; CHUNK_VERTICES],
-        inner: [false; CHUNK_VERTICES],
-        outer: [false; CHUNK_VERTICES],
+        flags: [0; CHUNK_VERTICES],
     };
+
+    /// The flags of any of the corners `[a, b, c]`.
+    #[inline(always)]
+    fn any([a, b, c]: [u8; 3], flags: &[u8; CHUNK_VERTICES]) -> u8 {
+        flags[usize::from(a)] | flags[usize::from(b)] | flags[usize::from(c)]
+    }
+}
+
+/// Bit `k` of the low four bits of `bits` moved to bit `8 k`: the four
+/// shifted copies of the multiplication do not overlap, so nothing carries.
+#[inline(always)]
+fn bits_to_bytes(bits: u32) -> u32 {
+    (bits * 0x0020_4081) & 0x0101_0101
 }
 
 /// The triangles of one chunk: its vertices moved into the receiver's frame
@@ -128,15 +143,11 @@ pub(super) fn chunk_loop<M: ConeMask>(
         // A vertex at (nearly) the center of projection or extremely far:
         // one triangle at a time.
         for &corners in &clusters.corners[triangles] {
-            let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
-            let (inner, outer) = (&projected.inner, &projected.outer);
-            let taken = select.takes(
-                [inner[ia], inner[ib], inner[ic]],
-                [outer[ia], outer[ib], outer[ic]],
-            );
+            let any = Projected::any(corners, &projected.flags);
+            let taken = select.takes(any & INNER != 0, any & OUTER != 0);
             if !taken {
                 acc.counts.skipped += 1;
-            } else if !(projected.above[ia] | projected.above[ib] | projected.above[ic]) {
+            } else if any & ABOVE == 0 {
                 acc.counts.below_horizon += 1;
             } else {
                 one_triangle(projected, corners, acc, pass);
@@ -163,13 +174,9 @@ pub(super) fn chunk_loop<M: ConeMask>(
         let first = span * SPAN;
         let run = &chunk_corners[first..(first + SPAN).min(chunk_corners.len())];
         for &corners in run {
-            let [ia, ib, ic] = [corners[0], corners[1], corners[2]].map(usize::from);
-            let (inner, outer) = (&projected.inner, &projected.outer);
-            let taken = select.takes(
-                [inner[ia], inner[ib], inner[ic]],
-                [outer[ia], outer[ib], outer[ic]],
-            );
-            let above = projected.above[ia] | projected.above[ib] | projected.above[ic];
+            let any = Projected::any(corners, &projected.flags);
+            let taken = select.takes(any & INNER != 0, any & OUTER != 0);
+            let above = any & ABOVE != 0;
             batch[batched] = corners;
             picks[batched] = span_cells[span];
             batched += usize::from(taken & above);
@@ -519,10 +526,11 @@ fn project_chunk<M: ConeMask>(
         };
         for k in 0..4 {
             projected.local[g + k] = local.col(k);
-            projected.above[g + k] = above >> k & 1 == 1;
-            projected.inner[g + k] = inner >> k & 1 == 1;
-            projected.outer[g + k] = outer >> k & 1 == 1;
         }
+        let flags = (bits_to_bytes(above) * u32::from(ABOVE))
+            | (bits_to_bytes(inner) * u32::from(INNER))
+            | (bits_to_bytes(outer) * u32::from(OUTER));
+        projected.flags[g..g + 4].copy_from_slice(&flags.to_le_bytes());
         g += 4;
     }
     in_range
@@ -560,7 +568,7 @@ pub(super) fn take<M: ConeMask>(
         view.position(i2 as usize),
     );
     let ((ia, oa), (ib, ob), (ic, oc)) = (pass.within(a), pass.within(b), pass.within(c));
-    let taken = select.takes([ia, ib, ic], [oa, ob, oc]);
+    let taken = select.takes(ia | ib | ic, oa | ob | oc);
     if taken {
         let m = pass.cone_mask;
         acc.add(a, b, c, pass.cull, |a, b, c, cull, mask| {
@@ -662,6 +670,16 @@ mod tests {
                 let a = scene_mask_with_counts(&plain, p, n, &options).0;
                 let b = scene_mask_with_counts(&fast, p, n, &options).0;
                 assert_eq!(a, b, "shift {shift} vertex {v}");
+            }
+        }
+    }
+
+    #[test]
+    fn four_bits_spread_to_four_bytes() {
+        for bits in 0..16u32 {
+            let bytes = bits_to_bytes(bits).to_le_bytes();
+            for (k, &byte) in bytes.iter().enumerate() {
+                assert_eq!(u32::from(byte), bits >> k & 1, "bits {bits:04b} byte {k}");
             }
         }
     }

@@ -162,12 +162,10 @@ pub(super) enum Select {
 }
 
 impl Select {
-    /// Whether a triangle is taken, from its corners' flags: within the inner
-    /// radius, within the outer one.
+    /// Whether a triangle is taken, from whether any corner is within the
+    /// inner radius, and any within the outer one.
     #[inline(always)]
-    pub(super) fn takes(self, inner: [bool; 3], outer: [bool; 3]) -> bool {
-        let any_inner = inner[0] | inner[1] | inner[2];
-        let any_outer = outer[0] | outer[1] | outer[2];
+    pub(super) fn takes(self, any_inner: bool, any_outer: bool) -> bool {
         match self {
             Select::All => true,
             Select::Near => any_outer,
