@@ -21,7 +21,7 @@ use glam::{Vec3, Vec3A, Vec4};
 use super::clusters::Aabb;
 #[cfg(test)]
 use super::mask::CELL_COORD;
-use super::mask::{GRID, HemiMask};
+use super::mask::HemiMask;
 use super::rays::{LIST_CAPACITY, OpenCells};
 use crate::geom::{Frame, sqrt4};
 
@@ -139,26 +139,37 @@ impl BoxCells {
         }
     }
 
-    /// The cells triangles in the box can still set in `mask`, when there
-    /// are at most `N` (reached as `BoxCells::can_add_to` bounds them, so
-    /// a few more than `BoxCells::reaches` may be listed, valid and clear);
-    /// `None` when there are more, or the box is close enough to reach any
-    /// cell. Few cells are cheaper to test one by one against the box's
-    /// triangles than the triangles are to rasterize.
-    #[inline(always)]
+    /// [`BoxCells::open_cells_into`] as a value, for tests.
+    #[cfg(test)]
     pub(crate) fn open_cells<const N: usize>(self, mask: &HemiMask) -> Option<OpenCells> {
+        let mut open = OpenCells::NONE;
+        self.open_cells_into::<N>(mask, &mut open).then_some(open)
+    }
+
+    /// Writes into `open` (whatever it held) the cells triangles in the box
+    /// can still set in `mask`, and returns true, when there are at most `N`
+    /// (reached as `BoxCells::can_add_to` bounds them, so a few more than
+    /// `BoxCells::reaches` may be listed, valid and clear); false when there
+    /// are more, or the box is close enough to reach any cell. Few cells are
+    /// cheaper to test one by one against the box's triangles than the
+    /// triangles are to rasterize. Written in place: the rows are not
+    /// copied.
+    #[inline(always)]
+    pub(crate) fn open_cells_into<const N: usize>(
+        self,
+        mask: &HemiMask,
+        open: &mut OpenCells,
+    ) -> bool {
         const { assert!(N <= LIST_CAPACITY) };
         let BoxCells::Cells {
             rect: (i0, i1, j0, j1),
             ring,
         } = self
         else {
-            return (self == BoxCells::None).then_some(OpenCells::NONE);
+            open.rows = OpenCells::NONE.rows;
+            return self == BoxCells::None;
         };
-        let mut open = OpenCells {
-            bits: [0; GRID],
-            rows: (j0, j1),
-        };
+        open.rows = (j0, j1);
         let rect = HemiMask::columns(i0, i1);
         let band = RingBand::new(ring);
         let mut count = 0;
@@ -167,16 +178,17 @@ impl BoxCells {
         for j in j0..=j1 {
             let clear = rect & HemiMask::VALID.rows[j] & !mask.rows[j];
             if clear == 0 {
+                open.bits[j] = 0;
                 continue;
             }
             let row = clear & band.row(j);
             open.bits[j] = row;
             count += row.count_ones() as usize;
             if count > N {
-                return None;
+                return false;
             }
         }
-        Some(open)
+        true
     }
 
     /// Whether triangles in the box can still set a cell of `mask`: a valid

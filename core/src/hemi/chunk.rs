@@ -231,7 +231,7 @@ fn gather_four(
 }
 
 /// [`classify_batch`] for triangles that can only set `cells` (exact quality;
-/// [`BoxCells::open_cells`](super::box_cells::BoxCells::open_cells)): the three edge planes of four triangles at a
+/// [`BoxCells::open_cells_into`](super::box_cells::BoxCells::open_cells_into)): the three edge planes of four triangles at a
 /// time ([`ConesFour`]) tested on each of those cells still clear. The same
 /// predicate as the exact mask on the same `f32` values, so the same bits;
 /// the same culling and counts.

@@ -49,7 +49,7 @@ impl RayLanes {
     };
 
     /// Bit `k` set when ray `k` meets `padded` (all four lanes): lane by
-    /// lane the expressions of [`RayCell::meets`]. Vec3's `min` and `max`
+    /// lane the expressions of `RayCell::meets` (the test twin). Vec3's `min` and `max`
     /// take their second operand unless the first compares smaller (larger),
     /// as the vector instructions do, so a NaN lane gives the same verdict.
     #[inline(always)]
@@ -111,7 +111,7 @@ pub(crate) fn ray_pad(bounds: &Aabb, origin: Vec3) -> f32 {
 const RAY_SLACK: f32 = 1e-3;
 
 /// At most [`LIST_CAPACITY`] clear cells of the grid, by rows: what a node
-/// lists ([`BoxCells::open_cells`](super::box_cells::BoxCells::open_cells)).
+/// lists ([`BoxCells::open_cells_into`](super::box_cells::BoxCells::open_cells_into)).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct OpenCells {
     /// Bit `i` of row `j` for cell `(i, j)`; rows outside `rows` are not read.

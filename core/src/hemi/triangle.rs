@@ -786,16 +786,23 @@ pub(crate) struct FourVerdicts {
     /// ([`ConesFour::scale_free`]): the predicate on `normals` is the exact
     /// mask's, bit for bit.
     pub(crate) scale_free: u32,
-    /// The inward edge normals `a×b`, `b×c`, `c×a` of [`ConesFour`]:
-    /// `[plane][axis][lane]`.
-    pub(crate) normals: [[[f32; 4]; 3]; 3],
+    /// The inward edge normals `a×b`, `b×c`, `c×a` of [`ConesFour`], x, y
+    /// and z lanes.
+    pub(crate) normals: [[Vec4; 3]; 3],
 }
 
 impl FourVerdicts {
     /// Lane `k`'s three inward edge normals.
     #[inline(always)]
     pub(crate) fn lane_normals(&self, k: usize) -> [Vec3; 3] {
-        self.normals.map(|[x, y, z]| Vec3::new(x[k], y[k], z[k]))
+        // Written out: `array::map` is not reliably inlined here.
+        let lane =
+            |[x, y, z]: [Vec4; 3]| Vec3::new(x.to_array()[k], y.to_array()[k], z.to_array()[k]);
+        [
+            lane(self.normals[0]),
+            lane(self.normals[1]),
+            lane(self.normals[2]),
+        ]
     }
 }
 
@@ -987,7 +994,7 @@ pub(crate) fn classify_four(corners: [[Vec4; 3]; 3], cull_backfaces: bool) -> Fo
         small,
         window,
         scale_free: cones.scale_free,
-        normals: cones.normals.map(|m| m.map(|c| c.to_array())),
+        normals: cones.normals,
     }
 }
 

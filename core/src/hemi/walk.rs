@@ -42,7 +42,9 @@ use super::chunk::{CellPath, Projected, chunk_loop, take};
 use super::clusters::{Aabb, ClusteredMesh, GROUP};
 use super::cone_mask::ConeMask;
 use super::lod::{Pass, Select};
-use super::rays::{LIST_CAPACITY, PATH_CAPACITY, PaddedBox, PathRays, RayList, RaySet, ray_pad};
+use super::rays::{
+    LIST_CAPACITY, OpenCells, PATH_CAPACITY, PaddedBox, PathRays, RayList, RaySet, ray_pad,
+};
 
 /// Adds the triangles of `mesh` that `select` takes, cluster by cluster when there
 /// are clusters.
@@ -72,6 +74,7 @@ pub(super) fn mesh_loop<M: ConeMask>(
     let Walk {
         stack,
         inherited,
+        open,
         list,
         path,
     } = walk;
@@ -112,8 +115,8 @@ pub(super) fn mesh_loop<M: ConeMask>(
                 // A few open cells in reach: those whose rays meet the box.
                 // Many: every triangle is looked at.
                 let reach = BoxCells::of(bounds, &acc.frame, o);
-                reach.open_cells::<LISTED>(&acc.mask).map(|cells| {
-                    let all = list.set_from(&cells, &acc.frame);
+                reach.open_cells_into::<LISTED>(&acc.mask, open).then(|| {
+                    let all = list.set_from(open, &acc.frame);
                     list.meet(all, &padded, &acc.mask)
                 })
             };
@@ -157,7 +160,7 @@ pub(super) fn mesh_loop<M: ConeMask>(
 }
 
 /// The most open cells a node may reach for them to be listed and tested
-/// ray by ray against its box ([`BoxCells::open_cells`], [`RayList`]) and
+/// ray by ray against its box ([`BoxCells::open_cells_into`], [`RayList`]) and
 /// then its children's: 128 is 4–9 % faster than 64 on meshes of 10k–90k
 /// triangles and as fast on the bunny (256 is slower there), with far
 /// levels or without (the walk keeps one list, so its state stays small).
@@ -186,6 +189,8 @@ pub(super) struct Walk {
     /// that level on the stack, clear then (depth first, those nodes share
     /// one parent): a child's rays are among them.
     inherited: [RaySet; MAX_LEVELS],
+    /// The open cells of the node visited, when listed afresh.
+    open: OpenCells,
     /// The cells listed by the node nearest the root on the path to the
     /// node visited, when it inherits: the only list a walk needs (see
     /// rays.rs).
@@ -203,6 +208,7 @@ impl Walk {
             inherits: false,
         }; STACK],
         inherited: [0; MAX_LEVELS],
+        open: OpenCells::NONE,
         list: RayList::EMPTY,
         path: PathRays::EMPTY,
     };
