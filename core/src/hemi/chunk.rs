@@ -48,6 +48,9 @@ pub(super) struct CellPath<'c> {
     pub(super) pad: f32,
 }
 
+/// A chunk's spans as the bits of a `u32` (`chunk_loop`).
+const _: () = assert!(CHUNK_SPANS < 32);
+
 /// One chunk's vertices moved into the receiver's frame: local positions and
 /// flags, indexed by position in the chunk's list.
 /// On the stack, reused from chunk to chunk.

@@ -185,7 +185,8 @@ impl RayList {
         let (tx, ty, tz) = splat(frame.tangent);
         let (bx, by, bz) = splat(frame.bitangent);
         let (nx, ny, nz) = splat(frame.normal);
-        // Lanes past the end hold earlier cells (valid ones): never in a set.
+        // Lanes past the end hold cells of earlier lists, or the empty list's
+        // (0, 0): inside the grid, and never in a set.
         for (lane, lanes) in self.lanes[..len.div_ceil(4)].iter_mut().enumerate() {
             let cell = |k: usize| {
                 let (i, j) = (4 * lane + k, 4 * lane + k);
