@@ -351,20 +351,9 @@ fn centered_columns(c: u8) -> u32 {
 mod tests {
     use super::*;
     use crate::hemi::rays::{PaddedBox, RayCell, ray_pad};
+    use crate::hemi::test_meshes::Rng;
     use crate::hemi::{Receiver, TriangleCone};
     use alloc::vec::Vec;
-
-    /// A small deterministic generator (xorshift), in `[0, 1)`.
-    struct Rng(u64);
-
-    impl Rng {
-        fn next(&mut self) -> f32 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-    }
 
     /// The slow twin: every cell an exact cone of a triangle inside the box
     /// sets lies in the box's rectangle (and none when the box reaches none).

@@ -370,19 +370,8 @@ impl RayCell {
 mod tests {
     use super::*;
     use crate::hemi::Receiver;
+    use crate::hemi::test_meshes::Rng;
     use alloc::vec::Vec;
-
-    /// A small deterministic generator (xorshift), in `[0, 1)`.
-    struct Rng(u64);
-
-    impl Rng {
-        fn next(&mut self) -> f32 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-    }
 
     /// A box with corners in `[-2, 2]`, some of them on the origin's planes.
     fn random_box(rng: &mut Rng) -> PaddedBox {
@@ -420,26 +409,9 @@ mod tests {
                 .recip(),
             });
             let lanes = RayLanes {
-                inverse: [
-                    [
-                        rays[0].inverse.x,
-                        rays[1].inverse.x,
-                        rays[2].inverse.x,
-                        rays[3].inverse.x,
-                    ],
-                    [
-                        rays[0].inverse.y,
-                        rays[1].inverse.y,
-                        rays[2].inverse.y,
-                        rays[3].inverse.y,
-                    ],
-                    [
-                        rays[0].inverse.z,
-                        rays[1].inverse.z,
-                        rays[2].inverse.z,
-                        rays[3].inverse.z,
-                    ],
-                ],
+                inverse: core::array::from_fn(|axis| {
+                    core::array::from_fn(|k| rays[k].inverse[axis])
+                }),
             };
             let padded = random_box(&mut rng);
             let bits = lanes.meet(&padded);

@@ -34,3 +34,15 @@ pub(super) fn normals_of(mesh: &MeshView<'_>) -> Vec<Vec3> {
     vertex_normals(mesh, &mut normals).unwrap();
     normals
 }
+
+/// A small deterministic generator (xorshift), in `[0, 1)`.
+pub(super) struct Rng(pub(super) u64);
+
+impl Rng {
+    pub(super) fn next(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+}

@@ -2017,44 +2017,36 @@ mod proven_box_tests {
     /// was exercised.
     static SMALL_LANES: core::sync::atomic::AtomicUsize = core::sync::atomic::AtomicUsize::new(0);
 
-    #[test]
-    fn four_at_once_takes_the_window_for_small_boxes() {
-        // Triangles about 0.05 rad across around every tenth cell center.
-        let before = SMALL_LANES.load(core::sync::atomic::Ordering::Relaxed);
-        for k in (0..VALID_CELL_COUNT as usize).step_by(10) {
-            let c = cell_dir(k, Vec3::new(0.004, 0.003, 0.0)) * 3.0;
-            let (e1, e2) = c.normalize().any_orthonormal_pair();
-            let s = 0.05;
-            let t = [c + e1 * s, c + e2 * s, c - (e1 + e2) * s];
-            let cone = TriangleCone::new(t[0], t[1], t[2], false).unwrap();
-            for got in through_four([t; 4], false) {
-                assert_eq!(got, Ok(Some(cone.mask_reference())), "cell {k}");
-            }
-        }
-        let taken = SMALL_LANES.load(core::sync::atomic::Ordering::Relaxed) - before;
-        assert!(taken >= 4 * 60, "{taken} small lanes");
-    }
-
     /// Lanes whose box was larger than the window and whose own normals
     /// were checked in `through_four`.
     static LARGE_LANES: core::sync::atomic::AtomicUsize = core::sync::atomic::AtomicUsize::new(0);
 
-    #[test]
-    fn four_at_once_boxes_larger_than_the_window_take_the_lanes_normals() {
-        // Triangles about 0.3 rad across around every tenth cell center: boxes
-        // of several cells each way.
-        let before = LARGE_LANES.load(core::sync::atomic::Ordering::Relaxed);
+    /// Triangles `size` rad across around every tenth cell center, four at
+    /// once, against the per-cell reference; returns how much `lanes` grew.
+    fn around_every_tenth_cell(size: f32, lanes: &core::sync::atomic::AtomicUsize) -> usize {
+        let before = lanes.load(core::sync::atomic::Ordering::Relaxed);
         for k in (0..VALID_CELL_COUNT as usize).step_by(10) {
             let c = cell_dir(k, Vec3::new(0.004, 0.003, 0.0)) * 3.0;
             let (e1, e2) = c.normalize().any_orthonormal_pair();
-            let s = 0.3;
-            let t = [c + e1 * s, c + e2 * s, c - (e1 + e2) * s];
+            let t = [c + e1 * size, c + e2 * size, c - (e1 + e2) * size];
             let cone = TriangleCone::new(t[0], t[1], t[2], false).unwrap();
             for got in through_four([t; 4], false) {
                 assert_eq!(got, Ok(Some(cone.mask_reference())), "cell {k}");
             }
         }
-        let taken = LARGE_LANES.load(core::sync::atomic::Ordering::Relaxed) - before;
+        lanes.load(core::sync::atomic::Ordering::Relaxed) - before
+    }
+
+    #[test]
+    fn four_at_once_takes_the_window_for_small_boxes() {
+        let taken = around_every_tenth_cell(0.05, &SMALL_LANES);
+        assert!(taken >= 4 * 60, "{taken} small lanes");
+    }
+
+    #[test]
+    fn four_at_once_boxes_larger_than_the_window_take_the_lanes_normals() {
+        // Boxes of several cells each way.
+        let taken = around_every_tenth_cell(0.3, &LARGE_LANES);
         assert!(taken >= 4 * 60, "{taken} large lanes");
     }
 
