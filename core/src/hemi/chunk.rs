@@ -116,20 +116,25 @@ pub(super) fn chunk_loop<M: ConeMask>(
     // On the cell path, the cells whose rays meet each span's box: a span
     // that none meets holds no triangle that can set one of them.
     let mut span_cells = [0u32; CHUNK_SPANS];
+    // The spans whose triangles are read: on the cell path those a ray
+    // meets (the triangles of the others are left out uncounted, as those of
+    // a skipped cluster are), else all.
+    let chunk_corners = &clusters.corners[chunk.triangle_range()];
+    let mut spans = (1u32 << chunk_corners.len().div_ceil(SPAN)) - 1;
     if let Some(path) = &cells {
-        let spans = &clusters.spans[chunk.span_range()];
-        let mut any = 0;
+        let boxes = &clusters.spans[chunk.span_range()];
         // Four rays at a time against each span.
         let (lanes, all) = (path.rays.lanes(), path.rays.all());
-        for (met, bounds) in span_cells.iter_mut().zip(spans) {
+        spans = 0;
+        for (s, (met, bounds)) in span_cells.iter_mut().zip(boxes).enumerate() {
             let padded = PaddedBox::new(bounds, path.origin, path.pad);
             for (g, lane) in lanes.iter().enumerate() {
                 *met |= lane.meet(&padded) << (4 * g);
             }
             *met &= all;
-            any |= *met;
+            spans |= u32::from(*met != 0) << s;
         }
-        if any == 0 {
+        if spans == 0 {
             return;
         }
     }
@@ -141,11 +146,10 @@ pub(super) fn chunk_loop<M: ConeMask>(
     // to the batch, and the count moves only for those kept.
     let mut batch = [[0u8; 3]; CHUNK];
     let mut batched = 0;
-    let triangles = chunk.triangle_range();
     if !all_in_range {
         // A vertex at (nearly) the center of projection or extremely far:
         // one triangle at a time.
-        for &corners in &clusters.corners[triangles] {
+        for &corners in chunk_corners {
             let any = Projected::any(corners, &projected.flags);
             let taken = select.takes(any & INNER != 0, any & OUTER != 0);
             if !taken {
@@ -161,16 +165,6 @@ pub(super) fn chunk_loop<M: ConeMask>(
     let (mut skipped, mut below) = (0u32, 0u32);
     // Per batch entry, the cells its span's box meets (cell path only).
     let mut picks = [0u32; CHUNK];
-    let chunk_corners = &clusters.corners[triangles];
-    // Only the spans a listed ray meets: the triangles of the others are
-    // left out uncounted, as those of a skipped cluster are.
-    let mut spans = match cells {
-        Some(_) => span_cells
-            .iter()
-            .enumerate()
-            .fold(0u32, |spans, (s, &met)| spans | u32::from(met != 0) << s),
-        None => (1u32 << chunk_corners.len().div_ceil(SPAN)) - 1,
-    };
     while spans != 0 {
         let span = spans.trailing_zeros() as usize;
         spans &= spans - 1;
