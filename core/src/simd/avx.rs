@@ -785,12 +785,82 @@ pub(crate) fn silhouette_planes8(
     out
 }
 
+/// One silhouette edge's per-sample crossing test per lane (the same edge in
+/// every lane for [`crossings8`], eight edges for [`crossings_lanes8`]): the
+/// `f32` planes, their bounds and the sign flip that makes the wanted side
+/// positive, as [`SweepPlanes8`] holds them.
+#[derive(Clone, Copy)]
+struct CrossingTest8 {
+    planes: [[__m256; 3]; 3],
+    det: __m256,
+    det_abs: __m256,
+    errs: [__m256; 4],
+    neg: [__m256; 3],
+    flip: __m256,
+}
+
+impl CrossingTest8 {
+    #[target_feature(enable = "avx")]
+    #[inline]
+    fn new(planes: [[__m256; 3]; 3], det: __m256, errs: [__m256; 4], flip: __m256) -> Self {
+        let zero = _mm256_setzero_ps();
+        CrossingTest8 {
+            planes,
+            det,
+            det_abs: abs8(det),
+            errs,
+            neg: [0, 1, 2].map(|k| _mm256_sub_ps(zero, errs[k])),
+            flip,
+        }
+    }
+
+    /// Which lanes' samples `s` (relative to the receiver) are certainly
+    /// crossed, and which certainly not: each sign is taken only beyond its
+    /// bound, the sum's with [`SUM_BOUND`] more.
+    #[target_feature(enable = "avx")]
+    #[inline]
+    fn classify(&self, s: [__m256; 3]) -> (__m256, __m256) {
+        let splat = |x: f32| _mm256_set1_ps(x);
+        let zero = _mm256_setzero_ps();
+        let [nrm, amat, bmat] = self.planes;
+        let [err_n, err_a, err_b, err_base] = self.errs;
+        let [neg_n, neg_a, neg_b] = self.neg;
+        let (vs, va, vb) = (dot3(nrm, s), dot3(amat, s), dot3(bmat, s));
+        let vo = _mm256_sub_ps(_mm256_add_ps(_mm256_sub_ps(self.det, vs), va), vb);
+        let err_o = _mm256_add_ps(
+            err_base,
+            _mm256_mul_ps(
+                splat(SUM_BOUND),
+                _mm256_add_ps(
+                    _mm256_add_ps(self.det_abs, abs8(vs)),
+                    _mm256_add_ps(abs8(va), abs8(vb)),
+                ),
+            ),
+        );
+        let (sg, og) = (_mm256_xor_ps(vs, self.flip), _mm256_xor_ps(vo, self.flip));
+        let gt = |v: __m256, t: __m256| _mm256_cmp_ps::<_CMP_GT_OQ>(v, t);
+        let lt = |v: __m256, t: __m256| _mm256_cmp_ps::<_CMP_LT_OQ>(v, t);
+        let (a_pos, a_neg) = (gt(va, err_a), lt(va, neg_a));
+        let (b_pos, b_neg) = (gt(vb, err_b), lt(vb, neg_b));
+        let apart = _mm256_or_ps(_mm256_and_ps(a_pos, b_neg), _mm256_and_ps(a_neg, b_pos));
+        let together = _mm256_or_ps(_mm256_and_ps(a_pos, b_pos), _mm256_and_ps(a_neg, b_neg));
+        let hit = _mm256_and_ps(_mm256_and_ps(gt(sg, err_n), gt(og, err_o)), apart);
+        let reject = _mm256_or_ps(
+            _mm256_or_ps(lt(sg, neg_n), lt(og, _mm256_sub_ps(zero, err_o))),
+            together,
+        );
+        (hit, reject)
+    }
+}
+
 /// The per-sample pass of the sweep ([`Kernel::run`](crate::ssv)'s
 /// classification) for one edge over the samples `lo..hi` of `soa` (their
-/// coordinates by axis, padded with readable entries to a multiple of eight),
-/// eight samples at a time in `f32`: `contribution` is added to
-/// `counters[i]` for every sample `i` the edge certainly crosses (eight
-/// counters at once where eight exist from the block's first), and for
+/// coordinates by axis, with at least seven readable entries past `hi`),
+/// eight samples at a time in `f32` from `lo` on (an arc of at most eight
+/// samples, the common one, is one block wherever it starts):
+/// `contribution` is added to `counters[i]` for every sample `i` the edge
+/// certainly crosses (eight counters at once where eight exist from the
+/// block's first), and for
 /// every one the `f32` signs leave unsure (none is certainly not crossed and
 /// some sign is within its bound) where `unsure(i)`, the exact test, says
 /// it is crossed; nothing for the others. Each sign is taken only beyond `edge`'s bound on its distance from
@@ -810,26 +880,18 @@ pub(crate) fn crossings8(
     mut unsure: impl FnMut(usize) -> bool,
 ) {
     let splat = |x: f32| _mm256_set1_ps(x);
-    let zero = _mm256_setzero_ps();
-    let (nrm, amat, bmat) = (
-        edge.nrm.map(splat),
-        edge.amat.map(splat),
-        edge.bmat.map(splat),
+    let test = CrossingTest8::new(
+        [edge.nrm, edge.amat, edge.bmat].map(|plane| plane.map(splat)),
+        splat(edge.det),
+        edge.errs.map(splat),
+        // The wanted side made positive by flipping signs (the sign bit
+        // where it is the negative one; no branch).
+        splat(f32::from_bits(u32::from(!edge.want) << 31)),
     );
-    let det = splat(edge.det);
-    let det_abs = splat(edge.det.abs());
-    let [err_n, err_a, err_b, err_base] = edge.errs.map(splat);
-    let (neg_n, neg_a, neg_b) = (
-        _mm256_sub_ps(zero, err_n),
-        _mm256_sub_ps(zero, err_a),
-        _mm256_sub_ps(zero, err_b),
-    );
-    // The wanted side made positive by flipping signs.
-    let flip = splat(if edge.want { 0.0 } else { -0.0 });
     let p = p.map(splat);
     let lane_index = load(&[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
     let contribution8 = _mm256_castsi256_ps(_mm256_set1_epi32(contribution));
-    let mut base = lo & !7;
+    let mut base = lo;
     while base < hi {
         let at = |axis: usize| -> __m256 {
             let eight: &[f32; 8] = soa[axis][base..base + 8]
@@ -837,44 +899,15 @@ pub(crate) fn crossings8(
                 .expect("eight coordinates");
             _mm256_sub_ps(load(eight), p[axis])
         };
-        let s = [at(0), at(1), at(2)];
-        let (vs, va, vb) = (dot3(nrm, s), dot3(amat, s), dot3(bmat, s));
-        let vo = _mm256_sub_ps(_mm256_add_ps(_mm256_sub_ps(det, vs), va), vb);
-        let err_o = _mm256_add_ps(
-            err_base,
-            _mm256_mul_ps(
-                splat(SUM_BOUND),
-                _mm256_add_ps(
-                    _mm256_add_ps(det_abs, abs8(vs)),
-                    _mm256_add_ps(abs8(va), abs8(vb)),
-                ),
-            ),
-        );
-        let (sg, og) = (_mm256_xor_ps(vs, flip), _mm256_xor_ps(vo, flip));
-        let gt = |v: __m256, t: __m256| _mm256_cmp_ps::<_CMP_GT_OQ>(v, t);
-        let lt = |v: __m256, t: __m256| _mm256_cmp_ps::<_CMP_LT_OQ>(v, t);
-        let (a_pos, a_neg) = (gt(va, err_a), lt(va, neg_a));
-        let (b_pos, b_neg) = (gt(vb, err_b), lt(vb, neg_b));
-        let apart = _mm256_or_ps(_mm256_and_ps(a_pos, b_neg), _mm256_and_ps(a_neg, b_pos));
-        let together = _mm256_or_ps(_mm256_and_ps(a_pos, b_pos), _mm256_and_ps(a_neg, b_neg));
-        let hit = _mm256_and_ps(_mm256_and_ps(gt(sg, err_n), gt(og, err_o)), apart);
-        let reject = _mm256_or_ps(
-            _mm256_or_ps(lt(sg, neg_n), lt(og, _mm256_sub_ps(zero, err_o))),
-            together,
-        );
+        let (hit, reject) = test.classify([at(0), at(1), at(2)]);
         // Lanes of `lo..hi` only.
-        let first = lo.saturating_sub(base);
         let past = (hi - base).min(8);
-        let inside = (0xFFu32 << first) & (0xFFu32 >> (8 - past));
+        let inside = 0xFFu32 >> (8 - past);
         match counters.get_mut(base..base + 8) {
             Some(eight) => {
                 // The hit lanes inside the range get the contribution, the
                 // others zero: no branch per sample, nor per block.
                 let lanes = _mm256_cmp_ps::<_CMP_LT_OQ>(lane_index, splat(past as f32));
-                let lanes = _mm256_and_ps(
-                    lanes,
-                    _mm256_cmp_ps::<_CMP_GE_OQ>(lane_index, splat(first as f32)),
-                );
                 let add = _mm256_and_ps(_mm256_and_ps(hit, lanes), contribution8);
                 add_i32x8(eight.try_into().expect("eight counters"), add);
             }
@@ -895,5 +928,80 @@ pub(crate) fn crossings8(
             open &= open - 1;
         }
         base += 8;
+    }
+}
+
+/// [`crossings8`] for the eight silhouette edges of `planes` at once, one
+/// sample per lane and step: lane `i` tests the samples `starts[i]..starts[i]
+/// + lens[i]` (none where `lens[i]` is 0) and adds `contributions[i]` to the
+/// counter of each it crosses, the `f32` pass's unsure ones where
+/// `unsure(i, sample)` says so. The same test as [`crossings8`] (each lane's
+/// planes and bounds as [`SweepPlanes8::lane`] gives them), so the same
+/// counts; for short arcs, the common case under a large light, it takes one
+/// step per sample of the longest arc instead of a call and a block per edge.
+/// `soa` holds at least `starts[i] + lens[i]` samples, `counters` as many.
+#[target_feature(enable = "avx")]
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn crossings_lanes8(
+    planes: &SweepPlanes8,
+    p: [f32; 3],
+    soa: [&[f32]; 3],
+    starts: &[u32; 8],
+    lens: &[u32; 8],
+    contributions: &[i32; 8],
+    counters: &mut [i32],
+    mut unsure: impl FnMut(usize, usize) -> bool,
+) {
+    let splat = |x: f32| _mm256_set1_ps(x);
+    let lanes = |w: &[[f32; 8]; 3]| -> [__m256; 3] { core::array::from_fn(|i| load(&w[i])) };
+    let [en, ea, eb, ec] = planes.errs.map(|e| load(&e));
+    // `SweepPlanes8::lane`'s sum bound, the same operations in lanes.
+    let err_base = _mm256_mul_ps(
+        _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(ec, en), ea), eb),
+        splat(1.0 + 4.0 * f32::EPSILON),
+    );
+    let flip: [f32; 8] =
+        core::array::from_fn(|i| f32::from_bits((planes.centroid_positive >> i & 1) << 31));
+    let test = CrossingTest8::new(
+        [lanes(&planes.nrm), lanes(&planes.amat), lanes(&planes.bmat)],
+        load(&planes.det),
+        [en, ea, eb, err_base],
+        load(&flip),
+    );
+    let p = p.map(splat);
+    let steps = lens.iter().copied().max().unwrap_or(0);
+    let lens8 = load(&lens.map(|n| n as f32));
+    let contribution8 = load(&contributions.map(|c| f32::from_bits(c as u32)));
+    for step in 0..steps {
+        // A lane past its arc reads and adds to its first sample (with a
+        // contribution of zero): every index stays in range, no branch.
+        let active = _mm256_cmp_ps::<_CMP_LT_OQ>(splat(step as f32), lens8);
+        let index: [usize; 8] = core::array::from_fn(|i| {
+            starts[i] as usize + if step < lens[i] { step as usize } else { 0 }
+        });
+        let at = |axis: usize| -> __m256 {
+            let coordinates = &soa[axis];
+            let eight: [f32; 8] = core::array::from_fn(|i| coordinates[index[i]]);
+            _mm256_sub_ps(load(&eight), p[axis])
+        };
+        let (hit, reject) = test.classify([at(0), at(1), at(2)]);
+        let add = _mm256_and_ps(_mm256_and_ps(hit, active), contribution8);
+        let mut added = [0.0f32; 8];
+        // SAFETY: `added` is eight writable, contiguous `f32`; the store is
+        // unaligned.
+        unsafe { _mm256_storeu_ps(added.as_mut_ptr(), add) };
+        for (&i, a) in index.iter().zip(added) {
+            counters[i] += a.to_bits() as i32;
+        }
+        let mut open = !(_mm256_movemask_ps(_mm256_or_ps(hit, reject)) as u32)
+            & _mm256_movemask_ps(active) as u32;
+        while open != 0 {
+            let lane = open.trailing_zeros() as usize;
+            if unsure(lane, index[lane]) {
+                counters[index[lane]] += contributions[lane];
+            }
+            open &= open - 1;
+        }
     }
 }

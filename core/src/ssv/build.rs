@@ -180,7 +180,7 @@ struct SampleOrder {
     insets: Vec<f64>,
     /// x, y and z of the samples in `order`.
     soa: [Vec<f64>; 3],
-    /// The same in `f32`, padded to a multiple of eight.
+    /// The same in `f32`, with eight zeros after the last sample.
     soa32: [Vec<f32>; 3],
     /// The samples' bounding box.
     bounds: (DVec3, DVec3),
@@ -236,7 +236,8 @@ impl SampleOrder {
             fallible::collect(order.iter().map(|&o| f64::from(samples[o as usize][axis])))
         };
         let soa = [axis(0)?, axis(1)?, axis(2)?];
-        let padded = order.len().next_multiple_of(8);
+        // The sample pass reads eight from any sample on.
+        let padded = order.len() + 8;
         let axis32 = |axis: usize| {
             fallible::collect(
                 (0..padded).map(|k| order.get(k).map_or(0.0, |&o| samples[o as usize][axis])),

@@ -175,6 +175,16 @@ impl EdgeGraph {
         })
     }
 
+    /// The two endpoints of edge `e`.
+    #[inline]
+    pub fn endpoints(&self, e: u32) -> (Vec3, Vec3) {
+        let edge = &self.edges[e as usize];
+        (
+            self.positions[edge.a as usize],
+            self.positions[edge.b as usize],
+        )
+    }
+
     /// The third vertices adjacent to `edge`.
     #[inline]
     pub fn third_of(&self, edge: &Edge) -> &[u32] {

@@ -268,8 +268,8 @@ pub struct SoftShadows {
     /// Sample coordinates in angular order (`order`), widened to `f64` once
     /// (exact), structure of arrays for the per-sample loop.
     soa: [Vec<f64>; 3],
-    /// The same in `f32`, padded with zeros to a multiple of eight entries
-    /// (so the eight-lane pass reads whole blocks).
+    /// The same in `f32`, followed by eight zeros (so the eight-lane pass
+    /// reads a whole block from any sample on).
     #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
     soa32: [Vec<f32>; 3],
     /// How far inside the light's polygon each sample lies, in its plane

@@ -15,13 +15,18 @@
 //! as the scalar path's, or, where the lanes decide its planes too
 //! ([`crate::simd::avx::silhouette_planes8`]: the planes of the per-sample
 //! test, the centroid's side and the arc, each with a bound on its rounding),
-//! to [`Kernel::add_lane_silhouette`], whose `f32` sample pass counts exactly
-//! the samples [`Kernel::crosses`] would. So the counters, the statistics and
-//! the recorded silhouettes are the scalar sweep's, candidate by candidate,
-//! in order.
+//! to [`Kernel::lane_silhouette_ranges`] (the record and the arc), then an
+//! `f32` sample pass that counts exactly the samples [`Kernel::crosses`]
+//! would. Edges whose arc is one range of at most [`ShortArcs::MAX_LEN`]
+//! samples are held and swept together once the batch is set up
+//! ([`Kernel::sweep_short_arcs`]: one sample of each per lane and step); the
+//! others one at a time ([`Kernel::sweep_lane_ranges`]). So the counters, the
+//! statistics and the recorded silhouettes are the scalar sweep's, candidate
+//! by candidate (the order of a batch's additions aside, which integer sums
+//! do not see).
 
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
-use super::sweep::{DecidedSilhouette, EdgeAt};
+use super::sweep::{DecidedSilhouette, EdgeAt, ShortArcs};
 use super::*;
 #[cfg(any(test, all(target_arch = "x86_64", feature = "std")))]
 use crate::simd::SetupMasks8;
@@ -60,6 +65,7 @@ impl SoftShadows {
             let planes = (swept != 0)
                 .then(|| unsafe { crate::simd::avx::silhouette_planes8(receiver, &corners) });
             let mut silhouettes = 0;
+            let mut short = ShortArcs::default();
             for (i, &e) in edges.iter().enumerate() {
                 let bit = 1 << i;
                 if masks.undecided & bit != 0 {
@@ -78,16 +84,22 @@ impl SoftShadows {
                 if let Some(planes) = &planes
                     && planes.decided & swept & bit != 0
                 {
-                    kernel.add_lane_silhouette(self, e, silhouette, planes, i, counters);
+                    let (ranges, contribution) =
+                        kernel.lane_silhouette_ranges(self, e, silhouette, planes, i);
+                    let weight = silhouette.weight;
+                    if !short.hold(i, e, weight, ranges, contribution) {
+                        kernel.sweep_lane_ranges(self, e, weight, planes, i, ranges, counters);
+                    }
                     continue;
                 }
-                let edge = &self.graph.edges[e as usize];
-                let at = EdgeAt::new(
-                    self.graph.positions[edge.a as usize],
-                    self.graph.positions[edge.b as usize],
-                    kernel.pw,
-                );
+                let (a, b) = self.graph.endpoints(e);
+                let at = EdgeAt::new(a, b, kernel.pw);
                 kernel.add_silhouette(self, e, &at, silhouette, counters);
+            }
+            if let Some(planes) = &planes
+                && short.held != 0
+            {
+                kernel.sweep_short_arcs(self, planes, &short, counters);
             }
             return silhouettes;
         }

@@ -64,6 +64,56 @@ pub(super) struct DecidedSilhouette {
     pub(super) sweep: bool,
 }
 
+/// Up to eight silhouette edges of one lane batch whose arcs hold at most
+/// [`ShortArcs::MAX_LEN`] samples in one range, gathered for
+/// [`Kernel::sweep_short_arcs`] (lane `i` of the batch in entry `i`; a lens
+/// of 0 where lane `i` is not one of them).
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+#[derive(Clone, Copy, Default)]
+pub(super) struct ShortArcs {
+    pub(super) starts: [u32; 8],
+    pub(super) lens: [u32; 8],
+    pub(super) contributions: [i32; 8],
+    pub(super) edges: [u32; 8],
+    pub(super) weights: [i32; 8],
+    /// Lanes held.
+    pub(super) held: u32,
+}
+
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+impl ShortArcs {
+    /// The longest arc taken together with others: the lanes step through
+    /// the longest arc among them, so a long one would hold the others up.
+    pub(super) const MAX_LEN: usize = 8;
+
+    /// Holds lane `lane`'s edge `e` if its `ranges` are one range of at most
+    /// [`ShortArcs::MAX_LEN`] samples (or none: nothing to sweep); says
+    /// whether it did.
+    #[inline]
+    pub(super) fn hold(
+        &mut self,
+        lane: usize,
+        e: u32,
+        weight: i32,
+        ranges: [(usize, usize); 3],
+        contribution: i32,
+    ) -> bool {
+        let [(lo, hi), rest @ ..] = ranges;
+        if rest.iter().any(|&(l, h)| l < h) || hi.saturating_sub(lo) > Self::MAX_LEN {
+            return false;
+        }
+        if lo < hi {
+            self.starts[lane] = lo as u32;
+            self.lens[lane] = (hi - lo) as u32;
+            self.contributions[lane] = contribution;
+            self.edges[lane] = e;
+            self.weights[lane] = weight;
+            self.held |= 1 << lane;
+        }
+        true
+    }
+}
+
 /// An edge seen from the receiver: its endpoints, them relative to the
 /// receiver, `a' × b'`, that product's permanent (`|x₁ y₂| + |x₂ y₁|` per
 /// component) and its length.
@@ -163,7 +213,7 @@ impl<'a> Kernel<'a> {
     pub(super) fn add_edge(&mut self, ss: &SoftShadows, e: u32, counters: &mut [i32]) -> bool {
         let g = &ss.graph;
         let edge = &g.edges[e as usize];
-        let (a, b) = (g.positions[edge.a as usize], g.positions[edge.b as usize]);
+        let (a, b) = g.endpoints(e);
         let (aw, bw) = (a.as_dvec3() - self.pw, b.as_dvec3() - self.pw);
         // Quick rejections first (conservative, with slack): the edge wholly
         // behind the receiver or beyond the light's plane cannot meet (p, c, s).
@@ -254,24 +304,22 @@ impl<'a> Kernel<'a> {
         self.unsure += unsure;
     }
 
-    /// [`Kernel::add_silhouette`] for a silhouette edge whose planes, centroid
-    /// side and (where `planes.arc` says so) arc the lanes decided (lane
-    /// `lane` of `planes`): the same samples get the same contribution, those
-    /// the `f32` pass leaves unsure through [`Kernel::crosses`] with the `f64`
-    /// planes.
+    /// The first part of [`Kernel::add_silhouette`] for a silhouette edge
+    /// whose planes, centroid side and (where `planes.arc` says so) arc the
+    /// lanes decided (lane `lane` of `planes`): records it where it is near,
+    /// and returns the ranges of samples (angular order) its arc may cross
+    /// and its contribution, for [`Kernel::sweep_lane_ranges`] or
+    /// [`Kernel::sweep_short_arcs`].
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
-    pub(super) fn add_lane_silhouette(
+    pub(super) fn lane_silhouette_ranges(
         &mut self,
         ss: &SoftShadows,
         e: u32,
         silhouette: DecidedSilhouette,
         planes: &crate::simd::SweepPlanes8,
         lane: usize,
-        counters: &mut [i32],
-    ) {
-        let g = &ss.graph;
-        let edge = &g.edges[e as usize];
-        let (a, b) = (g.positions[edge.a as usize], g.positions[edge.b as usize]);
+    ) -> ([(usize, usize); 3], i32) {
+        let (a, b) = ss.graph.endpoints(e);
         if silhouette.near {
             let normal = (a.as_dvec3() - self.pw).cross(b.as_dvec3() - self.pw);
             self.silhouettes.record(e, normal);
@@ -284,15 +332,37 @@ impl<'a> Kernel<'a> {
         } else {
             self.arc(ss, a.as_dvec3() - self.pw, b.as_dvec3() - self.pw)
         };
-        let edge_planes = planes.lane(lane);
+        // The wanted side is the one away from the centroid.
+        let want = planes.centroid_positive >> lane & 1 == 0;
         let weight = silhouette.weight;
+        (ss.arc_ranges(arc), if want { weight } else { -weight })
+    }
+
+    /// The sample pass of one lane-decided silhouette edge (see
+    /// [`Kernel::lane_silhouette_ranges`]) over `ranges`, one edge at a time:
+    /// those the `f32` pass leaves unsure go through [`Kernel::crosses`] with
+    /// the `f64` planes.
+    #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn sweep_lane_ranges(
+        &mut self,
+        ss: &SoftShadows,
+        e: u32,
+        weight: i32,
+        planes: &crate::simd::SweepPlanes8,
+        lane: usize,
+        ranges: [(usize, usize); 3],
+        counters: &mut [i32],
+    ) {
+        let (a, b) = ss.graph.endpoints(e);
+        let edge_planes = planes.lane(lane);
         let contribution = if edge_planes.want { weight } else { -weight };
         let soa = [&ss.soa32[0][..], &ss.soa32[1][..], &ss.soa32[2][..]];
         // The `f64` planes, made for the first unsure sample only.
         let mut exact: Option<EdgePlanes> = None;
         let mut unsure = 0;
         let this = &*self;
-        for (lo, hi) in ss.arc_ranges(arc) {
+        for (lo, hi) in ranges {
             if lo >= hi {
                 continue;
             }
@@ -320,6 +390,44 @@ impl<'a> Kernel<'a> {
                 )
             };
         }
+        self.unsure += unsure;
+    }
+
+    /// The sample pass of up to eight lane-decided silhouette edges whose
+    /// arcs are short, all at once ([`crossings_lanes8`](crate::simd::avx::crossings_lanes8)):
+    /// the same counts as [`Kernel::sweep_lane_ranges`] for each.
+    #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    pub(super) fn sweep_short_arcs(
+        &mut self,
+        ss: &SoftShadows,
+        planes: &crate::simd::SweepPlanes8,
+        arcs: &ShortArcs,
+        counters: &mut [i32],
+    ) {
+        let soa = [&ss.soa32[0][..], &ss.soa32[1][..], &ss.soa32[2][..]];
+        let mut unsure = 0;
+        let this = &*self;
+        let exact_test = |lane: usize, i: usize| {
+            unsure += 1;
+            let (a, b) = ss.graph.endpoints(arcs.edges[lane]);
+            let exact = this.edge_planes(ss, &EdgeAt::new(a, b, this.pw), arcs.weights[lane]);
+            this.crosses(ss, &exact, i)
+        };
+        #[allow(unsafe_code)]
+        // SAFETY: lanes' planes are only made where the processor runs AVX
+        // ([`SoftShadows::sweep_receiver`]).
+        unsafe {
+            crate::simd::avx::crossings_lanes8(
+                planes,
+                this.p.to_array(),
+                soa,
+                &arcs.starts,
+                &arcs.lens,
+                &arcs.contributions,
+                counters,
+                exact_test,
+            )
+        };
         self.unsure += unsure;
     }
 

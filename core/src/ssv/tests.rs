@@ -939,11 +939,10 @@ fn branch_free_sample_pass_equals_the_per_sample_test() {
     assert!(unsure >= 20, "{unsure} unsure samples");
 }
 
-/// The same scene through the sweep with its lanes (where AVX runs): the
-/// planes, arcs and `f32` sample pass of the lanes give the slow twin's
-/// counters, samples exactly on projected edges included.
-#[test]
-fn lane_sample_pass_equals_the_per_sample_test() {
+/// Edges along x under a light whose samples include points exactly on (and
+/// a few units of rounding beside) the lines the edges project to from
+/// probe receivers, with a last block of five samples; and those probes.
+fn samples_on_projected_edges() -> (SoftShadows, Vec<Vec3>) {
     let soup = edges_along_x();
     let light = light_over_edges_along_x();
     let mut samples = light.samples(64, SamplePattern::Jittered, 5);
@@ -989,8 +988,17 @@ fn lane_sample_pass_equals_the_per_sample_test() {
     samples.extend(light.samples(short.max(1), SamplePattern::Jittered, 6));
     samples.truncate(samples.len() / 8 * 8 + 5);
     let ss = build(&soup, &light, &samples, Structure::BruteForce);
-    let n = samples.len();
-    assert_eq!(n % 8, 5);
+    assert_eq!(samples.len() % 8, 5);
+    (ss, probes)
+}
+
+/// The same scene through the sweep with its lanes (where AVX runs): the
+/// planes, arcs and `f32` sample pass of the lanes give the slow twin's
+/// counters, samples exactly on projected edges included.
+#[test]
+fn lane_sample_pass_equals_the_per_sample_test() {
+    let (ss, probes) = samples_on_projected_edges();
+    let n = ss.sample_count();
     let (mut unsure, mut swept, mut arcs) = (0, 0, 0);
     for p in probes.into_iter().chain(receivers_under_edges_along_x()) {
         let mut lanes = vec![0i32; n];
@@ -1019,6 +1027,105 @@ fn lane_sample_pass_equals_the_per_sample_test() {
         assert!(unsure >= 20, "{unsure} unsure samples");
     }
     let _ = (unsure, swept, arcs);
+}
+
+/// The sample pass of up to eight edges at once, one sample per lane and
+/// step (for short arcs), against the pass of one edge at a time over the
+/// same ranges: the same counters, and the same samples left to the exact
+/// test. Every decided lane of every batch of edges, at every probe, over
+/// ranges of one to eight samples that cover every sample, with random
+/// starts, lengths and contributions; a fixed
+/// rule stands in for the exact test, so that any unsure sample one pass
+/// leaves and the other does not shows.
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+#[test]
+#[allow(unsafe_code)]
+fn short_arcs_at_once_equal_one_edge_at_a_time() {
+    use crate::simd::avx::{crossings_lanes8, crossings8, silhouette_planes8};
+    if !crate::simd::avx_available() {
+        return;
+    }
+    let (ss, probes) = samples_on_projected_edges();
+    let n = ss.sample_count();
+    let soa = [&ss.soa32[0][..], &ss.soa32[1][..], &ss.soa32[2][..]];
+    let mut rng = SplitMix64::new(41);
+    let mut below = |m: usize| (rng.next_f64() * m as f64) as usize;
+    let rule = |lane: usize, i: usize| (7 * lane + i).is_multiple_of(3);
+    let (mut asked, mut lanes_tested, mut counted) = (0, 0, 0);
+    for p in probes.into_iter().chain(receivers_under_edges_along_x()) {
+        let mut silhouettes = Silhouettes::new();
+        let k = Kernel::new(&ss, p, &mut silhouettes);
+        let receiver = ss.sweep_receiver(&k).expect("AVX runs");
+        for chunk in ss.potential.chunks_exact(silhouette_lanes::LANES) {
+            let edges: [u32; silhouette_lanes::LANES] = chunk.try_into().unwrap();
+            let mut corners = crate::simd::EdgeCorners8::default();
+            ss.lane_corners(&edges, &mut corners);
+            // SAFETY: AVX runs (checked above).
+            let planes = unsafe { silhouette_planes8(&receiver, &corners) };
+            // Ranges that together cover every sample, each lane's own.
+            for base in (0..n).step_by(6) {
+                let (mut starts, mut lens, mut contributions) = ([0u32; 8], [0u32; 8], [0i32; 8]);
+                for lane in (0..8).filter(|&lane| planes.decided >> lane & 1 == 1) {
+                    let start = (base + below(3)).min(n - 1);
+                    starts[lane] = start as u32;
+                    lens[lane] = (1 + below(8)).min(n - start) as u32;
+                    contributions[lane] = [-2, -1, 1, 2][below(4)];
+                }
+                let mut one = vec![0i32; n];
+                let mut asked_one = Vec::new();
+                for lane in 0..8 {
+                    let (lo, len) = (starts[lane] as usize, lens[lane] as usize);
+                    let test = |i: usize| {
+                        asked_one.push((lane, i));
+                        rule(lane, i)
+                    };
+                    // SAFETY: AVX runs.
+                    unsafe {
+                        crossings8(
+                            &planes.lane(lane),
+                            p.to_array(),
+                            soa,
+                            lo,
+                            lo + len,
+                            &mut one,
+                            contributions[lane],
+                            test,
+                        )
+                    };
+                }
+                let mut all = vec![0i32; n];
+                let mut asked_all = Vec::new();
+                let test = |lane: usize, i: usize| {
+                    asked_all.push((lane, i));
+                    rule(lane, i)
+                };
+                // SAFETY: AVX runs.
+                unsafe {
+                    crossings_lanes8(
+                        &planes,
+                        p.to_array(),
+                        soa,
+                        &starts,
+                        &lens,
+                        &contributions,
+                        &mut all,
+                        test,
+                    )
+                };
+                asked_one.sort_unstable();
+                asked_all.sort_unstable();
+                assert_eq!(one, all, "receiver {p:?}, edges {edges:?}");
+                assert_eq!(asked_one, asked_all, "receiver {p:?}, edges {edges:?}");
+                asked += asked_one.len();
+                lanes_tested += lens.iter().filter(|&&len| len > 0).count();
+                counted += one.iter().filter(|&&c| c != 0).count();
+            }
+        }
+    }
+    assert!(
+        asked >= 200 && lanes_tested >= 100_000 && counted >= 10_000,
+        "{asked} unsure samples, {lanes_tested} lanes, {counted} counters changed"
+    );
 }
 
 /// Near-light triangles (planes piercing the light) go through the
