@@ -932,14 +932,16 @@ pub(crate) fn crossings8(
 }
 
 /// [`crossings8`] for the eight silhouette edges of `planes` at once, one
-/// sample per lane and step: lane `i` tests the samples `starts[i]..starts[i]
-/// + lens[i]` (none where `lens[i]` is 0) and adds `contributions[i]` to the
-/// counter of each it crosses, the `f32` pass's unsure ones where
+/// sample per lane and step: lane `i` tests the `lens[i]` samples from
+/// `starts[i]` on (none where `lens[i]` is 0) and adds `contributions[i]` to
+/// the counter of each it crosses, the `f32` pass's unsure ones where
 /// `unsure(i, sample)` says so. The same test as [`crossings8`] (each lane's
 /// planes and bounds as [`SweepPlanes8::lane`] gives them), so the same
 /// counts; for short arcs, the common case under a large light, it takes one
 /// step per sample of the longest arc instead of a call and a block per edge.
-/// `soa` holds at least `starts[i] + lens[i]` samples, `counters` as many.
+/// In every lane `starts[i]`, and `starts[i] + lens[i] - 1` where `lens[i]`
+/// is not 0, index `counters` and each of `soa` (a lane past its samples reads
+/// and adds zero to its last one); it panics otherwise.
 #[target_feature(enable = "avx")]
 #[inline]
 #[allow(clippy::too_many_arguments)]
@@ -973,16 +975,26 @@ pub(crate) fn crossings_lanes8(
     let steps = lens.iter().copied().max().unwrap_or(0);
     let lens8 = load(&lens.map(|n| n as f32));
     let contribution8 = load(&contributions.map(|c| f32::from_bits(c as u32)));
+    // Each lane's last sample; one check that every index read is in range,
+    // instead of one per access.
+    let last: [usize; 8] =
+        core::array::from_fn(|i| starts[i] as usize + lens[i].saturating_sub(1) as usize);
+    let reach = last.iter().copied().max().unwrap_or(0);
+    assert!(
+        reach < counters.len() && soa.iter().all(|axis| reach < axis.len()),
+        "a lane's samples run past the samples"
+    );
     for step in 0..steps {
-        // A lane past its arc reads and adds to its first sample (with a
-        // contribution of zero): every index stays in range, no branch.
+        // A lane past its arc reads and adds to its last sample (with a
+        // contribution of zero): no branch.
         let active = _mm256_cmp_ps::<_CMP_LT_OQ>(splat(step as f32), lens8);
-        let index: [usize; 8] = core::array::from_fn(|i| {
-            starts[i] as usize + if step < lens[i] { step as usize } else { 0 }
-        });
+        let index: [usize; 8] =
+            core::array::from_fn(|i| (starts[i] as usize + step as usize).min(last[i]));
         let at = |axis: usize| -> __m256 {
-            let coordinates = &soa[axis];
-            let eight: [f32; 8] = core::array::from_fn(|i| coordinates[index[i]]);
+            let coordinates = soa[axis];
+            // SAFETY: every index is at most its lane's last, checked above.
+            let eight: [f32; 8] =
+                core::array::from_fn(|i| unsafe { *coordinates.get_unchecked(index[i]) });
             _mm256_sub_ps(load(&eight), p[axis])
         };
         let (hit, reject) = test.classify([at(0), at(1), at(2)]);
@@ -992,7 +1004,8 @@ pub(crate) fn crossings_lanes8(
         // unaligned.
         unsafe { _mm256_storeu_ps(added.as_mut_ptr(), add) };
         for (&i, a) in index.iter().zip(added) {
-            counters[i] += a.to_bits() as i32;
+            // SAFETY: as the loads above.
+            unsafe { *counters.get_unchecked_mut(i) += a.to_bits() as i32 };
         }
         let mut open = !(_mm256_movemask_ps(_mm256_or_ps(hit, reject)) as u32)
             & _mm256_movemask_ps(active) as u32;

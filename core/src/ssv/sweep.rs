@@ -98,18 +98,21 @@ impl ShortArcs {
         ranges: [(usize, usize); 3],
         contribution: i32,
     ) -> bool {
-        let [(lo, hi), rest @ ..] = ranges;
-        if rest.iter().any(|&(l, h)| l < h) || hi.saturating_sub(lo) > Self::MAX_LEN {
+        let [(lo, hi), (lo1, hi1), (lo2, hi2)] = ranges;
+        let len = hi.saturating_sub(lo);
+        // One test for the three conditions (`&` evaluates them all: the
+        // ranges' lengths vary from edge to edge, the outcome rarely).
+        if !((lo1 >= hi1) & (lo2 >= hi2) & (len <= Self::MAX_LEN)) {
             return false;
         }
-        if lo < hi {
-            self.starts[lane] = lo as u32;
-            self.lens[lane] = (hi - lo) as u32;
-            self.contributions[lane] = contribution;
-            self.edges[lane] = e;
-            self.weights[lane] = weight;
-            self.held |= 1 << lane;
-        }
+        // An empty arc is held with nothing to sweep (at sample 0: the lanes
+        // read a lane's first sample whatever its length).
+        self.starts[lane] = if len > 0 { lo as u32 } else { 0 };
+        self.lens[lane] = len as u32;
+        self.contributions[lane] = contribution;
+        self.edges[lane] = e;
+        self.weights[lane] = weight;
+        self.held |= u32::from(len > 0) << lane;
         true
     }
 }
