@@ -85,11 +85,10 @@ impl SoftShadows {
                 if let Some(planes) = &planes
                     && planes.decided & swept & bit != 0
                 {
-                    let (ranges, contribution) =
-                        kernel.lane_silhouette_ranges(self, e, silhouette, planes, i);
+                    let arc = kernel.lane_silhouette_ranges(self, e, silhouette, planes, i);
                     let weight = silhouette.weight;
-                    if !short.hold(i, e, weight, ranges, contribution) {
-                        kernel.sweep_lane_ranges(self, e, weight, planes, i, ranges, counters);
+                    if !short.hold(i, e, weight, arc) {
+                        kernel.sweep_lane_ranges(self, e, weight, planes, i, arc, counters);
                     }
                     continue;
                 }

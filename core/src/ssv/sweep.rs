@@ -46,6 +46,10 @@ pub(super) struct Kernel<'a> {
     pub(super) lane_swept: u32,
     #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
     pub(super) lane_arcs: u32,
+    /// Tests only: silhouettes whose short arcs were swept together
+    /// ([`Kernel::sweep_short_arcs`]).
+    #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
+    pub(super) short_swept: u32,
     /// Where the silhouette edges met are recorded (for the choice of the
     /// reference sample).
     pub(super) silhouettes: &'a mut Silhouettes,
@@ -76,7 +80,7 @@ pub(super) struct ShortArcs {
     pub(super) contributions: [i32; 8],
     pub(super) edges: [u32; 8],
     pub(super) weights: [i32; 8],
-    /// Lanes held.
+    /// Lanes held with samples to sweep.
     pub(super) held: u32,
 }
 
@@ -86,17 +90,16 @@ impl ShortArcs {
     /// the longest arc among them, so a long one would hold the others up.
     pub(super) const MAX_LEN: usize = 8;
 
-    /// Holds lane `lane`'s edge `e` if its `ranges` are one range of at most
-    /// [`ShortArcs::MAX_LEN`] samples (or none: nothing to sweep); says
-    /// whether it did.
+    /// Holds lane `lane`'s edge `e` (weight `weight`) if its `ranges` are one
+    /// range of at most [`ShortArcs::MAX_LEN`] samples (or none: nothing to
+    /// sweep), with its `contribution`; says whether it did.
     #[inline]
     pub(super) fn hold(
         &mut self,
         lane: usize,
         e: u32,
         weight: i32,
-        ranges: [(usize, usize); 3],
-        contribution: i32,
+        (ranges, contribution): ([(usize, usize); 3], i32),
     ) -> bool {
         let [(lo, hi), (lo1, hi1), (lo2, hi2)] = ranges;
         let len = hi.saturating_sub(lo);
@@ -191,6 +194,7 @@ impl<'a> Kernel<'a> {
             unsure: 0,
             lane_swept: 0,
             lane_arcs: 0,
+            short_swept: 0,
             silhouettes,
         };
         k.hc = k.cp.dot(k.toward);
@@ -341,8 +345,9 @@ impl<'a> Kernel<'a> {
         (ss.arc_ranges(arc), if want { weight } else { -weight })
     }
 
-    /// The sample pass of one lane-decided silhouette edge (see
-    /// [`Kernel::lane_silhouette_ranges`]) over `ranges`, one edge at a time:
+    /// The sample pass of one lane-decided silhouette edge over the ranges
+    /// and with the contribution [`Kernel::lane_silhouette_ranges`] gave, one
+    /// edge at a time:
     /// those the `f32` pass leaves unsure go through [`Kernel::crosses`] with
     /// the `f64` planes.
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
@@ -354,12 +359,11 @@ impl<'a> Kernel<'a> {
         weight: i32,
         planes: &crate::simd::SweepPlanes8,
         lane: usize,
-        ranges: [(usize, usize); 3],
+        (ranges, contribution): ([(usize, usize); 3], i32),
         counters: &mut [i32],
     ) {
         let (a, b) = ss.graph.endpoints(e);
         let edge_planes = planes.lane(lane);
-        let contribution = if edge_planes.want { weight } else { -weight };
         let soa = [&ss.soa32[0][..], &ss.soa32[1][..], &ss.soa32[2][..]];
         // The `f64` planes, made for the first unsure sample only.
         let mut exact: Option<EdgePlanes> = None;
@@ -432,6 +436,7 @@ impl<'a> Kernel<'a> {
             )
         };
         self.unsure += unsure;
+        self.short_swept += arcs.held.count_ones();
     }
 
     /// The `f64` planes of silhouette edge `at` (weight `weight`) for the

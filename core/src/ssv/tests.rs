@@ -999,7 +999,7 @@ fn samples_on_projected_edges() -> (SoftShadows, Vec<Vec3>) {
 fn lane_sample_pass_equals_the_per_sample_test() {
     let (ss, probes) = samples_on_projected_edges();
     let n = ss.sample_count();
-    let (mut unsure, mut swept, mut arcs) = (0, 0, 0);
+    let (mut unsure, mut swept, mut arcs, mut short) = (0, 0, 0, 0);
     for p in probes.into_iter().chain(receivers_under_edges_along_x()) {
         let mut lanes = vec![0i32; n];
         let mut silhouettes = Silhouettes::new();
@@ -1014,6 +1014,7 @@ fn lane_sample_pass_equals_the_per_sample_test() {
             k.add_edge(&ss, e, &mut lanes);
         }
         (unsure, swept, arcs) = (unsure + k.unsure, swept + k.lane_swept, arcs + k.lane_arcs);
+        short += k.short_swept;
         assert_eq!(lanes, slow_counters(&ss, p), "receiver {p:?}");
     }
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
@@ -1025,15 +1026,20 @@ fn lane_sample_pass_equals_the_per_sample_test() {
             "{arcs} arcs of {swept}"
         );
         assert!(unsure >= 20, "{unsure} unsure samples");
+        // Many short arcs swept together, and many arcs one at a time.
+        assert!(
+            short > 100 && short * 4 < arcs * 3,
+            "{short} short arcs of {arcs}"
+        );
     }
-    let _ = (unsure, swept, arcs);
+    let _ = (unsure, swept, arcs, short);
 }
 
 /// The sample pass of up to eight edges at once, one sample per lane and
 /// step (for short arcs), against the pass of one edge at a time over the
 /// same ranges: the same counters, and the same samples left to the exact
 /// test. Every decided lane of every batch of edges, at every probe, over
-/// ranges of one to eight samples that cover every sample, with random
+/// ranges of up to eight samples that cover every sample, with random
 /// starts, lengths and contributions; a fixed
 /// rule stands in for the exact test, so that any unsure sample one pass
 /// leaves and the other does not shows.
@@ -1062,13 +1068,14 @@ fn short_arcs_at_once_equal_one_edge_at_a_time() {
             ss.lane_corners(&edges, &mut corners);
             // SAFETY: AVX runs (checked above).
             let planes = unsafe { silhouette_planes8(&receiver, &corners) };
-            // Ranges that together cover every sample, each lane's own.
+            // Each lane's ranges, of up to eight samples, together cover
+            // every sample.
             for base in (0..n).step_by(6) {
                 let (mut starts, mut lens, mut contributions) = ([0u32; 8], [0u32; 8], [0i32; 8]);
                 for lane in (0..8).filter(|&lane| planes.decided >> lane & 1 == 1) {
-                    let start = (base + below(3)).min(n - 1);
+                    let start = base.saturating_sub(below(3));
                     starts[lane] = start as u32;
-                    lens[lane] = (1 + below(8)).min(n - start) as u32;
+                    lens[lane] = (base + 6 - start + below(3)).min(8).min(n - start) as u32;
                     contributions[lane] = [-2, -1, 1, 2][below(4)];
                 }
                 let mut one = vec![0i32; n];
