@@ -690,7 +690,15 @@ pub(crate) fn silhouette_planes8(
         store(&mut out.bmat[axis], bmat[axis]);
     }
     store(&mut out.det, det);
-    for (to, v) in out.errs.iter_mut().zip(errs) {
+    // The per-sample test takes the sum's bound in place of `det`'s: four
+    // positive terms, whose rounded sum is within `2u` of the exact one, far
+    // inside the bounds' own slack.
+    let [en, ea, eb, ec] = errs;
+    let sum = _mm256_mul_ps(
+        _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(ec, en), ea), eb),
+        splat(1.0 + 4.0 * f32::EPSILON),
+    );
+    for (to, v) in out.errs.iter_mut().zip([en, ea, eb, sum]) {
         store(to, v);
     }
     let Some(shift_margin) = receiver.shift_margin else {
@@ -783,6 +791,14 @@ pub(crate) fn silhouette_planes8(
     );
     out.arc = mask(arc) & out.decided;
     out
+}
+
+/// The sign flip that makes the wanted side of an edge's planes positive:
+/// `-0.0` (the sign bit) where it is the negative one, `0.0` where it is
+/// the positive one (no branch).
+#[inline]
+fn flip_unless(want: bool) -> f32 {
+    f32::from_bits(u32::from(!want) << 31)
 }
 
 /// One silhouette edge's per-sample crossing test per lane (the same edge in
@@ -884,9 +900,7 @@ pub(crate) fn crossings8(
         [edge.nrm, edge.amat, edge.bmat].map(|plane| plane.map(splat)),
         splat(edge.det),
         edge.errs.map(splat),
-        // The wanted side made positive by flipping signs (the sign bit
-        // where it is the negative one; no branch).
-        splat(f32::from_bits(u32::from(!edge.want) << 31)),
+        splat(flip_unless(edge.want)),
     );
     let p = p.map(splat);
     let lane_index = load(&[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
@@ -957,18 +971,11 @@ pub(crate) fn crossings_lanes8(
 ) {
     let splat = |x: f32| _mm256_set1_ps(x);
     let lanes = |w: &[[f32; 8]; 3]| -> [__m256; 3] { core::array::from_fn(|i| load(&w[i])) };
-    let [en, ea, eb, ec] = planes.errs.map(|e| load(&e));
-    // `SweepPlanes8::lane`'s sum bound, the same operations in lanes.
-    let err_base = _mm256_mul_ps(
-        _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(ec, en), ea), eb),
-        splat(1.0 + 4.0 * f32::EPSILON),
-    );
-    let flip: [f32; 8] =
-        core::array::from_fn(|i| f32::from_bits((planes.centroid_positive >> i & 1) << 31));
+    let flip: [f32; 8] = core::array::from_fn(|i| flip_unless(planes.want(i)));
     let test = CrossingTest8::new(
         [lanes(&planes.nrm), lanes(&planes.amat), lanes(&planes.bmat)],
         load(&planes.det),
-        [en, ea, eb, err_base],
+        planes.errs.map(|e| load(&e)),
         load(&flip),
     );
     let p = p.map(splat);

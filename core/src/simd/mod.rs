@@ -146,7 +146,8 @@ pub(crate) struct SweepPlanes8 {
     /// `det[a - p, b - p, c - p]` per lane.
     pub det: [f32; 8],
     /// Bounds on the distance of `nrm · s'`, `amat · s'`, `bmat · s'` (any
-    /// sample's rounded `s' = s - p`) and of `det` from their exact values.
+    /// sample's rounded `s' = s - p`) from their exact values, and the sum
+    /// of those three and `det`'s (as the per-sample test takes them).
     pub errs: [[f32; 8]; 4],
     /// The arc's pseudo-angle range `[lo, hi]` (cyclic), where `arc` says so.
     pub lo: [f32; 8],
@@ -180,17 +181,21 @@ impl SweepPlanes8 {
     /// Lane `i`'s planes.
     #[inline]
     pub(crate) fn lane(&self, i: usize) -> EdgePlanes8 {
-        let [en, ea, eb, ec] = self.errs.map(|e| e[i]);
         EdgePlanes8 {
             nrm: self.nrm.map(|v| v[i]),
             amat: self.amat.map(|v| v[i]),
             bmat: self.bmat.map(|v| v[i]),
             det: self.det[i],
-            // Four positive terms: their rounded sum is within `2u` of the
-            // exact one, far inside the bounds' own slack.
-            errs: [en, ea, eb, (ec + en + ea + eb) * (1.0 + 4.0 * f32::EPSILON)],
-            want: self.centroid_positive >> i & 1 == 0,
+            errs: self.errs.map(|e| e[i]),
+            want: self.want(i),
         }
+    }
+
+    /// Whether lane `i`'s wanted side (the one away from the centroid) is
+    /// the positive one.
+    #[inline]
+    pub(crate) fn want(&self, i: usize) -> bool {
+        self.centroid_positive >> i & 1 == 0
     }
 }
 

@@ -298,6 +298,13 @@ impl SoftShadows {
         &self.samples
     }
 
+    /// The samples' `f32` coordinates by axis, in angular order, with the
+    /// eight zeros after the last (the eight-lane sample passes' input).
+    #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    pub(super) fn samples32(&self) -> [&[f32]; 3] {
+        [&self.soa32[0], &self.soa32[1], &self.soa32[2]]
+    }
+
     /// Number of samples `N`.
     pub fn sample_count(&self) -> usize {
         self.samples.len()

@@ -70,8 +70,8 @@ pub(super) struct DecidedSilhouette {
 
 /// Up to eight silhouette edges of one lane batch whose arcs hold at most
 /// [`ShortArcs::MAX_LEN`] samples in one range, gathered for
-/// [`Kernel::sweep_short_arcs`] (lane `i` of the batch in entry `i`; a lens
-/// of 0 where lane `i` is not one of them).
+/// [`Kernel::sweep_short_arcs`] (lane `i` of the batch in entry `i`; a
+/// length of 0 where lane `i` is not one of them).
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
 #[derive(Clone, Copy, Default)]
 pub(super) struct ShortArcs {
@@ -109,7 +109,7 @@ impl ShortArcs {
             return false;
         }
         // An empty arc is held with nothing to sweep (at sample 0: the lanes
-        // read a lane's first sample whatever its length).
+        // read a lane's start whatever its length).
         self.starts[lane] = if len > 0 { lo as u32 } else { 0 };
         self.lens[lane] = len as u32;
         self.contributions[lane] = contribution;
@@ -339,10 +339,11 @@ impl<'a> Kernel<'a> {
         } else {
             self.arc(ss, a.as_dvec3() - self.pw, b.as_dvec3() - self.pw)
         };
-        // The wanted side is the one away from the centroid.
-        let want = planes.centroid_positive >> lane & 1 == 0;
         let weight = silhouette.weight;
-        (ss.arc_ranges(arc), if want { weight } else { -weight })
+        (
+            ss.arc_ranges(arc),
+            if planes.want(lane) { weight } else { -weight },
+        )
     }
 
     /// The sample pass of one lane-decided silhouette edge over the ranges
@@ -364,7 +365,7 @@ impl<'a> Kernel<'a> {
     ) {
         let (a, b) = ss.graph.endpoints(e);
         let edge_planes = planes.lane(lane);
-        let soa = [&ss.soa32[0][..], &ss.soa32[1][..], &ss.soa32[2][..]];
+        let soa = ss.samples32();
         // The `f64` planes, made for the first unsure sample only.
         let mut exact: Option<EdgePlanes> = None;
         let mut unsure = 0;
@@ -411,7 +412,7 @@ impl<'a> Kernel<'a> {
         arcs: &ShortArcs,
         counters: &mut [i32],
     ) {
-        let soa = [&ss.soa32[0][..], &ss.soa32[1][..], &ss.soa32[2][..]];
+        let soa = ss.samples32();
         let mut unsure = 0;
         let this = &*self;
         let exact_test = |lane: usize, i: usize| {

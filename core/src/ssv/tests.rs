@@ -1053,7 +1053,7 @@ fn short_arcs_at_once_equal_one_edge_at_a_time() {
     }
     let (ss, probes) = samples_on_projected_edges();
     let n = ss.sample_count();
-    let soa = [&ss.soa32[0][..], &ss.soa32[1][..], &ss.soa32[2][..]];
+    let soa = ss.samples32();
     let mut rng = SplitMix64::new(41);
     let mut below = |m: usize| (rng.next_f64() * m as f64) as usize;
     let rule = |lane: usize, i: usize| (7 * lane + i).is_multiple_of(3);
