@@ -5,7 +5,7 @@
 
 use alloc::vec;
 use alloc::vec::Vec;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 
 use super::*;
@@ -165,7 +165,10 @@ fn build(soup: &Soup, light: &LightPolygon, samples: &[Vec3], structure: Structu
 }
 
 /// Every structure against the oracle at every receiver; returns the bits of the
-/// brute force, receiver after receiver, and the total mismatch count is 0.
+/// brute force, receiver after receiver. The exact structures equal the oracle
+/// bit for bit; [`Structure::RayTrace`]'s `f32` rays may differ from it only
+/// where the segment grazes a triangle's edge ([`grazes_an_edge`]), as its
+/// contract says.
 fn check(soup: &Soup, light: &LightPolygon, samples: &[Vec3], receivers: &[Vec3]) -> Vec<u64> {
     let tris = soup.triangles();
     let expected: Vec<Vec<u64>> = receivers
@@ -193,10 +196,21 @@ fn check(soup: &Soup, light: &LightPolygon, samples: &[Vec3], receivers: &[Vec3]
         for (r, &p) in receivers.iter().enumerate() {
             let mut bits = vec![0u64; words];
             let visible = ss.query(p, &mut bits).unwrap();
-            assert_eq!(
-                bits, expected[r],
-                "{structure:?}: receiver {r} at {p:?} differs from the exact oracle"
-            );
+            if structure == Structure::RayTrace {
+                for (i, &s) in samples.iter().enumerate() {
+                    let differs = (bits[i / 64] ^ expected[r][i / 64]) >> (i % 64) & 1 == 1;
+                    assert!(
+                        !differs || grazes_an_edge(&tris, p, s),
+                        "RayTrace: receiver {r} at {p:?}, sample {i} at {s:?} differs from \
+                         the exact oracle without grazing an edge"
+                    );
+                }
+            } else {
+                assert_eq!(
+                    bits, expected[r],
+                    "{structure:?}: receiver {r} at {p:?} differs from the exact oracle"
+                );
+            }
             assert_eq!(visible, bits.iter().map(|w| w.count_ones()).sum::<u32>());
             if structure == Structure::BruteForce {
                 brute.extend_from_slice(&bits);
@@ -204,6 +218,95 @@ fn check(soup: &Soup, light: &LightPolygon, samples: &[Vec3], receivers: &[Vec3]
         }
     }
     brute
+}
+
+/// Whether the segment `p`–`s` passes within [`GRAZING`] (relative to the
+/// largest coordinate of the scene, the receiver and the sample) of an edge
+/// of `tris`: where an `f32` ray's rounding (a few units of `f32` in the
+/// coordinates, about `1e-7` of them) may decide it either way.
+fn grazes_an_edge(tris: &[[Vec3; 3]], p: Vec3, s: Vec3) -> bool {
+    let largest = |v: Vec3| v.abs().max_element();
+    let scale = tris
+        .iter()
+        .flatten()
+        .fold(largest(p).max(largest(s)), |m, &v| m.max(largest(v)));
+    let limit = GRAZING * f64::from(scale);
+    let (p, s) = (p.as_dvec3(), s.as_dvec3());
+    tris.iter().any(|t| {
+        (0..3).any(|e| {
+            let (a, b) = (t[e].as_dvec3(), t[(e + 1) % 3].as_dvec3());
+            segment_distance(p, s, a, b) <= limit
+        })
+    })
+}
+
+/// Grazing distance of [`grazes_an_edge`], a fraction of the scene's largest
+/// coordinate: two orders of magnitude above `f32` rounding.
+const GRAZING: f64 = 1e-5;
+
+/// The distance between the segments `p0`–`p1` and `q0`–`q1` (their closest
+/// points: the parameters of the infinite lines' closest points, clamped to
+/// the segments and each re-projected on the other).
+fn segment_distance(p0: DVec3, p1: DVec3, q0: DVec3, q1: DVec3) -> f64 {
+    let (d, e, w) = (p1 - p0, q1 - q0, p0 - q0);
+    let (a, b, c) = (d.dot(d), d.dot(e), e.dot(e));
+    let (f, g) = (d.dot(w), e.dot(w));
+    let on_q = |t: f64| ((t * b + g) / c).clamp(0.0, 1.0);
+    let on_p = |u: f64| ((u * b - f) / a).clamp(0.0, 1.0);
+    let (t, u) = if a == 0.0 && c == 0.0 {
+        (0.0, 0.0)
+    } else if a == 0.0 {
+        (0.0, on_q(0.0))
+    } else if c == 0.0 {
+        (on_p(0.0), 0.0)
+    } else {
+        let denominator = a * c - b * b;
+        let t = if denominator > 0.0 {
+            ((b * g - c * f) / denominator).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let u = on_q(t);
+        (on_p(u), u)
+    };
+    ((p0 + d * t) - (q0 + e * u)).length()
+}
+
+#[test]
+fn segment_distance_of_crossing_skew_and_parallel_segments() {
+    let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    // Crossing at the origin, 0.5 apart in z.
+    let d = segment_distance(
+        v(-1.0, 0.0, 0.0),
+        v(1.0, 0.0, 0.0),
+        v(0.0, -1.0, 0.5),
+        v(0.0, 1.0, 0.5),
+    );
+    assert!((d - 0.5).abs() < 1e-12, "{d}");
+    // The closest points clamped to an end of each.
+    let d = segment_distance(
+        v(0.0, 0.0, 0.0),
+        v(1.0, 0.0, 0.0),
+        v(2.0, 1.0, 0.0),
+        v(3.0, 5.0, 0.0),
+    );
+    assert!((d - 2f64.sqrt()).abs() < 1e-12, "{d}");
+    // Parallel, overlapping: their gap.
+    let d = segment_distance(
+        v(0.0, 0.0, 0.0),
+        v(2.0, 0.0, 0.0),
+        v(1.0, 0.3, 0.0),
+        v(4.0, 0.3, 0.0),
+    );
+    assert!((d - 0.3).abs() < 1e-12, "{d}");
+    // A point against a segment.
+    let d = segment_distance(
+        v(1.0, 1.0, 0.0),
+        v(1.0, 1.0, 0.0),
+        v(0.0, 0.0, 0.0),
+        v(2.0, 0.0, 0.0),
+    );
+    assert!((d - 1.0).abs() < 1e-12, "{d}");
 }
 
 fn receivers_box(lo: Vec3, hi: Vec3, n: usize, seed: u64) -> Vec<Vec3> {
