@@ -76,7 +76,9 @@
 //! The first three give the same bits (they share every exact test and differ
 //! only in conservative culling, so they also agree in every tie the culling
 //! cannot reach), and so does the fourth away from segments that graze a
-//! silhouette edge within `f32` rounding; tests check them bit for bit:
+//! silhouette edge within `f32` rounding; tests check them bit for bit (the
+//! fourth on fixed scenes; on random ones, where such segments turn up, only
+//! away from them):
 //!
 //! - [`Structure::Hierarchy`] (default): the 2006 structure, an octree over the
 //!   receivers' space whose nodes keep the edges whose wedge and silhouette region
