@@ -256,22 +256,19 @@ fn ray_may_differ(tris: &[[Vec3; 3]], p: Vec3, s: Vec3, ray_visible: bool) -> bo
         .fold(largest(p).max(largest(s)), |m, &v| m.max(largest(v)));
     let limit = GRAZING * f64::from(scale);
     let (pd, sd) = (p.as_dvec3(), s.as_dvec3());
-    let edges = |t: &[Vec3; 3]| {
-        let t = t.map(|v| v.as_dvec3());
-        [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])]
-    };
     tris.iter().any(|t| {
         let crossed = segment_meets_triangle(p, s, t[0], t[1], t[2]);
+        let [a, b, c] = t.map(|v| v.as_dvec3());
+        let edges = [(a, b), (b, c), (c, a)];
         if crossed && ray_visible {
             // The segment's crossing with the triangle's plane near an edge.
-            let [a, b, c] = t.map(|v| v.as_dvec3());
             let normal = (b - a).cross(c - a);
             let x = pd + (sd - pd) * ((a - pd).dot(normal) / (sd - pd).dot(normal));
-            edges(t)
+            edges
                 .iter()
                 .any(|&(u, v)| segment_distance(x, x, u, v) <= limit)
         } else if !crossed && !ray_visible {
-            edges(t).iter().any(|&(u, v)| {
+            edges.iter().any(|&(u, v)| {
                 segment_distance(pd, pd, u, v) > limit && segment_distance(pd, sd, u, v) <= limit
             })
         } else {
@@ -315,62 +312,55 @@ fn segment_distance(p0: DVec3, p1: DVec3, q0: DVec3, q1: DVec3) -> f64 {
 #[test]
 fn segment_distance_of_crossing_skew_and_parallel_segments() {
     let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
-    // Crossing at the origin, 0.5 apart in z.
-    let d = segment_distance(
-        v(-1.0, 0.0, 0.0),
-        v(1.0, 0.0, 0.0),
-        v(0.0, -1.0, 0.5),
-        v(0.0, 1.0, 0.5),
-    );
-    assert!((d - 0.5).abs() < 1e-12, "{d}");
-    // The closest points clamped to an end of each.
-    let d = segment_distance(
-        v(0.0, 0.0, 0.0),
-        v(1.0, 0.0, 0.0),
-        v(2.0, 1.0, 0.0),
-        v(3.0, 5.0, 0.0),
-    );
-    assert!((d - 2f64.sqrt()).abs() < 1e-12, "{d}");
-    // Parallel, overlapping: their gap.
-    let d = segment_distance(
-        v(0.0, 0.0, 0.0),
-        v(2.0, 0.0, 0.0),
-        v(1.0, 0.3, 0.0),
-        v(4.0, 0.3, 0.0),
-    );
-    assert!((d - 0.3).abs() < 1e-12, "{d}");
-    // A point against a segment.
-    let d = segment_distance(
-        v(1.0, 1.0, 0.0),
-        v(1.0, 1.0, 0.0),
-        v(0.0, 0.0, 0.0),
-        v(2.0, 0.0, 0.0),
-    );
-    assert!((d - 1.0).abs() < 1e-12, "{d}");
-    // A segment against a point beyond its end.
-    let d = segment_distance(
-        v(0.0, 0.0, 0.0),
-        v(2.0, 0.0, 0.0),
-        v(3.0, 0.0, 4.0),
-        v(3.0, 0.0, 4.0),
-    );
-    assert!((d - 17f64.sqrt()).abs() < 1e-12, "{d}");
-    // Two points.
-    let d = segment_distance(
-        v(1.0, 2.0, 3.0),
-        v(1.0, 2.0, 3.0),
-        v(1.0, 2.0, 5.0),
-        v(1.0, 2.0, 5.0),
-    );
-    assert!((d - 2.0).abs() < 1e-12, "{d}");
-    // Parallel, apart along their line: end to end.
-    let d = segment_distance(
-        v(0.0, 0.0, 0.0),
-        v(1.0, 0.0, 0.0),
-        v(4.0, 4.0, 0.0),
-        v(6.0, 4.0, 0.0),
-    );
-    assert!((d - 5.0).abs() < 1e-12, "{d}");
+    // (case, p0, p1, q0, q1, distance)
+    let cases = [
+        (
+            "crossing at the origin, 0.5 apart in z",
+            [v(-1.0, 0.0, 0.0), v(1.0, 0.0, 0.0)],
+            [v(0.0, -1.0, 0.5), v(0.0, 1.0, 0.5)],
+            0.5,
+        ),
+        (
+            "the closest points clamped to an end of each",
+            [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0)],
+            [v(2.0, 1.0, 0.0), v(3.0, 5.0, 0.0)],
+            2f64.sqrt(),
+        ),
+        (
+            "parallel, overlapping: their gap",
+            [v(0.0, 0.0, 0.0), v(2.0, 0.0, 0.0)],
+            [v(1.0, 0.3, 0.0), v(4.0, 0.3, 0.0)],
+            0.3,
+        ),
+        (
+            "a point against a segment",
+            [v(1.0, 1.0, 0.0), v(1.0, 1.0, 0.0)],
+            [v(0.0, 0.0, 0.0), v(2.0, 0.0, 0.0)],
+            1.0,
+        ),
+        (
+            "a segment against a point beyond its end",
+            [v(0.0, 0.0, 0.0), v(2.0, 0.0, 0.0)],
+            [v(3.0, 0.0, 4.0), v(3.0, 0.0, 4.0)],
+            17f64.sqrt(),
+        ),
+        (
+            "two points",
+            [v(1.0, 2.0, 3.0), v(1.0, 2.0, 3.0)],
+            [v(1.0, 2.0, 5.0), v(1.0, 2.0, 5.0)],
+            2.0,
+        ),
+        (
+            "parallel, apart along their line: end to end",
+            [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0)],
+            [v(4.0, 4.0, 0.0), v(6.0, 4.0, 0.0)],
+            5.0,
+        ),
+    ];
+    for (case, [p0, p1], [q0, q1], want) in cases {
+        let d = segment_distance(p0, p1, q0, q1);
+        assert!((d - want).abs() < 1e-12, "{case}: {d}");
+    }
 }
 
 fn receivers_box(lo: Vec3, hi: Vec3, n: usize, seed: u64) -> Vec<Vec3> {
