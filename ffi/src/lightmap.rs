@@ -223,7 +223,10 @@ pub unsafe extern "C" fn antumbra_lightmap_create(
                 message!("uvs[{}] is not finite", at / 2),
             ));
         }
-        let uvs: Vec<[f32; 2]> = flat.chunks_exact(2).map(|uv| [uv[0], uv[1]]).collect();
+        // Sized by the caller: OUT_OF_MEMORY rather than an abort when refused.
+        let mut uvs: Vec<[f32; 2]> =
+            crate::fallible::vec_with_capacity(mesh.vertex_count(), "the uvs")?;
+        uvs.extend(flat.chunks_exact(2).map(|uv| [uv[0], uv[1]]));
         // SAFETY: caller contract on `normals`.
         let normals = unsafe { bake_normals(&mesh, normals) }?;
         let atlas_options = AtlasOptions {
