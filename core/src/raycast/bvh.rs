@@ -82,8 +82,8 @@ pub struct BvhScene {
     /// Nodes on the longest root-to-leaf path: a bound on the entries
     /// [`BvhScene::search`]'s stack ever holds.
     depth: usize,
-    /// Every node's box, the scratch of [`BvhScene::refit`] (empty until the
-    /// first refit).
+    /// Every node's box, then every leaf block's: the scratch of
+    /// [`BvhScene::refit`] (empty until the first refit).
     refit_bounds: Vec<[Vec3; 2]>,
     /// Whether queries use the AVX kernels of [`simd::avx`] (a node's eight
     /// child boxes in one pass, two leaves' triangles in one pass) instead of

@@ -29,8 +29,7 @@ impl Caster {
         if let Caster::Bvh(scene) = self
             && scene.triangle_count() == graph.triangles.len()
         {
-            let (positions, indices) = graph_arrays(graph);
-            let mesh = MeshView::new(&positions, &indices).map_err(|_| SsvError::Caster)?;
+            let mesh = graph_view(graph)?;
             scene.refit(&mesh).map_err(|_| SsvError::Caster)?;
             return Ok(core::mem::replace(self, Caster::empty()));
         }
@@ -78,8 +77,7 @@ impl SoftShadows {
     pub(super) fn build_caster(graph: &EdgeGraph) -> Result<Caster, SsvError> {
         #[cfg(feature = "bvh")]
         {
-            let (positions, indices) = graph_arrays(graph);
-            let mesh = MeshView::new(&positions, &indices).map_err(|_| SsvError::Caster)?;
+            let mesh = graph_view(graph)?;
             // One reference ray per receiver: a quick build pays.
             let scene =
                 crate::raycast::BvhScene::with_quality(&mesh, crate::raycast::BuildQuality::Fast)
@@ -96,10 +94,11 @@ impl SoftShadows {
     }
 }
 
-/// The welded graph's positions and triangles as mesh arrays, for the BVH.
+/// The welded graph's positions and triangles as a mesh, for the BVH: a view
+/// of the graph's own arrays, nothing copied.
 #[cfg(feature = "bvh")]
-fn graph_arrays(graph: &EdgeGraph) -> (Vec<[f32; 3]>, Vec<u32>) {
-    let positions = graph.positions.iter().map(|p| p.to_array()).collect();
-    let indices = graph.triangles.iter().flatten().copied().collect();
-    (positions, indices)
+fn graph_view(graph: &EdgeGraph) -> Result<MeshView<'_>, SsvError> {
+    let positions: &[[f32; 3]] = bytemuck::cast_slice(&graph.positions);
+    let indices: &[u32] = bytemuck::cast_slice(&graph.triangles);
+    MeshView::new(positions, indices).map_err(|_| SsvError::Caster)
 }

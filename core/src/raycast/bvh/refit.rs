@@ -48,7 +48,7 @@ impl BvhScene {
     /// Fails, leaving the scene as it was, when `mesh` has a different number
     /// of triangles, when a vertex used by a triangle is beyond
     /// ±[`MAX_COORDINATE`](super::MAX_COORDINATE), or when the pass's scratch
-    /// (24 bytes per node) cannot be reserved.
+    /// (24 bytes per node and per leaf block) cannot be reserved.
     pub fn refit(&mut self, mesh: &MeshView<'_>) -> Result<(), BvhError> {
         if mesh.triangle_count() != self.triangle_count {
             return Err(BvhError::TriangleCountChanged {
@@ -60,14 +60,25 @@ impl BvhScene {
             return Err(BvhError::CoordinateOutOfRange { vertex });
         }
         let nodes = self.bvh.nodes.len();
-        // The nodes' boxes, kept between refits so that a frame's refit does
-        // not allocate.
+        // The nodes' boxes, then the leaves' (one per block), kept between
+        // refits so that a frame's refit does not allocate.
         let mut bounds = core::mem::take(&mut self.refit_bounds);
+        let total = nodes + self.blocks.len();
         bounds
-            .try_reserve_exact(nodes.saturating_sub(bounds.len()))
+            .try_reserve_exact(total.saturating_sub(bounds.len()))
             .map_err(BvhError::OutOfMemory)?;
         // Nothing fails from here on.
-        for (lanes, &[t0, t1, t2, t3]) in self.blocks.iter_mut().zip(&self.block_triangles) {
+        bounds.resize(total, [Vec3::ZERO; 2]);
+        let (node_bounds, leaf_bounds) = bounds.split_at_mut(nodes);
+        // Each leaf's box is taken while its block is in cache, so that the
+        // pass over the nodes below reads 24 bytes per leaf instead of the
+        // 160-byte block, in the nodes' order rather than the blocks'.
+        for ((lanes, &[t0, t1, t2, t3]), leaf) in self
+            .blocks
+            .iter_mut()
+            .zip(&self.block_triangles)
+            .zip(leaf_bounds.iter_mut())
+        {
             // The padding lanes' indices repeat the last triangle, as
             // `TriangleLanes::new` fills them.
             let (p, q) = (mesh.triangle(t0 as usize), mesh.triangle(t1 as usize));
@@ -82,8 +93,8 @@ impl BvhScene {
                     );
                 }
             }
+            *leaf = lanes_bounds(lanes);
         }
-        bounds.resize(nodes, [Vec3::ZERO; 2]);
         // The builder numbers every node's children after it, so a backward
         // pass meets children first.
         for index in (0..nodes).rev() {
@@ -94,13 +105,13 @@ impl BvhScene {
                 if node.imask & (1 << slot) != 0 {
                     let below = node.child_node_index(slot) as usize;
                     debug_assert!(below > index, "children are numbered after parents");
-                    *child = Some(bounds[below]);
+                    *child = Some(node_bounds[below]);
                 } else if plane.leaf_mask & (1 << slot) != 0 {
                     let (block, _) = leaf_primitives(plane.block_base, plane.leaves[slot]);
-                    *child = Some(lanes_bounds(&self.blocks[block]));
+                    *child = Some(leaf_bounds[block]);
                 }
             }
-            bounds[index] = quantise(node, &children);
+            node_bounds[index] = quantise(node, &children);
             *plane = NodePlanes::new(node, plane.block_base);
         }
         self.refit_bounds = bounds;
