@@ -131,6 +131,7 @@ impl EdgeBounds {
             });
         let piece_tol = shape.tolerance + PIECE_SLACK * light_scale;
         let region = grown_light(shape, origin, piece_tol)?;
+        let disk = RegionDisk::of(&region, shape.normal);
         let mut edges = Vec::new();
         let mut records = Vec::new();
         let mut fallback = Vec::new();
@@ -138,12 +139,19 @@ impl EdgeBounds {
         let mut piece = Polygon::default();
         for &e in potential {
             let edge = &graph.edges[e as usize];
-            let (light, tol): (&[DVec3], f64) =
-                match silhouette_part(graph, edge, &region, piece_tol, light_scale, &mut piece) {
-                    Part::None => continue,
-                    Part::Piece => (piece.points(), piece_tol),
-                    Part::Whole => (&shape.vertices, shape.tolerance),
-                };
+            let (light, tol): (&[DVec3], f64) = match silhouette_part(
+                graph,
+                edge,
+                &region,
+                disk.as_ref(),
+                piece_tol,
+                light_scale,
+                &mut piece,
+            ) {
+                Part::None => continue,
+                Part::Piece => (piece.points(), piece_tol),
+                Part::Whole => (&shape.vertices, shape.tolerance),
+            };
             let slack = SLACK * scale + tol;
             fallible::push(
                 &mut fallback,
@@ -590,6 +598,7 @@ fn silhouette_part(
     graph: &EdgeGraph,
     edge: &Edge,
     region: &[DVec3],
+    disk: Option<&RegionDisk>,
     tol: f64,
     scale: f64,
     piece: &mut Polygon,
@@ -601,7 +610,14 @@ fn silhouette_part(
     let at = |i: u32| graph.positions[i as usize].as_dvec3();
     let (a, b) = (at(edge.a), at(edge.b));
     let plane_slack = SLACK * scale.max(a.abs().max(b.abs()).max_element()) + tol;
-    let normals = [third[0], third[1]].map(|v| (b - a).cross(at(v) - a).normalize());
+    let across = [third[0], third[1]].map(|v| (b - a).cross(at(v) - a));
+    // Most edges of a mesh face the light from both triangles or from
+    // neither: decided from the region's disk with one product per plane,
+    // and only where that is unsure from each vertex below.
+    if disk.is_some_and(|disk| disk.beyond_both_sides(a, across, plane_slack)) {
+        return Part::None;
+    }
+    let normals = across.map(DVec3::normalize);
     if !normals.iter().all(|m| m.is_finite()) {
         return Part::Whole;
     }
@@ -639,6 +655,85 @@ fn silhouette_part(
         _ => Part::Whole,
     }
 }
+
+/// A disk in the light's plane (and a slab about it) holding every vertex of
+/// the grown light: enough to show, with one product per plane, that the
+/// whole light lies strictly beyond a plane through an edge, which is the
+/// common answer of [`silhouette_part`]'s test over the vertices.
+#[derive(Clone, Copy, Debug)]
+struct RegionDisk {
+    centre: DVec3,
+    /// Unit normal of the light's plane.
+    normal: DVec3,
+    /// Largest distance of a vertex from the centre within the plane, and
+    /// along its normal, each rounded up.
+    radius: f64,
+    thickness: f64,
+}
+
+impl RegionDisk {
+    /// The disk of `region` about its mean, in the plane of unit `normal`
+    /// (normalised here); `None` when either is not finite.
+    fn of(region: &[DVec3], normal: DVec3) -> Option<Self> {
+        let normal = normal.normalize();
+        if region.is_empty() || !normal.is_finite() {
+            return None;
+        }
+        let centre = region.iter().fold(DVec3::ZERO, |s, l| s + *l) / region.len() as f64;
+        let (mut radius, mut thickness) = (0.0f64, 0.0f64);
+        for &l in region {
+            let d = l - centre;
+            let height = d.dot(normal);
+            thickness = thickness.max(height.abs());
+            radius = radius.max((d - height * normal).length());
+        }
+        // The differences and products above round by a few units of the
+        // coordinates' magnitude: far less than this.
+        let pad = DISK_ROUNDING * (centre.abs().max_element() + radius + thickness);
+        let disk = RegionDisk {
+            centre,
+            normal,
+            radius: radius + pad,
+            thickness: thickness + pad,
+        };
+        (centre.is_finite() && disk.radius.is_finite() && disk.thickness.is_finite())
+            .then_some(disk)
+    }
+
+    /// Whether every point `l` of the region has `n̂·(l - a) + slack < 0` for
+    /// one of the two planes `n` of `across` (through `a`, any length), and
+    /// `-n̂·(l - a) + slack < 0` for one of them: then [`silhouette_part`]'s
+    /// test over the vertices finds both sides empty. The bound
+    /// `n·(l - c) <= |n across the normal|·radius + |n·normal|·thickness`
+    /// holds for every point of the disk's slab, and the margin of
+    /// [`DISK_ROUNDING`] times the distances covers the rounding of this
+    /// test and of the one over the vertices, so a `true` here is a `true`
+    /// there. Not finite planes give `false`.
+    fn beyond_both_sides(&self, a: DVec3, across: [DVec3; 2], slack: f64) -> bool {
+        let to_centre = self.centre - a;
+        let rounding =
+            DISK_ROUNDING * (to_centre.abs().max_element() + self.radius + self.thickness);
+        let (mut front, mut back) = (false, false);
+        for n in across {
+            let squared = n.length_squared();
+            let along = n.dot(self.normal);
+            // An upper bound on |n| within the plane: the difference cancels
+            // for a plane parallel to the light's, so it is grown.
+            let within = libm::sqrt((squared - along * along).max(0.0) + DISK_ROUNDING * squared);
+            let spread = within * self.radius
+                + along.abs() * self.thickness
+                + libm::sqrt(squared) * (slack + rounding);
+            let middle = n.dot(to_centre);
+            front |= middle + spread < 0.0;
+            back |= spread - middle < 0.0;
+        }
+        front && back
+    }
+}
+
+/// Relative margin of [`RegionDisk`]'s bounds over `f64` rounding (a few
+/// units of `2^-53` per operation).
+const DISK_ROUNDING: f64 = 1e-12;
 
 /// The `f64` tests of [`super::wedge`] for one edge and the octants of `parent`.
 fn f64_mask(graph: &EdgeGraph, shape: &LightShape, e: u32, parent: &Aabb) -> u8 {
@@ -722,8 +817,16 @@ mod tests {
             for (slot, &e) in bounds.edges().iter().enumerate() {
                 let edge = &graph.edges[e as usize];
                 let mut piece = Polygon::default();
-                let part =
-                    silhouette_part(&graph, edge, &region, piece_tol, light_scale, &mut piece);
+                let disk = RegionDisk::of(&region, shape.normal);
+                let part = silhouette_part(
+                    &graph,
+                    edge,
+                    &region,
+                    disk.as_ref(),
+                    piece_tol,
+                    light_scale,
+                    &mut piece,
+                );
                 let light = match part {
                     Part::None => unreachable!("slots hold only edges with a part"),
                     Part::Piece => LightShape {
@@ -835,7 +938,7 @@ mod tests {
             let region = grown_light(&shape, DVec3::new(0.0, 0.0, 3.0), 1e-6).unwrap();
             for edge in &graph.edges {
                 let mut piece = Polygon::default();
-                let part = silhouette_part(&graph, edge, &region, 1e-6, 3.0, &mut piece);
+                let part = silhouette_part(&graph, edge, &region, None, 1e-6, 3.0, &mut piece);
                 let pieces =
                     super::super::hemicube::silhouette_pieces(&graph, edge, &region, 1e-6, 3.0);
                 match (part, pieces) {
@@ -851,5 +954,98 @@ mod tests {
             }
         }
         assert!(seen.iter().all(|&n| n > 50), "{seen:?}");
+    }
+
+    /// The disk's quick answer is the vertex test's: wherever it says no
+    /// point of the light sees the edge as a silhouette, the test over the
+    /// region's vertices (without the disk) says so too. Random edges and
+    /// lights, with triangles in and parallel to the light's plane, edges
+    /// beside the light and lights from a speck to wider than the mesh.
+    #[test]
+    fn region_disk_decides_as_the_vertices() {
+        let mut rng = SplitMix64::new(11);
+        let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
+        let (mut quick, mut slow_none, mut others) = (0usize, 0usize, 0usize);
+        for round in 0..4000 {
+            // A quad light of random size and tilt, at height 2.
+            let size = [1e-4, 0.05, 0.5, 3.0][round % 4];
+            let tilt = r(-1.2, 1.2);
+            let normal = DVec3::new(tilt.sin(), 0.0, tilt.cos());
+            let (u, v) = normal.any_orthonormal_pair();
+            let centre = DVec3::new(r(-0.5, 0.5), r(-0.5, 0.5), 2.0);
+            let shape = LightShape {
+                vertices: [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                    .iter()
+                    .map(|&(x, y): &(f64, f64)| centre + 0.5 * size * (x * u + y * v))
+                    .collect(),
+                normal,
+                tolerance: 1e-6,
+            };
+            let tol = 1e-6;
+            let region = grown_light(&shape, centre, tol).unwrap();
+            let disk = RegionDisk::of(&region, shape.normal).unwrap();
+            // Two triangles on a random edge: some flat in the light's plane
+            // or parallel to it, some with the edge near the light.
+            let mut p = || Vec3::new(r(-1.0, 1.0) as f32, r(-1.0, 1.0) as f32, r(0.0, 2.5) as f32);
+            let (a, b, mut c, mut d) = (p(), p(), p(), p());
+            match round % 5 {
+                0 => {
+                    // Parallel to the light's plane (as far as f32 allows).
+                    let lift = |x: Vec3| x - (x - a).dot(normal.as_vec3()) * normal.as_vec3();
+                    c = lift(c);
+                    d = lift(d);
+                }
+                1 => {
+                    // The far corners in the light's plane.
+                    c = (centre + 0.7 * size * u).as_vec3();
+                    d = (centre - 0.6 * size * v).as_vec3();
+                }
+                2 | 3 => {
+                    // A gentle fold, as on a smooth mesh: `d` is `c` turned
+                    // about the edge by nearly half a turn.
+                    let axis = (b - a).normalize();
+                    let offset = c - a;
+                    let along = axis * offset.dot(axis);
+                    let bend = r(-0.3, 0.3) as f32;
+                    let across = offset - along;
+                    let turned = -across * bend.cos() + axis.cross(across) * bend.sin();
+                    d = a + along * 0.5 + turned;
+                }
+                _ => {}
+            }
+            let graph = EdgeGraph::new([[a, b, c], [b, a, d]].into_iter());
+            for edge in &graph.edges {
+                let mut piece = Polygon::default();
+                let with =
+                    silhouette_part(&graph, edge, &region, Some(&disk), tol, 3.0, &mut piece);
+                let without = silhouette_part(&graph, edge, &region, None, tol, 3.0, &mut piece);
+                match (with, without) {
+                    (Part::None, Part::None) => {
+                        let third = graph.third_of(edge);
+                        let at = |i: u32| graph.positions[i as usize].as_dvec3();
+                        let (ea, eb) = (at(edge.a), at(edge.b));
+                        let slack = SLACK * 3.0f64.max(ea.abs().max(eb.abs()).max_element()) + tol;
+                        let across = [third[0], third[1]].map(|v| (eb - ea).cross(at(v) - ea));
+                        if third.len() == 2 && disk.beyond_both_sides(ea, across, slack) {
+                            quick += 1;
+                        } else {
+                            slow_none += 1;
+                        }
+                    }
+                    (Part::None, _) => {
+                        panic!("round {round}: the disk drops an edge the vertices keep")
+                    }
+                    (_, Part::None) => {
+                        panic!("round {round}: the disk keeps an edge the vertices drop")
+                    }
+                    _ => others += 1,
+                }
+            }
+        }
+        // Not vacuous: the disk decides most of the edges that no point sees
+        // as a silhouette, and leaves some to the vertices.
+        assert!(quick > 1000, "{quick}");
+        assert!(slow_none > 10, "{slow_none}");
+        assert!(others > 1000, "{others}");
     }
 }
