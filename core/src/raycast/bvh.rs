@@ -47,6 +47,7 @@ use obvhs::{
     triangle::Triangle,
 };
 
+mod collapse;
 mod packet;
 mod refit;
 
@@ -207,8 +208,16 @@ impl BvhScene {
             ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
         }
         // Ordering the children (for rays entering from any side) takes a
-        // third of the conversion.
-        let mut bvh = bvh2_to_cwbvh(&bvh2, 3, quality == BuildQuality::Medium, false);
+        // third of obvhs's conversion; the fast build collapses greedily
+        // instead (collapse.rs).
+        let collapsed = match quality {
+            BuildQuality::Medium => None,
+            BuildQuality::Fast => collapse::collapse(&bvh2).map_err(BvhError::OutOfMemory)?,
+        };
+        let mut bvh = match collapsed {
+            Some(bvh) => bvh,
+            None => bvh2_to_cwbvh(&bvh2, 3, quality == BuildQuality::Medium, false),
+        };
         drop(bvh2);
         drop(triangles);
         let depth = depth(&bvh.nodes);

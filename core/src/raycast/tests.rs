@@ -479,11 +479,28 @@ mod bvh_against_brute_force {
         (positions, indices)
     }
 
-    /// Compares every ray; returns the number of hits so callers can check coverage.
+    /// Compares every ray, through the scene of each build quality (obvhs's
+    /// conversion and the greedy collapse); returns the fewer hits of the
+    /// two so callers can check coverage.
     fn compare(positions: &[[f32; 3]], indices: &[u32], rays: usize, rng: &mut SmallRng) -> usize {
         let mesh = MeshView::new(positions, indices).unwrap();
-        let bvh = BvhScene::new(&mesh).unwrap();
-        compare_scene(&mesh, &bvh, rays, rng)
+        [BuildQuality::Medium, BuildQuality::Fast]
+            .into_iter()
+            .map(|quality| {
+                let bvh = BvhScene::with_quality(&mesh, quality).unwrap();
+                // The collapse's boxes are quantised by the refit's rule:
+                // every triangle under the root exactly once, inside every
+                // box above it, exactly (obvhs's own rounding is covered by
+                // the search's padding instead).
+                if quality == BuildQuality::Fast {
+                    let mut below = bvh.assert_boxes_hold(&mesh, 0);
+                    below.sort_unstable();
+                    assert!(below.iter().copied().eq(0..mesh.triangle_count() as u32));
+                }
+                compare_scene(&mesh, &bvh, rays, rng)
+            })
+            .min()
+            .expect("two qualities")
     }
 
     /// [`compare`] for a scene already made over `mesh` (built or refitted).
@@ -587,6 +604,8 @@ mod bvh_against_brute_force {
         let brute = BruteForceCaster::new(mesh);
         let bvh = BvhScene::new(&mesh).unwrap();
         assert!(bvh.depth() > 64, "not deep enough: {}", bvh.depth());
+        let fast = BvhScene::with_quality(&mesh, BuildQuality::Fast).unwrap();
+        assert!(fast.depth() > 32, "not deep enough: {}", fast.depth());
         let mut rng = SmallRng::seed_from_u64(21);
         let mut hits = 0;
         for k in 0..4000 {
@@ -619,9 +638,11 @@ mod bvh_against_brute_force {
                 Ray::new(direction * -1e-30, direction, f32::INFINITY)
             };
             let expected = brute.closest_hit(&ray);
-            assert_eq!(bvh.occluded(&ray), expected.is_some(), "{ray:?}");
-            let got = bvh.closest_hit(&ray);
-            assert_eq!(got.map(|h| h.t), expected.map(|h| h.t), "{ray:?}");
+            for scene in [&bvh, &fast] {
+                assert_eq!(scene.occluded(&ray), expected.is_some(), "{ray:?}");
+                let got = scene.closest_hit(&ray);
+                assert_eq!(got.map(|h| h.t), expected.map(|h| h.t), "{ray:?}");
+            }
             hits += usize::from(expected.is_some());
         }
         assert!(hits > 1000, "too few hits to mean anything: {hits}");
@@ -1082,51 +1103,55 @@ mod bvh_against_brute_force {
             (&soup_positions, &soup_indices),
         ] {
             let mesh = MeshView::new(positions, indices).unwrap();
-            let mut scene = BvhScene::new(&mesh).unwrap();
-            let count = positions.len();
-            for motion in 0..4 {
-                let moved: Vec<[f32; 3]> = (0..count)
-                    .map(|v| {
-                        let p = Vec3::from(positions[v]);
-                        match motion {
-                            0 => glam::Quat::from_rotation_y(0.7) * p + Vec3::new(0.3, -0.2, 0.1),
-                            1 => glam::Quat::from_rotation_y(1.5 * p.y) * p,
-                            2 => p * 1e-6,
-                            _ => Vec3::from(positions[(v * 7919 + 13) % count]),
-                        }
-                        .to_array()
-                    })
-                    .collect();
-                let moved_mesh = MeshView::new(&moved, indices).unwrap();
-                scene.refit(&moved_mesh).unwrap();
-                let below = scene.assert_boxes_hold(&moved_mesh, 0);
-                assert_eq!(below.len(), moved_mesh.triangle_count());
-                hits += compare_scene(&moved_mesh, &scene, 300, &mut rng);
-            }
-            // Another triangle count, a coordinate out of range: errors, and
-            // the scene still answers for the last mesh it was fitted to.
-            let last: Vec<[f32; 3]> = (0..count)
-                .map(|v| positions[(v * 7919 + 13) % count])
-                .collect();
-            let last_mesh = MeshView::new(&last, indices).unwrap();
-            let fewer = MeshView::new(&last, &indices[3..]).unwrap();
-            assert_eq!(
-                scene.refit(&fewer).unwrap_err(),
-                BvhError::TriangleCountChanged {
-                    scene: mesh.triangle_count(),
-                    mesh: mesh.triangle_count() - 1
+            for quality in [BuildQuality::Medium, BuildQuality::Fast] {
+                let mut scene = BvhScene::with_quality(&mesh, quality).unwrap();
+                let count = positions.len();
+                for motion in 0..4 {
+                    let moved: Vec<[f32; 3]> = (0..count)
+                        .map(|v| {
+                            let p = Vec3::from(positions[v]);
+                            match motion {
+                                0 => {
+                                    glam::Quat::from_rotation_y(0.7) * p + Vec3::new(0.3, -0.2, 0.1)
+                                }
+                                1 => glam::Quat::from_rotation_y(1.5 * p.y) * p,
+                                2 => p * 1e-6,
+                                _ => Vec3::from(positions[(v * 7919 + 13) % count]),
+                            }
+                            .to_array()
+                        })
+                        .collect();
+                    let moved_mesh = MeshView::new(&moved, indices).unwrap();
+                    scene.refit(&moved_mesh).unwrap();
+                    let below = scene.assert_boxes_hold(&moved_mesh, 0);
+                    assert_eq!(below.len(), moved_mesh.triangle_count());
+                    hits += compare_scene(&moved_mesh, &scene, 300, &mut rng);
                 }
-            );
-            let mut far = last.clone();
-            far[indices[5] as usize] = [0.0, 2e12, 0.0];
-            let far_mesh = MeshView::new(&far, indices).unwrap();
-            assert_eq!(
-                scene.refit(&far_mesh).unwrap_err(),
-                BvhError::CoordinateOutOfRange { vertex: indices[5] }
-            );
-            compare_scene(&last_mesh, &scene, 100, &mut rng);
+                // Another triangle count, a coordinate out of range: errors, and
+                // the scene still answers for the last mesh it was fitted to.
+                let last: Vec<[f32; 3]> = (0..count)
+                    .map(|v| positions[(v * 7919 + 13) % count])
+                    .collect();
+                let last_mesh = MeshView::new(&last, indices).unwrap();
+                let fewer = MeshView::new(&last, &indices[3..]).unwrap();
+                assert_eq!(
+                    scene.refit(&fewer).unwrap_err(),
+                    BvhError::TriangleCountChanged {
+                        scene: mesh.triangle_count(),
+                        mesh: mesh.triangle_count() - 1
+                    }
+                );
+                let mut far = last.clone();
+                far[indices[5] as usize] = [0.0, 2e12, 0.0];
+                let far_mesh = MeshView::new(&far, indices).unwrap();
+                assert_eq!(
+                    scene.refit(&far_mesh).unwrap_err(),
+                    BvhError::CoordinateOutOfRange { vertex: indices[5] }
+                );
+                compare_scene(&last_mesh, &scene, 100, &mut rng);
+            }
         }
-        assert!(hits > 500, "{hits} hits");
+        assert!(hits > 1000, "{hits} hits");
         // A hierarchy deeper than the search's stack: children still follow
         // their parents, and packets and single rays agree with brute force.
         let (positions, indices) = shrinking_books(70, 0.3, 30);

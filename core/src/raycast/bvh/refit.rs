@@ -139,7 +139,7 @@ fn lanes_bounds(lanes: &TriangleLanes) -> [Vec3; 2] {
 /// Sets `node`'s grid (`p`, `e`) to the union of `children`'s boxes and its
 /// child slots to their conservatively quantised boxes; returns the union.
 /// Empty slots keep their bytes (the traversal never enters them).
-fn quantise(node: &mut CwBvhNode, children: &[Option<[Vec3; 2]>; 8]) -> [Vec3; 2] {
+pub(super) fn quantise(node: &mut CwBvhNode, children: &[Option<[Vec3; 2]>; 8]) -> [Vec3; 2] {
     let mut lo = Vec3::splat(f32::INFINITY);
     let mut hi = Vec3::splat(f32::NEG_INFINITY);
     for [child_lo, child_hi] in children.iter().flatten() {
