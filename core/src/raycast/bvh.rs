@@ -223,7 +223,6 @@ impl BvhScene {
             None => bvh2_to_cwbvh(&bvh2, 3, quality == BuildQuality::Medium, false),
         };
         drop(bvh2);
-        drop(triangles);
         let depth = depth(&bvh.nodes);
         let mut planes = Vec::new();
         planes
@@ -252,13 +251,17 @@ impl BvhScene {
                     leaf_primitives(node.primitive_base_idx, node.child_meta[slot]);
                 let leaf = &bvh.primitive_indices[first..first + count];
                 let mut lanes = [[Vec3::ZERO; 3]; 4];
+                // From the builder's copy: one read per triangle rather than
+                // three through the mesh's indices.
                 for (lane, &t) in lanes.iter_mut().zip(leaf) {
-                    *lane = mesh.triangle(t as usize);
+                    let Triangle { v0, v1, v2 } = triangles[t as usize];
+                    *lane = [v0.into(), v1.into(), v2.into()];
                 }
                 blocks.push(TriangleLanes::new(&lanes[..count]));
                 block_triangles.push(core::array::from_fn(|lane| leaf[lane.min(count - 1)]));
             }
         }
+        drop(triangles);
         #[cfg(test)]
         let corners = bvh
             .primitive_indices

@@ -106,31 +106,27 @@ pub(super) fn collapse(bvh2: &Bvh2) -> Result<Option<CwBvh>, TryReserveError> {
 const UNARY: [u8; 4] = [0, 0b0010_0000, 0b0110_0000, 0b1110_0000];
 
 /// Triangles under each binary node; `None` when a leaf holds more than
-/// [`LEAF_TRIANGLES`].
+/// [`LEAF_TRIANGLES`], or when a node's children do not come after it (the
+/// order obvhs's PLOC builder writes, which lets one backward pass see
+/// children first; a builder that wrote another order falls back to
+/// obvhs's conversion rather than to a slower pass here).
 fn subtree_triangles(bvh2: &Bvh2) -> Result<Option<Vec<u32>>, TryReserveError> {
     let mut counts: Vec<u32> = Vec::new();
     counts.try_reserve_exact(bvh2.nodes.len())?;
     counts.resize(bvh2.nodes.len(), 0);
-    // Post order with an explicit stack: (node, children done).
-    let mut stack: Vec<(usize, bool)> = Vec::new();
-    stack.try_reserve(64)?;
-    stack.push((0, false));
-    while let Some((index, done)) = stack.pop() {
-        let node = &bvh2.nodes[index];
-        if node.prim_count != 0 {
+    for (index, node) in bvh2.nodes.iter().enumerate().rev() {
+        counts[index] = if node.prim_count != 0 {
             if node.prim_count > LEAF_TRIANGLES {
                 return Ok(None);
             }
-            counts[index] = node.prim_count;
-        } else if done {
-            let first = node.first_index as usize;
-            counts[index] = counts[first] + counts[first + 1];
+            node.prim_count
         } else {
-            stack.try_reserve(3)?;
-            stack.push((index, true));
-            stack.push((node.first_index as usize, false));
-            stack.push((node.first_index as usize + 1, false));
-        }
+            let first = node.first_index as usize;
+            if first <= index || first + 1 >= counts.len() {
+                return Ok(None);
+            }
+            counts[first] + counts[first + 1]
+        };
     }
     Ok(Some(counts))
 }
