@@ -153,8 +153,8 @@ pub enum BuildQuality {
     Medium,
     /// obvhs's fastest preset (PLOC with its smallest search radius, no
     /// reinsertion), collapsed to eight-wide nodes greedily rather than by
-    /// obvhs's cost model: built in well under half the time (the armadillo,
-    /// 52,000 triangles: about 15 ms against 33–36 ms), for scenes that
+    /// obvhs's cost model: built in about a third of the time (the
+    /// armadillo, 52,000 triangles: 11–12 ms against 32–33 ms), for scenes that
     /// answer few rays per build, such as the one reference ray per receiver
     /// of soft shadows.
     Fast,

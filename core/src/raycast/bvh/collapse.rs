@@ -9,7 +9,8 @@
 //! node's two children and opens the child of largest surface area (of those
 //! holding more than three triangles) until it has eight, the usual greedy
 //! rule for wide hierarchies; a child of at most three triangles becomes a
-//! leaf. One pass, no table.
+//! leaf. One backward pass counts each subtree's triangles, one pass from
+//! the root collapses: no table of decisions.
 //!
 //! The layout is obvhs's, so the traversal, the refit and the leaf blocks
 //! read it unchanged: a node's inner children follow each other from
