@@ -603,14 +603,9 @@ fn silhouette_part(
     scale: f64,
     piece: &mut Polygon,
 ) -> Part {
-    let third = graph.third_of(edge);
-    if third.len() != 2 {
+    let Some((a, across, plane_slack)) = adjacent_planes(graph, edge, tol, scale) else {
         return Part::Whole;
-    }
-    let at = |i: u32| graph.positions[i as usize].as_dvec3();
-    let (a, b) = (at(edge.a), at(edge.b));
-    let plane_slack = SLACK * scale.max(a.abs().max(b.abs()).max_element()) + tol;
-    let across = [third[0], third[1]].map(|v| (b - a).cross(at(v) - a));
+    };
     // Most edges of a mesh face the light from both triangles or from
     // neither: decided from the region's disk with one product per plane,
     // and only where that is unsure from each vertex below.
@@ -654,6 +649,29 @@ fn silhouette_part(
         1 => Part::Piece,
         _ => Part::Whole,
     }
+}
+
+/// The planes of the two triangles on `edge` (through its first end `a`,
+/// normals `(b - a) × (v - a)` at any length) and the slack of
+/// [`silhouette_part`]'s tests; `None` unless exactly two triangles share it.
+fn adjacent_planes(
+    graph: &EdgeGraph,
+    edge: &Edge,
+    tol: f64,
+    scale: f64,
+) -> Option<(DVec3, [DVec3; 2], f64)> {
+    let third = graph.third_of(edge);
+    if third.len() != 2 {
+        return None;
+    }
+    let at = |i: u32| graph.positions[i as usize].as_dvec3();
+    let (a, b) = (at(edge.a), at(edge.b));
+    let slack = SLACK * scale.max(a.abs().max(b.abs()).max_element()) + tol;
+    Some((
+        a,
+        [third[0], third[1]].map(|v| (b - a).cross(at(v) - a)),
+        slack,
+    ))
 }
 
 /// A disk in the light's plane (and a slab about it) holding every vertex of
@@ -814,10 +832,10 @@ mod tests {
                 });
             let piece_tol = shape.tolerance + PIECE_SLACK * light_scale;
             let region = grown_light(&shape, origin, piece_tol).unwrap();
+            let disk = RegionDisk::of(&region, shape.normal);
             for (slot, &e) in bounds.edges().iter().enumerate() {
                 let edge = &graph.edges[e as usize];
                 let mut piece = Polygon::default();
-                let disk = RegionDisk::of(&region, shape.normal);
                 let part = silhouette_part(
                     &graph,
                     edge,
@@ -1021,12 +1039,9 @@ mod tests {
                 let without = silhouette_part(&graph, edge, &region, None, tol, 3.0, &mut piece);
                 match (with, without) {
                     (Part::None, Part::None) => {
-                        let third = graph.third_of(edge);
-                        let at = |i: u32| graph.positions[i as usize].as_dvec3();
-                        let (ea, eb) = (at(edge.a), at(edge.b));
-                        let slack = SLACK * 3.0f64.max(ea.abs().max(eb.abs()).max_element()) + tol;
-                        let across = [third[0], third[1]].map(|v| (eb - ea).cross(at(v) - ea));
-                        if third.len() == 2 && disk.beyond_both_sides(ea, across, slack) {
+                        let (a, across, slack) = adjacent_planes(&graph, edge, tol, 3.0)
+                            .expect("only an edge of two triangles has no part");
+                        if disk.beyond_both_sides(a, across, slack) {
                             quick += 1;
                         } else {
                             slow_none += 1;

@@ -81,7 +81,7 @@ pub(super) fn collapse(bvh2: &Bvh2) -> Result<Option<CwBvh>, TryReserveError> {
             } else {
                 node.imask |= 1 << slot;
                 node.child_meta[slot] = (24 + slot as u8) | 0b0010_0000;
-                below.try_reserve(1)?;
+                // Within the capacity reserved above: at most eight.
                 below.push(child);
             }
         }
