@@ -119,13 +119,15 @@ cargo-test:
 
 # Miri, the undefined-behaviour checker, over the tests that reach core's unsafe
 # code: the AVX lanes of the BVH and of the edge bounds, prefetching, the
-# silhouette record's uninitialised slots and fallible allocation. Soft floats,
-# since libm's x86 `asm!` stops Miri; AVX2 and FMA on, so the vector paths run.
+# silhouette record's uninitialised slots, fallible allocation and the calls of
+# the rasterizer's AVX2 build. Soft floats, since libm's x86 `asm!` stops Miri;
+# AVX2, FMA, BMI and the bit counts on, so the vector paths and that build run.
 MIRI_TESTS := miri_ avx_octants_equal_the_portable_ones
 miri:
 	rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 	rustup component add --toolchain nightly miri rust-src >/dev/null
-	MIRIFLAGS="-Zmiri-disable-isolation" RUSTFLAGS="-C target-feature=+avx2,+fma" \
+	MIRIFLAGS="-Zmiri-disable-isolation" \
+	  RUSTFLAGS="-C target-feature=+avx2,+fma,+bmi1,+bmi2,+lzcnt,+popcnt" \
 	  $(CARGO) +nightly miri test -p antumbra-core --features "std bvh libm/force-soft-floats" \
 	  -- $(MIRI_TESTS)
 

@@ -317,6 +317,39 @@ pub(super) fn rasterize_mesh_batched(
     cull: bool,
     quality: Quality<'_>,
 ) -> (HemiMask, TriangleCounts) {
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    if crate::simd::avx2_available() {
+        // SAFETY: the processor runs every feature `batched_avx2` is compiled for.
+        #[allow(unsafe_code)]
+        return unsafe { batched_avx2(mesh, receiver, skip, cull, quality) };
+    }
+    batched(mesh, receiver, skip, cull, quality)
+}
+
+/// [`batched`] compiled for the features of [`crate::simd::avx2_available`]:
+/// the same `f32` operations, so the same bits and counts (see
+/// `traverse_avx2` (lod.rs)).
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+fn batched_avx2(
+    mesh: &MeshView<'_>,
+    receiver: &Receiver,
+    skip: &[u32],
+    cull: bool,
+    quality: Quality<'_>,
+) -> (HemiMask, TriangleCounts) {
+    batched(mesh, receiver, skip, cull, quality)
+}
+
+/// [`rasterize_mesh_batched`] as built, whatever the processor.
+#[inline(always)]
+pub(super) fn batched(
+    mesh: &MeshView<'_>,
+    receiver: &Receiver,
+    skip: &[u32],
+    cull: bool,
+    quality: Quality<'_>,
+) -> (HemiMask, TriangleCounts) {
     match quality {
         Quality::Exact => batched_loop(mesh, receiver, skip, cull, ExactCones),
         #[cfg(feature = "std")]

@@ -195,6 +195,27 @@ pub fn scene_mask_with_counts(
     normal: Vec3,
     options: &BatchOptions<'_>,
 ) -> (HemiMask, TriangleCounts) {
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    if crate::simd::avx2_available() {
+        // SAFETY: the processor runs every feature `traverse_avx2` is compiled for.
+        #[allow(unsafe_code)]
+        return unsafe { traverse_avx2(scene, position, normal, options) };
+    }
+    traverse(scene, position, normal, options, true)
+}
+
+/// [`traverse`] compiled for the features of [`crate::simd::avx2_available`]:
+/// the same `f32` operations in the same order (Rust never fuses a multiply
+/// and an add by itself), so the same bits and counts, in wider and fewer
+/// instructions (the bunny's frame about 4 % faster).
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+fn traverse_avx2(
+    scene: &HemiScene<'_>,
+    position: Vec3,
+    normal: Vec3,
+    options: &BatchOptions<'_>,
+) -> (HemiMask, TriangleCounts) {
     traverse(scene, position, normal, options, true)
 }
 
@@ -372,6 +393,79 @@ mod tests {
                 assert_eq!(fast, expected, "vertex {v}");
             }
         }
+    }
+
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[test]
+    fn the_avx2_build_is_the_portable_one() {
+        avx2_build_is_the_portable_one((20, 32), (8, 12), 1, true);
+    }
+
+    /// [`the_avx2_build_is_the_portable_one`] small enough for Miri (`make
+    /// miri` builds with AVX2, so the processor check passes there).
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[test]
+    fn miri_avx2_build_is_the_portable_one() {
+        avx2_build_is_the_portable_one((4, 6), (3, 4), 5, false);
+    }
+
+    /// Compares the masks and counts of the AVX2 build of the receiver's
+    /// loops with the portable build's, on a twisted bumpy sphere of
+    /// `(rings, segments)` (every `step`th vertex a receiver), alone,
+    /// clustered, and with a far sphere; the exact quality, and the table's
+    /// when `with_table`.
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[allow(unsafe_code)]
+    fn avx2_build_is_the_portable_one(
+        (rings, segments): (u32, u32),
+        (far_rings, far_segments): (u32, u32),
+        step: usize,
+        with_table: bool,
+    ) {
+        use super::super::chunk::{batched, rasterize_mesh_batched};
+        if !crate::simd::avx2_available() {
+            return;
+        }
+        let (positions, indices) = bumpy_sphere(rings, segments, 0.25, 0.8);
+        let (far_positions, far_indices) = bumpy_sphere(far_rings, far_segments, 0.25, 0.8);
+        let mesh = MeshView::new(&positions, &indices).unwrap();
+        let far = MeshView::new(&far_positions, &far_indices).unwrap();
+        let normals = normals_of(&mesh);
+        let table = with_table.then(|| HalfSpaceTable::new(32));
+        let mut clusters = TriangleClusters::new(&mesh, 8);
+        let mut far_clusters = TriangleClusters::new(&far, 8);
+        let (fast, fast_far) = (clusters.update(mesh), far_clusters.update(far));
+        let scenes = [
+            HemiScene::new(ClusteredMesh::unclustered(mesh)),
+            HemiScene::new(fast),
+            HemiScene::with_far(fast, fast_far, 0.4),
+        ];
+        let qualities = core::iter::once(Quality::Exact).chain(table.as_ref().map(Quality::Table));
+        let (mut compared, mut occluded) = (0, 0);
+        for quality in qualities {
+            let options = BatchOptions {
+                quality,
+                normal_offset: 0.005,
+                ..BatchOptions::default()
+            };
+            for scene in &scenes {
+                for (v, &n) in normals.iter().enumerate().step_by(step) {
+                    let p = mesh.position(v);
+                    // SAFETY: the processor has AVX2 and the rest (checked above).
+                    let wide = unsafe { traverse_avx2(scene, p, n, &options) };
+                    let portable = traverse(scene, p, n, &options, true);
+                    assert_eq!(wide, portable, "vertex {v}");
+                    let receiver = Receiver::new(p, n, options.normal_offset);
+                    let dispatched = rasterize_mesh_batched(&mesh, &receiver, &[], true, quality);
+                    let portable = batched(&mesh, &receiver, &[], true, quality);
+                    assert_eq!(dispatched, portable, "vertex {v}");
+                    compared += 1;
+                    occluded += wide.0.count_occluded();
+                }
+            }
+        }
+        assert!(compared >= 3 * normals.len().div_ceil(step));
+        assert!(occluded > 0, "the spheres shadow themselves");
     }
 
     #[test]

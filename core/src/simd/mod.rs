@@ -48,6 +48,28 @@ pub(crate) fn avx_available() -> bool {
     }
 }
 
+/// Whether this processor runs code compiled for AVX2 with FMA, BMI1, BMI2,
+/// LZCNT and POPCNT (every x86-64 processor since 2013–2015): the features
+/// of [`hemi`](crate::hemi)'s receiver loops compiled a second time. Detected
+/// once by the standard library and cached there. Always false off x86-64.
+#[cfg(feature = "std")]
+#[inline]
+pub(crate) fn avx2_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2")
+            && std::is_x86_feature_detected!("fma")
+            && std::is_x86_feature_detected!("bmi1")
+            && std::is_x86_feature_detected!("bmi2")
+            && std::is_x86_feature_detected!("lzcnt")
+            && std::is_x86_feature_detected!("popcnt")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 #[cfg(feature = "bvh")]
 /// Per-ray constants of the watertight triangle test in lanes: the ray after
 /// the axis permutation and shear of `raycast::PreparedRay` (whose fields these
