@@ -120,14 +120,16 @@ cargo-test:
 # Miri, the undefined-behaviour checker, over the tests that reach core's unsafe
 # code: the AVX lanes of the BVH and of the edge bounds, prefetching, the
 # silhouette record's uninitialised slots, fallible allocation and the calls of
-# the rasterizer's AVX2 build. Soft floats, since libm's x86 `asm!` stops Miri;
-# AVX2, FMA, BMI and the bit counts on, so the vector paths and that build run.
+# the rasterizer's AVX2 and AVX-512 builds. Soft floats, since libm's x86 `asm!`
+# stops Miri; every feature of those builds on, so the vector paths and the
+# builds run.
 MIRI_TESTS := miri_ avx_octants_equal_the_portable_ones
+AVX512 := +avx512f,+avx512vl,+avx512bw,+avx512dq,+avx512cd
 miri:
 	rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 	rustup component add --toolchain nightly miri rust-src >/dev/null
 	MIRIFLAGS="-Zmiri-disable-isolation" \
-	  RUSTFLAGS="-C target-feature=+avx2,+fma,+bmi1,+bmi2,+lzcnt,+popcnt" \
+	  RUSTFLAGS="-C target-feature=+avx2,+fma,+bmi1,+bmi2,+lzcnt,+popcnt,$(AVX512)" \
 	  $(CARGO) +nightly miri test -p antumbra-core --features "std bvh libm/force-soft-floats" \
 	  -- $(MIRI_TESTS)
 

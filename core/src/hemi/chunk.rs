@@ -35,6 +35,8 @@ use super::rays::{PaddedBox, PathRays};
 use super::triangle::{ConesFour, classify_four};
 use super::{Accumulator, Quality, Receiver, TriangleCone, TriangleCounts};
 use crate::geom::MeshView;
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+use crate::simd::Build;
 
 /// The few cells a cluster's triangles can still set, with what tests their
 /// rays against the cluster's span boxes: the center of projection and the
@@ -318,20 +320,35 @@ pub(super) fn rasterize_mesh_batched(
     quality: Quality<'_>,
 ) -> (HemiMask, TriangleCounts) {
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if crate::simd::avx2_available() {
-        // SAFETY: the processor runs every feature `batched_avx2` is compiled for.
-        #[allow(unsafe_code)]
-        return unsafe { batched_avx2(mesh, receiver, skip, cull, quality) };
+    #[allow(unsafe_code)]
+    match crate::simd::widest_build() {
+        // SAFETY: the processor has every feature of the build.
+        Build::Avx512 => return unsafe { batched_avx512(mesh, receiver, skip, cull, quality) },
+        // SAFETY: as above.
+        Build::Avx2 => return unsafe { batched_avx2(mesh, receiver, skip, cull, quality) },
+        Build::Portable => {}
     }
     batched(mesh, receiver, skip, cull, quality)
 }
 
-/// [`batched`] compiled for the features of [`crate::simd::avx2_available`]:
-/// the same `f32` operations, so the same bits and counts (see
-/// `traverse_avx2` (lod.rs)).
+/// [`batched`] compiled for [`Build::Avx2`]: the same bits and counts.
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-fn batched_avx2(
+pub(super) fn batched_avx2(
+    mesh: &MeshView<'_>,
+    receiver: &Receiver,
+    skip: &[u32],
+    cull: bool,
+    quality: Quality<'_>,
+) -> (HemiMask, TriangleCounts) {
+    batched(mesh, receiver, skip, cull, quality)
+}
+
+/// [`batched`] compiled for [`Build::Avx512`]: the same bits and counts.
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
+pub(super) fn batched_avx512(
     mesh: &MeshView<'_>,
     receiver: &Receiver,
     skip: &[u32],

@@ -56,6 +56,8 @@ use super::cone_mask::{ConeMask, ExactCones, TableCones};
 use super::mask::HemiMask;
 use super::walk::{Walk, mesh_loop};
 use super::{Accumulator, Quality, Receiver, TriangleCounts};
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+use crate::simd::Build;
 
 /// One frame of a deforming mesh as the receivers see it: the full mesh (whose
 /// vertices are the receivers), optional simplified far meshes with their own
@@ -196,21 +198,34 @@ pub fn scene_mask_with_counts(
     options: &BatchOptions<'_>,
 ) -> (HemiMask, TriangleCounts) {
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if crate::simd::avx2_available() {
-        // SAFETY: the processor runs every feature `traverse_avx2` is compiled for.
-        #[allow(unsafe_code)]
-        return unsafe { traverse_avx2(scene, position, normal, options) };
+    #[allow(unsafe_code)]
+    match crate::simd::widest_build() {
+        // SAFETY: the processor has every feature of the build.
+        Build::Avx512 => return unsafe { traverse_avx512(scene, position, normal, options) },
+        // SAFETY: as above.
+        Build::Avx2 => return unsafe { traverse_avx2(scene, position, normal, options) },
+        Build::Portable => {}
     }
     traverse(scene, position, normal, options, true)
 }
 
-/// [`traverse`] compiled for the features of [`crate::simd::avx2_available`]:
-/// the same `f32` operations in the same order (Rust never fuses a multiply
-/// and an add by itself), so the same bits and counts, in wider and fewer
-/// instructions (the bunny's frame about 4 % faster).
+/// [`traverse`] compiled for [`Build::Avx2`]: the same bits and counts.
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn traverse_avx2(
+    scene: &HemiScene<'_>,
+    position: Vec3,
+    normal: Vec3,
+    options: &BatchOptions<'_>,
+) -> (HemiMask, TriangleCounts) {
+    traverse(scene, position, normal, options, true)
+}
+
+/// [`traverse`] compiled for [`Build::Avx512`]: the same bits and counts.
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
+fn traverse_avx512(
     scene: &HemiScene<'_>,
     position: Vec3,
     normal: Vec3,
@@ -397,33 +412,36 @@ mod tests {
 
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[test]
-    fn the_avx2_build_is_the_portable_one() {
-        avx2_build_is_the_portable_one((20, 32), (8, 12), 1, true);
+    fn the_wide_builds_are_the_portable_one() {
+        wide_builds_are_the_portable_one((20, 32), (8, 12), 1, true);
     }
 
-    /// [`the_avx2_build_is_the_portable_one`] small enough for Miri (`make
-    /// miri` builds with AVX2, so the processor check passes there).
+    /// [`the_wide_builds_are_the_portable_one`] small enough for Miri (`make
+    /// miri` enables every feature of both builds).
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[test]
-    fn miri_avx2_build_is_the_portable_one() {
-        avx2_build_is_the_portable_one((4, 6), (3, 4), 5, false);
+    fn miri_wide_builds_are_the_portable_one() {
+        wide_builds_are_the_portable_one((4, 6), (3, 4), 5, false);
     }
 
-    /// Compares the masks and counts of the AVX2 build of the receiver's
-    /// loops with the portable build's, on a twisted bumpy sphere of
+    /// Compares the masks and counts of the wider builds of the receiver's
+    /// loops that this processor runs (AVX2, AVX-512; see
+    /// [`crate::simd::Build`]) and the dispatched one with the portable
+    /// build's, on a twisted bumpy sphere of
     /// `(rings, segments)` (every `step`th vertex a receiver), alone,
     /// clustered, and with a far sphere; the exact quality, and the table's
     /// when `with_table`.
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[allow(unsafe_code)]
-    fn avx2_build_is_the_portable_one(
+    fn wide_builds_are_the_portable_one(
         (rings, segments): (u32, u32),
         (far_rings, far_segments): (u32, u32),
         step: usize,
         with_table: bool,
     ) {
-        use super::super::chunk::{batched, rasterize_mesh_batched};
-        if !crate::simd::avx2_available() {
+        use super::super::chunk::{batched, batched_avx2, batched_avx512, rasterize_mesh_batched};
+        let widest = crate::simd::widest_build();
+        if widest == Build::Portable {
             return;
         }
         let (positions, indices) = bumpy_sphere(rings, segments, 0.25, 0.8);
@@ -451,16 +469,49 @@ mod tests {
             for scene in &scenes {
                 for (v, &n) in normals.iter().enumerate().step_by(step) {
                     let p = mesh.position(v);
-                    // SAFETY: the processor has AVX2 and the rest (checked above).
-                    let wide = unsafe { traverse_avx2(scene, p, n, &options) };
-                    let portable = traverse(scene, p, n, &options, true);
-                    assert_eq!(wide, portable, "vertex {v}");
                     let receiver = Receiver::new(p, n, options.normal_offset);
-                    let dispatched = rasterize_mesh_batched(&mesh, &receiver, &[], true, quality);
-                    let portable = batched(&mesh, &receiver, &[], true, quality);
-                    assert_eq!(dispatched, portable, "vertex {v}");
+                    let portable = traverse(scene, p, n, &options, true);
+                    let unclustered = batched(&mesh, &receiver, &[], true, quality);
+                    // SAFETY: the processor has AVX2 and the rest (checked above).
+                    let avx2 = unsafe {
+                        [
+                            (traverse_avx2(scene, p, n, &options), "AVX2"),
+                            (
+                                batched_avx2(&mesh, &receiver, &[], true, quality),
+                                "AVX2 unclustered",
+                            ),
+                        ]
+                    };
+                    let avx512 = (widest == Build::Avx512).then(|| {
+                        // SAFETY: and AVX-512 (checked here).
+                        unsafe {
+                            [
+                                (traverse_avx512(scene, p, n, &options), "AVX-512"),
+                                (
+                                    batched_avx512(&mesh, &receiver, &[], true, quality),
+                                    "AVX-512 unclustered",
+                                ),
+                            ]
+                        }
+                    });
+                    let dispatched = [
+                        (scene_mask_with_counts(scene, p, n, &options), "dispatched"),
+                        (
+                            rasterize_mesh_batched(&mesh, &receiver, &[], true, quality),
+                            "dispatched unclustered",
+                        ),
+                    ];
+                    for (k, (wide, build)) in avx2
+                        .into_iter()
+                        .chain(avx512.into_iter().flatten())
+                        .chain(dispatched)
+                        .enumerate()
+                    {
+                        let expected = if k % 2 == 0 { portable } else { unclustered };
+                        assert_eq!(wide, expected, "{build}, vertex {v}");
+                    }
                     compared += 1;
-                    occluded += wide.0.count_occluded();
+                    occluded += portable.0.count_occluded();
                 }
             }
         }
