@@ -10,7 +10,9 @@ mod uv_sphere;
 
 pub use frame::Frame;
 pub use mesh::{MeshError, MeshView, POSITION_BYTES};
-pub(crate) use sqrt::{length, length_f64, normalize_or_zero, sqrt, sqrt4, sqrtf};
+pub(crate) use sqrt::{
+    length, length_f64, normalize_f64, normalize_or_zero, normalize_or_zero_f64, sqrt, sqrt4, sqrtf,
+};
 pub use uv_sphere::uv_sphere;
 
 use glam::Vec3;

@@ -89,9 +89,30 @@ pub(crate) fn length_f64(v: DVec3) -> f64 {
     sqrt(v.dot(v))
 }
 
+/// `v` scaled to unit length: glam's `DVec3::normalize`, bit for bit.
+#[inline(always)]
+pub(crate) fn normalize_f64(v: DVec3) -> DVec3 {
+    v * (1.0 / length_f64(v))
+}
+
+/// `v` scaled to unit length, or zero where its reciprocal length is not a
+/// positive finite number: glam's `DVec3::normalize_or_zero`, bit for bit.
+#[inline(always)]
+pub(crate) fn normalize_or_zero_f64(v: DVec3) -> DVec3 {
+    let rcp = 1.0 / length_f64(v);
+    if rcp.is_finite() && rcp > 0.0 {
+        v * rcp
+    } else {
+        DVec3::ZERO
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::{length, length_f64, normalize_or_zero, sqrt, sqrt4, sqrtf};
+    use super::{
+        length, length_f64, normalize_f64, normalize_or_zero, normalize_or_zero_f64, sqrt, sqrt4,
+        sqrtf,
+    };
     use glam::{DVec3, Vec3, Vec4};
 
     /// The same bits as libm's correctly rounded roots and glam's lengths, on
@@ -113,6 +134,12 @@ mod tests {
             assert_eq!(sqrt(y).to_bits(), libm::sqrt(y).to_bits(), "sqrt({y:e})");
             let w = DVec3::new(y, 3.0 * y, -y);
             assert_eq!(length_f64(w).to_bits(), w.length().to_bits());
+            let bits_of = |v: DVec3| v.to_array().map(f64::to_bits);
+            assert_eq!(bits_of(normalize_f64(w)), bits_of(w.normalize()));
+            assert_eq!(
+                bits_of(normalize_or_zero_f64(w)),
+                bits_of(w.normalize_or_zero())
+            );
             bits += 0x0001_3579;
         }
         let special = [
@@ -143,6 +170,19 @@ mod tests {
                 unit,
                 v.normalize_or_zero().to_array().map(f32::to_bits),
                 "{v}"
+            );
+        }
+        for w in [
+            DVec3::ZERO,
+            DVec3::splat(1e-300),
+            DVec3::splat(1e300),
+            DVec3::NAN,
+            DVec3::INFINITY,
+        ] {
+            let bits_of = |v: DVec3| v.to_array().map(f64::to_bits);
+            assert_eq!(
+                bits_of(normalize_or_zero_f64(w)),
+                bits_of(w.normalize_or_zero())
             );
         }
     }

@@ -96,7 +96,7 @@ const WEDGE_F64: u8 = 2;
 /// `None` when it has no direction.
 fn unit_f32(v: DVec3) -> Option<DVec3> {
     // Products of f32 coordinates: the squared length stays inside f64.
-    let r = v.normalize_or_zero().as_vec3().as_dvec3();
+    let r = crate::geom::normalize_or_zero_f64(v).as_vec3().as_dvec3();
     (r != DVec3::ZERO && r.is_finite()).then_some(r)
 }
 
@@ -612,7 +612,7 @@ fn silhouette_part(
     if disk.is_some_and(|disk| disk.beyond_both_sides(a, across, plane_slack)) {
         return Part::None;
     }
-    let normals = across.map(DVec3::normalize);
+    let normals = across.map(crate::geom::normalize_f64);
     if !normals.iter().all(|m| m.is_finite()) {
         return Part::Whole;
     }
@@ -693,7 +693,7 @@ impl RegionDisk {
     /// The disk of `region` about its mean, in the plane of unit `normal`
     /// (normalised here); `None` when either is not finite.
     fn of(region: &[DVec3], normal: DVec3) -> Option<Self> {
-        let normal = normal.normalize();
+        let normal = crate::geom::normalize_f64(normal);
         if region.is_empty() || !normal.is_finite() {
             return None;
         }
@@ -703,7 +703,7 @@ impl RegionDisk {
             let d = l - centre;
             let height = d.dot(normal);
             thickness = thickness.max(height.abs());
-            radius = radius.max((d - height * normal).length());
+            radius = radius.max(crate::geom::length_f64(d - height * normal));
         }
         // The differences and products above round by a few units of the
         // coordinates' magnitude: far less than this.
@@ -737,10 +737,11 @@ impl RegionDisk {
             let along = n.dot(self.normal);
             // An upper bound on |n| within the plane: the difference cancels
             // for a plane parallel to the light's, so it is grown.
-            let within = libm::sqrt((squared - along * along).max(0.0) + DISK_ROUNDING * squared);
+            let within =
+                crate::geom::sqrt((squared - along * along).max(0.0) + DISK_ROUNDING * squared);
             let spread = within * self.radius
                 + along.abs() * self.thickness
-                + libm::sqrt(squared) * (slack + rounding);
+                + crate::geom::sqrt(squared) * (slack + rounding);
             let middle = n.dot(to_centre);
             front |= middle + spread < 0.0;
             back |= spread - middle < 0.0;

@@ -95,7 +95,7 @@ pub(crate) fn grown_light(
     // Edge i (vertex i to i + 1) keeps the side `inward · (x - a_i) >= -tol`.
     let lines: Vec<(DVec2, f64)> = crate::fallible::collect((0..k).map(|i| {
         let (a, b) = (shape.vertices[i], shape.vertices[(i + 1) % k]);
-        let inward = n.cross(b - a).normalize();
+        let inward = crate::geom::normalize_f64(n.cross(b - a));
         let inward = DVec2::new(inward.dot(u), inward.dot(v));
         (inward, inward.dot(flat(a)) - tol)
     }))?;
@@ -132,7 +132,8 @@ pub(crate) fn silhouette_pieces(
     let at = |i: u32| graph.positions[i as usize].as_dvec3();
     let (a, b) = (at(edge.a), at(edge.b));
     let plane_slack = SLACK * scale.max(a.abs().max(b.abs()).max_element()) + tol;
-    let normals = [third[0], third[1]].map(|v| (b - a).cross(at(v) - a).normalize());
+    let normals =
+        [third[0], third[1]].map(|v| crate::geom::normalize_f64((b - a).cross(at(v) - a)));
     if !normals.iter().all(|m| m.is_finite()) {
         return None;
     }
@@ -182,7 +183,7 @@ fn clip_cone(cone: &[DVec3], h: DVec3, out: &mut Vec<DVec3>) {
             } else {
                 dq * p - dp * q
             };
-            out.push(x.normalize_or_zero());
+            out.push(crate::geom::normalize_or_zero_f64(x));
         }
     }
 }
@@ -190,10 +191,8 @@ fn clip_cone(cone: &[DVec3], h: DVec3, out: &mut Vec<DVec3>) {
 /// The extreme rays, in cyclic order, of the cone spanned by `generators`
 /// (unit vectors), or `None` when it is not safely pointed.
 fn cone_hull(generators: &[DVec3]) -> Option<Vec<DVec3>> {
-    let mean = generators
-        .iter()
-        .fold(DVec3::ZERO, |s, g| s + *g)
-        .normalize_or_zero();
+    let mean =
+        crate::geom::normalize_or_zero_f64(generators.iter().fold(DVec3::ZERO, |s, g| s + *g));
     // NaN fails too.
     if !generators.iter().all(|g| g.dot(mean) > POINTED) {
         return None;
@@ -366,7 +365,9 @@ impl Hemicube {
                     .iter()
                     .all(|g| g.is_finite() && *g != DVec3::ZERO)
                 {
-                    generators.iter_mut().for_each(|g| *g = g.normalize());
+                    generators
+                        .iter_mut()
+                        .for_each(|g| *g = crate::geom::normalize_f64(*g));
                     rasterise_cone(&generators, r, &mut mark);
                 } else {
                     (0..cells).for_each(&mut mark);

@@ -126,10 +126,10 @@ impl LightPolygon {
             }
             newell += (a - centroid).cross(b - centroid);
             for w in wide {
-                diameter = diameter.max((*w - a).length());
+                diameter = diameter.max(crate::geom::length_f64(*w - a));
             }
         }
-        let twice_area = newell.length();
+        let twice_area = crate::geom::length_f64(newell);
         if twice_area.is_nan() || twice_area <= 0.0 || !twice_area.is_finite() {
             return Err(LightError::Degenerate);
         }
@@ -153,7 +153,7 @@ impl LightPolygon {
             let (a, b, c) = (wide[i], wide[(i + 1) % count], wide[(i + 2) % count]);
             let (u, v) = (b - a, c - b);
             let turn = u.cross(v).dot(normal);
-            if turn < -tolerance * (u.length() + v.length()) {
+            if turn < -tolerance * (crate::geom::length_f64(u) + crate::geom::length_f64(v)) {
                 return Err(LightError::NotConvex {
                     vertex: (i + 1) % count,
                 });
@@ -226,7 +226,7 @@ impl LightPolygon {
         (0..count).all(|i| {
             let a = self.vertices[i].as_dvec3();
             let b = self.vertices[(i + 1) % count].as_dvec3();
-            let inward = n.cross(b - a).normalize();
+            let inward = crate::geom::normalize_f64(n.cross(b - a));
             (p - a).dot(inward) >= -tol
         })
     }
@@ -268,7 +268,12 @@ impl LightPolygon {
         // cross products underflows to zero (the polygon was accepted in f64).
         let fan: Vec<(Vec3, Vec3, Vec3, f64)> = collect((1..v.len() - 1).map(|i| {
             let (a, b, c) = (v[0].as_dvec3(), v[i].as_dvec3(), v[i + 1].as_dvec3());
-            (v[0], v[i], v[i + 1], (b - a).cross(c - a).length())
+            (
+                v[0],
+                v[i],
+                v[i + 1],
+                crate::geom::length_f64((b - a).cross(c - a)),
+            )
         }))?;
         let total: f64 = fan.iter().map(|t| t.3).sum();
         // Equal shares if even f64 cannot weigh the triangles.

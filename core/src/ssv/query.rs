@@ -204,10 +204,10 @@ impl SoftShadows {
             let n = (a - p).cross(b - p);
             let side = n.dot(inside - p);
             let n = -n * side.signum();
-            let length = n.length();
+            let length = crate::geom::length_f64(n);
             // A plane nearly through the light's centroid (p near the light's
             // plane) decides nothing.
-            side.abs() > 1e-6 * length * (inside - p).length()
+            side.abs() > 1e-6 * length * crate::geom::length_f64(inside - p)
                 && length.is_finite()
                 && length > 0.0
                 && beyond(n / length, p)

@@ -198,7 +198,7 @@ impl<'a> Kernel<'a> {
             silhouettes,
         };
         k.hc = k.cp.dot(k.toward);
-        k.cp_length = k.cp.length();
+        k.cp_length = crate::geom::length_f64(k.cp);
         // Samples are on the plane only up to rounding (or the tolerance of
         // user samples): seen from p, a sample at height e off the plane shifts
         // by up to |s - p| e / hc, an angle of that over its distance from the
@@ -210,7 +210,7 @@ impl<'a> Kernel<'a> {
         }
         for (i, v) in ss.shape.vertices.iter().enumerate() {
             k.lights[i] = *v - pw;
-            k.light_near[i] = 2.0 * NEAR_ANGLE * k.lights[i].length();
+            k.light_near[i] = 2.0 * NEAR_ANGLE * crate::geom::length_f64(k.lights[i]);
         }
         k
     }
@@ -827,8 +827,9 @@ pub(super) fn direction_near_edge(s: DVec3, a: DVec3, b: DVec3) -> bool {
         return false;
     }
     let [ls, la, lb, ln] = [ls2, la2, lb2, ln2].map(crate::geom::sqrt);
-    let near_endpoint =
-        |e: DVec3, le: f64| e.cross(s).length() <= NEAR_ANGLE * le * ls && e.dot(s) > 0.0;
+    let near_endpoint = |e: DVec3, le: f64| {
+        crate::geom::length_f64(e.cross(s)) <= NEAR_ANGLE * le * ls && e.dot(s) > 0.0
+    };
     if !plane_defined {
         return near_endpoint(a, la) || near_endpoint(b, lb);
     }

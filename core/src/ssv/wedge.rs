@@ -221,7 +221,7 @@ pub(crate) fn octants_meeting_wedge(light: &LightShape, a: DVec3, b: DVec3, pare
     });
     let mut mask = 0xFFu8;
     let separate = |n: DVec3, mask: &mut u8| {
-        let len = n.length();
+        let len = crate::geom::length_f64(n);
         if len.is_nan() || len <= 0.0 {
             return;
         }
