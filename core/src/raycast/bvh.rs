@@ -1344,7 +1344,8 @@ impl RayCaster for BvhScene {
     }
 }
 
-#[cfg(test)]
+// The AVX kernel it tests exists on x86_64 only.
+#[cfg(all(test, target_arch = "x86_64"))]
 mod wide_box_test {
     use super::*;
     use rand::{Rng, SeedableRng, rngs::SmallRng};

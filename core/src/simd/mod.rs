@@ -18,6 +18,8 @@ pub(crate) struct Planes8(pub [[[f32; 8]; 2]; 3]);
 
 #[cfg(feature = "bvh")]
 /// Per-ray constants of the eight-lane slab test of [`Planes8`] boxes.
+// Read only by the AVX kernels.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SlabRay {
     /// Ray origin per axis.
@@ -36,6 +38,7 @@ pub(crate) struct SlabRay {
 /// `avx`: detected once by the standard library and cached there. Always false
 /// off x86-64.
 #[cfg(feature = "std")]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 #[inline]
 pub(crate) fn avx_available() -> bool {
     #[cfg(target_arch = "x86_64")]
@@ -55,6 +58,7 @@ pub(crate) fn avx_available() -> bool {
 /// the wider ones take fewer instructions and, with AVX-512, twice the vector
 /// registers.
 #[cfg(feature = "std")]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Build {
     /// As the crate is compiled.
@@ -70,6 +74,7 @@ pub(crate) enum Build {
 /// once by the standard library and cached there. [`Build::Portable`] off
 /// x86-64.
 #[cfg(feature = "std")]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 #[inline]
 pub(crate) fn widest_build() -> Build {
     #[cfg(target_arch = "x86_64")]
@@ -102,6 +107,8 @@ pub(crate) fn widest_build() -> Build {
 /// Per-ray constants of the watertight triangle test in lanes: the ray after
 /// the axis permutation and shear of `raycast::PreparedRay` (whose fields these
 /// are).
+// Read only by the AVX kernels.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct ShearedRay {
     /// Ray origin per (unpermuted) axis.
