@@ -19,7 +19,7 @@ use antumbra_core::hemi::{
     BatchOptions, FarField, FarMesh, HemiMask, HemiScene, Material, Quality, RasterOptions,
     Receiver, ReceiverLod, TransferMethod, TransferRotation, TransferSpace, TransferTable,
     TriangleClusters, VertexShading, cell_direction, cell_directions,
-    rasterize_receiver_with_counts, scene_mask_with_counts, vertex_transfer,
+    rasterize_receiver_with_counts, receiver_build, scene_mask_with_counts, vertex_transfer,
 };
 use antumbra_core::raycast::BvhScene;
 use antumbra_core::sh::Sh;
@@ -213,11 +213,13 @@ pub fn run_bench(args: &BenchHemiArgs) -> Result<()> {
     let view = mesh.view();
     let _ = half_space_table();
     println!(
-        "bench hemi: {} ({} triangles), {} receivers, one thread, each figure repeated for at least {} ms",
+        "bench hemi: {} ({} triangles), {} receivers, one thread, each figure repeated for at least {} ms; \
+         the rasterizer's {} build",
         mesh.name(),
         mesh.triangle_count(),
         chosen.len(),
-        args.min_time
+        args.min_time,
+        receiver_build()
     );
     let mut per_receiver = Vec::new();
     for arg in [QualityArg::Exact, QualityArg::Table] {
@@ -632,11 +634,12 @@ fn frame_rates(
     println!(
         "frames per second shading every vertex of {} ({} vertices; diffuse + glossy, {COEFFICIENTS} SH coefficients, \
          Phong exponent {PHONG_EXPONENT}, {} masks, {}-triangle clusters); each frame twists the mesh, \
-         recomputes normals and cluster boxes, and shades",
+         recomputes normals and cluster boxes, and shades; the rasterizer's {} build",
         lod.full.name(),
         lod.full.vertex_count(),
         quality_name(quality_arg),
-        TriangleClusters::DEFAULT_SIZE
+        TriangleClusters::DEFAULT_SIZE,
+        receiver_build()
     );
     println!(
         "far mesh: {} triangles of {triangles} (vertex clustering, cells of {:.4} = diagonal/{:.0}), near radius {:.4} (diagonal/{:.0})",

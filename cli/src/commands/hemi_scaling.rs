@@ -31,7 +31,8 @@ use std::time::Duration;
 use antumbra_core::MeshView;
 use antumbra_core::hemi::{
     BatchOptions, FarFieldSetup, HemiShader, MAX_FAR_LEVELS, Receiver, ReceiverLod, ShaderSetup,
-    TransferMethod, TransferSpace, TransferTable, scene_mask_with_counts, vertex_transfer,
+    TransferMethod, TransferSpace, TransferTable, receiver_build, scene_mask_with_counts,
+    vertex_transfer,
 };
 use antumbra_core::sh::Sh;
 use antumbra_tests::oracle::{OracleOptions, try_cast};
@@ -123,8 +124,10 @@ pub fn run(args: &BenchHemiArgs) -> Result<()> {
         "bench hemi --scaling: a deforming-mesh frame per vertex (posing over every vertex, \
          then {COEFFICIENTS}-coefficient transfer vectors of {} receivers, exact masks, one \
          thread) against Embree's frame (scene build per vertex, then 812 rays per receiver); \
-         error: relative RMS of the constant coefficient against the full mesh's",
-        args.receivers
+         error: relative RMS of the constant coefficient against the full mesh's; the \
+         rasterizer's {} build",
+        args.receivers,
+        receiver_build()
     );
     // Meshes by file name, not path.
     let names: Vec<String> = meshes

@@ -274,6 +274,21 @@ fn corner_scale(extent: f32) -> f32 {
     f32::from_bits(((127 - e) as u32) << 23)
 }
 
+/// The build of the receiver loops that every mask, transfer and shading
+/// call runs on this processor: `"AVX-512"` or `"AVX2"` (on x86-64, the
+/// loops compiled again for those features and chosen at run time, with the
+/// same bits) or `"portable"` (as the crate is compiled). For reports:
+/// timings depend on it.
+pub fn receiver_build() -> &'static str {
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    match crate::simd::widest_build() {
+        crate::simd::Build::Avx512 => return "AVX-512",
+        crate::simd::Build::Avx2 => return "AVX2",
+        crate::simd::Build::Portable => {}
+    }
+    "portable"
+}
+
 /// What happened to the triangles of one rasterization.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TriangleCounts {
