@@ -425,7 +425,7 @@ fn permanent3(x: [__m256; 3], y: [__m256; 3]) -> [__m256; 3] {
 /// infinity or NaN included) is `undecided`; the caller gives those to the
 /// scalar set-up.
 #[target_feature(enable = "avx")]
-#[inline]
+#[inline(never)]
 pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners8) -> SetupMasks8 {
     let splat = |x: f32| _mm256_set1_ps(x);
     let zero = _mm256_setzero_ps();
@@ -635,7 +635,7 @@ const SUM_BOUND: f32 = 8.0 * U;
 /// the angles' bounds, the samples' shift off the plane, and `4 · 10⁻⁶` for
 /// the pseudo-angles' own rounding (under `10⁻⁶` each).
 #[target_feature(enable = "avx")]
-#[inline]
+#[inline(never)]
 pub(crate) fn silhouette_planes8(
     receiver: &SweepReceiver8,
     corners: &EdgeCorners8,
@@ -883,7 +883,7 @@ impl CrossingTest8 {
 /// the exact value ([`silhouette_planes8`]), the sum's with [`SUM_BOUND`]
 /// more, so a sample said crossed is crossed exactly and one said not is not.
 #[target_feature(enable = "avx")]
-#[inline]
+#[inline(never)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn crossings8(
     edge: &EdgePlanes8,
@@ -957,7 +957,7 @@ pub(crate) fn crossings8(
 /// is not 0, index `counters` and each of `soa` (a lane past its samples reads
 /// and adds zero to its last one); it panics otherwise.
 #[target_feature(enable = "avx")]
-#[inline]
+#[inline(never)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn crossings_lanes8(
     planes: &SweepPlanes8,
