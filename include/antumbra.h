@@ -1337,6 +1337,11 @@ void antumbra_hemi_table_destroy(struct antumbra_hemi_table *table);
  * (2 MiB, a few milliseconds; once per process, kept until exit). Without
  * ANTUMBRA_HAS_STD (bare metal) the call never groups and allocates nothing;
  * the table quality and `parallel` = 1 are ANTUMBRA_RESULT_UNSUPPORTED there.
+ * On x86-64 every rasterizing call (these, the transfer and shading calls and
+ * the shader) runs an AVX2 or AVX-512 build of its loops where the processor
+ * has one, with the same bits; the environment variable ANTUMBRA_HEMI_BUILD,
+ * read once, caps it (`portable` or `avx2`: valgrind 3.19 stops at a
+ * register move of the AVX2 build).
  * Ownership: borrows every argument for the call only.
  * Thread safety: any number of threads may rasterize at once, with the same or
  * different meshes, options and tables (all are only read).

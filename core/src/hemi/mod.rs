@@ -278,7 +278,9 @@ fn corner_scale(extent: f32) -> f32 {
 /// call runs on this processor: `"AVX-512"` or `"AVX2"` (on x86-64, the
 /// loops compiled again for those features and chosen at run time, with the
 /// same bits) or `"portable"` (as the crate is compiled). For reports:
-/// timings depend on it.
+/// timings depend on it. The environment variable `ANTUMBRA_HEMI_BUILD`,
+/// read once, caps it: `portable` or `avx2` (valgrind 3.19 stops at a
+/// register move of the AVX2 build; `portable` runs under it).
 pub fn receiver_build() -> &'static str {
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     match crate::simd::widest_build() {

@@ -59,7 +59,7 @@ pub(crate) fn avx_available() -> bool {
 /// registers.
 #[cfg(feature = "std")]
 #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub(crate) enum Build {
     /// As the crate is compiled.
     Portable,
@@ -70,13 +70,24 @@ pub(crate) enum Build {
     Avx512,
 }
 
-/// The widest [`Build`] this processor (and operating system) runs, detected
-/// once by the standard library and cached there. [`Build::Portable`] off
-/// x86-64.
+/// The widest [`Build`] this processor (and operating system) runs, capped
+/// by the environment variable `ANTUMBRA_HEMI_BUILD` (see [`build_cap`]):
+/// both read once, on the first call. [`Build::Portable`] off x86-64.
 #[cfg(feature = "std")]
 #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 #[inline]
 pub(crate) fn widest_build() -> Build {
+    static CHOSEN: std::sync::OnceLock<Build> = std::sync::OnceLock::new();
+    *CHOSEN.get_or_init(|| {
+        let cap = std::env::var("ANTUMBRA_HEMI_BUILD").ok();
+        detected_build().min(build_cap(cap.as_deref()))
+    })
+}
+
+/// The widest build the processor runs.
+#[cfg(feature = "std")]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+fn detected_build() -> Build {
     #[cfg(target_arch = "x86_64")]
     {
         use std::is_x86_feature_detected as has;
@@ -100,6 +111,20 @@ pub(crate) fn widest_build() -> Build {
     #[cfg(not(target_arch = "x86_64"))]
     {
         Build::Portable
+    }
+}
+
+/// The widest build the value of `ANTUMBRA_HEMI_BUILD` allows: `portable`
+/// or `avx2` cap it there (valgrind 3.19, for one, stops at an AVX2 register
+/// move the compiler emits; `portable` runs there); unset, or anything else,
+/// leaves the processor's widest.
+#[cfg(feature = "std")]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+fn build_cap(value: Option<&str>) -> Build {
+    match value.map(str::trim) {
+        Some(v) if v.eq_ignore_ascii_case("portable") => Build::Portable,
+        Some(v) if v.eq_ignore_ascii_case("avx2") => Build::Avx2,
+        _ => Build::Avx512,
     }
 }
 
@@ -331,4 +356,20 @@ pub(crate) mod edge_record {
     pub const DIRECTIONS: usize = PLANES + 8;
     /// `f32`s per direction.
     pub const DIRECTION: usize = 7;
+}
+
+#[cfg(all(test, feature = "std"))]
+mod tests {
+    use super::{Build, build_cap};
+
+    #[test]
+    fn the_environment_caps_the_build() {
+        assert_eq!(build_cap(None), Build::Avx512);
+        assert_eq!(build_cap(Some("portable")), Build::Portable);
+        assert_eq!(build_cap(Some(" Portable\n")), Build::Portable);
+        assert_eq!(build_cap(Some("AVX2")), Build::Avx2);
+        assert_eq!(build_cap(Some("avx512")), Build::Avx512);
+        assert_eq!(build_cap(Some("")), Build::Avx512);
+        assert_eq!(build_cap(Some("sse")), Build::Avx512);
+    }
 }
