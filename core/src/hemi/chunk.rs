@@ -35,8 +35,6 @@ use super::rays::{PaddedBox, PathRays};
 use super::triangle::{ConesFour, classify_four};
 use super::{Accumulator, Quality, Receiver, TriangleCone, TriangleCounts};
 use crate::geom::MeshView;
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-use crate::simd::Build;
 
 /// The few cells a cluster's triangles can still set, with what tests their
 /// rays against the cluster's span boxes: the center of projection and the
@@ -319,43 +317,32 @@ pub(super) fn rasterize_mesh_batched(
     cull: bool,
     quality: Quality<'_>,
 ) -> (HemiMask, TriangleCounts) {
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    // SAFETY: the widest build is one the processor runs.
     #[allow(unsafe_code)]
-    match crate::simd::widest_build() {
-        // SAFETY: the processor has every feature of the build.
-        Build::Avx512 => return unsafe { batched_avx512(mesh, receiver, skip, cull, quality) },
-        // SAFETY: as above.
-        Build::Avx2 => return unsafe { batched_avx2(mesh, receiver, skip, cull, quality) },
-        Build::Portable => {}
+    unsafe {
+        batched_in(
+            crate::simd::widest_build(),
+            mesh,
+            receiver,
+            skip,
+            cull,
+            quality,
+        )
     }
-    batched(mesh, receiver, skip, cull, quality)
 }
 
-/// [`batched`] compiled for [`Build::Avx2`]: the same bits and counts.
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-pub(super) fn batched_avx2(
-    mesh: &MeshView<'_>,
-    receiver: &Receiver,
-    skip: &[u32],
-    cull: bool,
-    quality: Quality<'_>,
-) -> (HemiMask, TriangleCounts) {
-    batched(mesh, receiver, skip, cull, quality)
-}
-
-/// [`batched`] compiled for [`Build::Avx512`]: the same bits and counts.
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
-pub(super) fn batched_avx512(
-    mesh: &MeshView<'_>,
-    receiver: &Receiver,
-    skip: &[u32],
-    cull: bool,
-    quality: Quality<'_>,
-) -> (HemiMask, TriangleCounts) {
-    batched(mesh, receiver, skip, cull, quality)
+crate::simd::in_builds! {
+    /// [`batched`] as compiled for `build`: the same bits and counts in
+    /// every build.
+    pub(super) fn batched_in(
+        mesh: &MeshView<'_>,
+        receiver: &Receiver,
+        skip: &[u32],
+        cull: bool,
+        quality: Quality<'_>,
+    ) -> (HemiMask, TriangleCounts) {
+        batched(mesh, receiver, skip, cull, quality)
+    }
 }
 
 /// [`rasterize_mesh_batched`] as built, whatever the processor.

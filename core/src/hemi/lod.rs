@@ -56,8 +56,6 @@ use super::cone_mask::{ConeMask, ExactCones, TableCones};
 use super::mask::HemiMask;
 use super::walk::{Walk, mesh_loop};
 use super::{Accumulator, Quality, Receiver, TriangleCounts};
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-use crate::simd::Build;
 
 /// One frame of a deforming mesh as the receivers see it: the full mesh (whose
 /// vertices are the receivers), optional simplified far meshes with their own
@@ -197,41 +195,30 @@ pub fn scene_mask_with_counts(
     normal: Vec3,
     options: &BatchOptions<'_>,
 ) -> (HemiMask, TriangleCounts) {
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    // SAFETY: the widest build is one the processor runs.
     #[allow(unsafe_code)]
-    match crate::simd::widest_build() {
-        // SAFETY: the processor has every feature of the build.
-        Build::Avx512 => return unsafe { traverse_avx512(scene, position, normal, options) },
-        // SAFETY: as above.
-        Build::Avx2 => return unsafe { traverse_avx2(scene, position, normal, options) },
-        Build::Portable => {}
+    unsafe {
+        traverse_in(
+            crate::simd::widest_build(),
+            scene,
+            position,
+            normal,
+            options,
+        )
     }
-    traverse(scene, position, normal, options, true)
 }
 
-/// [`traverse`] compiled for [`Build::Avx2`]: the same bits and counts.
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-fn traverse_avx2(
-    scene: &HemiScene<'_>,
-    position: Vec3,
-    normal: Vec3,
-    options: &BatchOptions<'_>,
-) -> (HemiMask, TriangleCounts) {
-    traverse(scene, position, normal, options, true)
-}
-
-/// [`traverse`] compiled for [`Build::Avx512`]: the same bits and counts.
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
-fn traverse_avx512(
-    scene: &HemiScene<'_>,
-    position: Vec3,
-    normal: Vec3,
-    options: &BatchOptions<'_>,
-) -> (HemiMask, TriangleCounts) {
-    traverse(scene, position, normal, options, true)
+crate::simd::in_builds! {
+    /// [`traverse`], skipping hidden boxes, as compiled for `build`: the
+    /// same bits and counts in every build.
+    fn traverse_in(
+        scene: &HemiScene<'_>,
+        position: Vec3,
+        normal: Vec3,
+        options: &BatchOptions<'_>,
+    ) -> (HemiMask, TriangleCounts) {
+        traverse(scene, position, normal, options, true)
+    }
 }
 
 /// [`scene_mask_with_counts`], with the skipping of boxes whose cells are all
@@ -439,7 +426,8 @@ mod tests {
         step: usize,
         with_table: bool,
     ) {
-        use super::super::chunk::{batched, batched_avx2, batched_avx512, rasterize_mesh_batched};
+        use super::super::chunk::{batched, batched_in, rasterize_mesh_batched};
+        use crate::simd::Build;
         let widest = crate::simd::widest_build();
         if widest == Build::Portable {
             return;
@@ -472,44 +460,27 @@ mod tests {
                     let receiver = Receiver::new(p, n, options.normal_offset);
                     let portable = traverse(scene, p, n, &options, true);
                     let unclustered = batched(&mesh, &receiver, &[], true, quality);
-                    // SAFETY: the processor has AVX2 and the rest (checked above).
-                    let avx2 = unsafe {
-                        [
-                            (traverse_avx2(scene, p, n, &options), "AVX2"),
-                            (
-                                batched_avx2(&mesh, &receiver, &[], true, quality),
-                                "AVX2 unclustered",
-                            ),
-                        ]
-                    };
-                    let avx512 = (widest == Build::Avx512).then(|| {
-                        // SAFETY: and AVX-512 (checked here).
-                        unsafe {
-                            [
-                                (traverse_avx512(scene, p, n, &options), "AVX-512"),
-                                (
-                                    batched_avx512(&mesh, &receiver, &[], true, quality),
-                                    "AVX-512 unclustered",
-                                ),
-                            ]
-                        }
-                    });
-                    let dispatched = [
-                        (scene_mask_with_counts(scene, p, n, &options), "dispatched"),
-                        (
-                            rasterize_mesh_batched(&mesh, &receiver, &[], true, quality),
-                            "dispatched unclustered",
-                        ),
-                    ];
-                    for (k, (wide, build)) in avx2
+                    let wide = [Build::Avx2, Build::Avx512]
                         .into_iter()
-                        .chain(avx512.into_iter().flatten())
-                        .chain(dispatched)
-                        .enumerate()
-                    {
-                        let expected = if k % 2 == 0 { portable } else { unclustered };
-                        assert_eq!(wide, expected, "{build}, vertex {v}");
+                        .filter(|&b| b <= widest);
+                    for build in wide {
+                        // SAFETY: the processor runs every build up to the widest.
+                        let (clustered, plain) = unsafe {
+                            (
+                                traverse_in(build, scene, p, n, &options),
+                                batched_in(build, &mesh, &receiver, &[], true, quality),
+                            )
+                        };
+                        assert_eq!(clustered, portable, "{build:?}, vertex {v}");
+                        assert_eq!(plain, unclustered, "{build:?} unclustered, vertex {v}");
                     }
+                    let dispatched = scene_mask_with_counts(scene, p, n, &options);
+                    assert_eq!(dispatched, portable, "dispatched, vertex {v}");
+                    let dispatched = rasterize_mesh_batched(&mesh, &receiver, &[], true, quality);
+                    assert_eq!(
+                        dispatched, unclustered,
+                        "dispatched unclustered, vertex {v}"
+                    );
                     compared += 1;
                     occluded += portable.0.count_occluded();
                 }

@@ -57,8 +57,7 @@ pub(crate) fn avx_available() -> bool {
 /// multiply and an add by itself), so each gives the same bits and counts;
 /// the wider ones take fewer instructions and, with AVX-512, twice the vector
 /// registers.
-#[cfg(feature = "std")]
-#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+#[cfg_attr(not(all(feature = "std", target_arch = "x86_64")), allow(dead_code))]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub(crate) enum Build {
     /// As the crate is compiled.
@@ -72,17 +71,59 @@ pub(crate) enum Build {
 
 /// The widest [`Build`] this processor (and operating system) runs, capped
 /// by the environment variable `ANTUMBRA_HEMI_BUILD` (see [`build_cap`]):
-/// both read once, on the first call. [`Build::Portable`] off x86-64.
-#[cfg(feature = "std")]
-#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+/// both read once, on the first call. [`Build::Portable`] off x86-64 and
+/// without `std`.
 #[inline]
 pub(crate) fn widest_build() -> Build {
-    static CHOSEN: std::sync::OnceLock<Build> = std::sync::OnceLock::new();
-    *CHOSEN.get_or_init(|| {
-        let cap = std::env::var("ANTUMBRA_HEMI_BUILD").ok();
-        detected_build().min(build_cap(cap.as_deref()))
-    })
+    #[cfg(feature = "std")]
+    {
+        static CHOSEN: std::sync::OnceLock<Build> = std::sync::OnceLock::new();
+        *CHOSEN.get_or_init(|| {
+            let cap = std::env::var("ANTUMBRA_HEMI_BUILD").ok();
+            detected_build().min(build_cap(cap.as_deref()))
+        })
+    }
+    #[cfg(not(feature = "std"))]
+    {
+        Build::Portable
+    }
 }
+
+/// Defines `unsafe fn $name(build: Build, args) -> ret` that evaluates
+/// `body` (an expression of the arguments, inlining what it calls) as
+/// compiled for `build`: the one place that lists each [`Build`]'s features.
+/// Its safety contract: the processor runs `build` (any build up to
+/// [`widest_build`] does). Without `std`, or off x86-64, only the portable
+/// build exists.
+macro_rules! in_builds {
+    ($(#[$doc:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty $body:block) => {
+        $(#[$doc])*
+        ///
+        /// # Safety
+        /// The processor runs `build` (any build up to `simd::widest_build()` does).
+        #[allow(unsafe_code)]
+        $vis unsafe fn $name(build: $crate::simd::Build, $($arg: $ty),*) -> $ret {
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            {
+                #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+                fn avx2($($arg: $ty),*) -> $ret $body
+                #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+                #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
+                fn avx512($($arg: $ty),*) -> $ret $body
+                match build {
+                    // SAFETY: the caller's contract.
+                    $crate::simd::Build::Avx512 => return unsafe { avx512($($arg),*) },
+                    // SAFETY: the caller's contract.
+                    $crate::simd::Build::Avx2 => return unsafe { avx2($($arg),*) },
+                    $crate::simd::Build::Portable => {}
+                }
+            }
+            let _ = build;
+            $body
+        }
+    };
+}
+pub(crate) use in_builds;
 
 /// The widest build the processor runs.
 #[cfg(feature = "std")]
