@@ -654,7 +654,7 @@ fn silhouette_part(
 /// The planes of the two triangles on `edge` (through its first end `a`,
 /// normals `(b - a) × (v - a)` at any length) and the slack of
 /// [`silhouette_part`]'s tests; `None` unless exactly two triangles share it.
-fn adjacent_planes(
+pub(super) fn adjacent_planes(
     graph: &EdgeGraph,
     edge: &Edge,
     tol: f64,

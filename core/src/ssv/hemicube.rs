@@ -125,15 +125,8 @@ pub(crate) fn silhouette_pieces(
     tol: f64,
     scale: f64,
 ) -> Option<Vec<Vec<DVec3>>> {
-    let third = graph.third_of(edge);
-    if third.len() != 2 {
-        return None;
-    }
-    let at = |i: u32| graph.positions[i as usize].as_dvec3();
-    let (a, b) = (at(edge.a), at(edge.b));
-    let plane_slack = SLACK * scale.max(a.abs().max(b.abs()).max_element()) + tol;
-    let normals =
-        [third[0], third[1]].map(|v| crate::geom::normalize_f64((b - a).cross(at(v) - a)));
+    let (a, across, plane_slack) = super::edge_bounds::adjacent_planes(graph, edge, tol, scale)?;
+    let normals = across.map(crate::geom::normalize_f64);
     if !normals.iter().all(|m| m.is_finite()) {
         return None;
     }
