@@ -298,23 +298,15 @@ impl Hierarchy {
     /// `None` when there is no memory for the decision (the node stays
     /// undecided, and queries use its list).
     fn split(&self, graph: &EdgeGraph, shape: &LightShape, node: &Node) -> Option<Split> {
-        let weights = [1u32; 8];
         let edges = &node.edges;
         let mut masks = fallible::filled(0u8, edges.len()).ok()?.into_boxed_slice();
-        let weight: u64 = weights.iter().map(|&w| u64::from(w)).sum();
-        // Candidates the expected queries would test in the children, over
+        // Candidates the expected queries would test in the children (an
+        // edge in `m` children is tested there by `m` eighths of them), over
         // those they test in the node (`n` edges of `masks` looked at).
-        let pays = |masks: &[u8], which: &mut dyn Iterator<Item = usize>, n: usize, margin: f64| {
-            let after: u64 = which
-                .map(|k| {
-                    let m = masks[k];
-                    (0..8)
-                        .map(|i| u64::from(m >> i & 1) * u64::from(weights[i]))
-                        .sum::<u64>()
-                })
-                .sum();
-            after as f64 <= margin * SPLIT_GAIN * (weight * n as u64) as f64
+        let pays = |after: u64, n: usize, margin: f64| {
+            after as f64 <= margin * SPLIT_GAIN * (8 * n as u64) as f64
         };
+        let ones = |m: &u8| u64::from(m.count_ones());
         // A strided sample first: most splits that will not pay are refused
         // after testing it alone.
         let step = (edges.len() / SAMPLED_EDGES).max(1);
@@ -328,17 +320,25 @@ impl Hierarchy {
                 sample.clone(),
                 &mut masks,
             );
-            if !pays(&masks, &mut sample.clone(), sample.len(), REFUSE_MARGIN) {
+            if !pays(
+                masks.iter().step_by(step).map(ones).sum(),
+                sample.len(),
+                REFUSE_MARGIN,
+            ) {
                 return Some(Split::Leaf);
             }
-            let rest = (0..edges.len()).filter(|k| k % step != 0);
+            // The edges between the sampled ones.
+            let len = edges.len();
+            let rest = (0..len)
+                .step_by(step)
+                .flat_map(move |first| first + 1..(first + step).min(len));
             self.bounds
                 .octant_masks(graph, shape, &node.bounds, edges, rest, &mut masks);
         } else {
             self.bounds
                 .octant_masks(graph, shape, &node.bounds, edges, sample, &mut masks);
         }
-        if !pays(&masks, &mut (0..edges.len()), edges.len(), 1.0) {
+        if !pays(masks.iter().map(ones).sum(), edges.len(), 1.0) {
             return Some(Split::Leaf);
         }
         let mut counts = [0u32; 8];
