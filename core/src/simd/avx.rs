@@ -5,11 +5,11 @@
 use core::arch::x86_64::{
     __m128i, __m256, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ,
     _mm_add_epi32, _mm_loadu_si128, _mm_storeu_si128, _mm256_add_ps, _mm256_and_ps,
-    _mm256_andnot_ps, _mm256_blendv_ps, _mm256_castps_si256, _mm256_castsi256_ps,
-    _mm256_castsi256_si128, _mm256_cmp_ps, _mm256_div_ps, _mm256_extractf128_si256,
-    _mm256_loadu_ps, _mm256_max_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps,
-    _mm256_set1_epi32, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sqrt_ps, _mm256_storeu_ps,
-    _mm256_sub_ps, _mm256_xor_ps,
+    _mm256_andnot_ps, _mm256_blendv_ps, _mm256_broadcast_ss, _mm256_castps_si256,
+    _mm256_castsi256_ps, _mm256_castsi256_si128, _mm256_cmp_ps, _mm256_div_ps,
+    _mm256_extractf128_si256, _mm256_loadu_ps, _mm256_max_ps, _mm256_movemask_ps, _mm256_mul_ps,
+    _mm256_or_ps, _mm256_set1_epi32, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sqrt_ps,
+    _mm256_storeu_ps, _mm256_sub_ps, _mm256_xor_ps,
 };
 
 use super::{EdgeCorners8, EdgePlanes8, SetupMasks8, SweepPlanes8, SweepReceiver8};
@@ -228,7 +228,10 @@ pub(crate) fn intersect8(
 /// record `record` (layout [`super::edge_record`]). The `f32` operations,
 /// comparisons and combinations of the portable `ssv::edge_bounds` tests
 /// (`silhouette_lanes`, `wedge_lanes`), in the same order with the same
-/// operands, so the bits are the same (tested there).
+/// operands, so the bits are the same (tested there). The planes and the axes
+/// take the octants as lanes; the directions, stored eight to a group, take
+/// them as lanes instead, octant after octant, which shares each direction's
+/// projection among the octants (about a third less work per edge).
 #[target_feature(enable = "avx")]
 #[inline]
 pub(crate) fn edge_octants8(
@@ -239,38 +242,54 @@ pub(crate) fn edge_octants8(
 ) -> u8 {
     use super::OCTANT_SIGN as SIGN;
     use super::edge_record::*;
-    let splat = |x: f32| _mm256_set1_ps(x);
+    // Every value splatted from memory or computed in the lanes (AVX has no
+    // broadcast from a register): the same `f32` operations on each lane as
+    // the portable code's on the scalar.
+    let splat = |x: &f32| _mm256_broadcast_ss(x);
     let sign = [load(&SIGN[0]), load(&SIGN[1]), load(&SIGN[2])];
-    // Projections of the octants' centres on `n`, and their common radius.
-    let project = |n: &[f32; 3]| {
+    let centre = octants.centre.each_ref().map(splat);
+    let quarter = octants.quarter.each_ref().map(splat);
+    // Projections of the octants' centres on `n`, and their common radius:
+    // `t = n * quarter`, `base = (n0 c0 + n1 c1) + n2 c2`, `mid = ((base +
+    // s0 t0) + s1 t1) + s2 t2` and `rad = (|t0| + |t1|) + |t2|`.
+    let project = |n: &[f32]| {
+        let n = [splat(&n[0]), splat(&n[1]), splat(&n[2])];
         let t = [
-            n[0] * octants.quarter[0],
-            n[1] * octants.quarter[1],
-            n[2] * octants.quarter[2],
+            _mm256_mul_ps(n[0], quarter[0]),
+            _mm256_mul_ps(n[1], quarter[1]),
+            _mm256_mul_ps(n[2], quarter[2]),
         ];
-        let base = n[0] * octants.centre[0] + n[1] * octants.centre[1] + n[2] * octants.centre[2];
+        let base = _mm256_add_ps(
+            _mm256_add_ps(
+                _mm256_mul_ps(n[0], centre[0]),
+                _mm256_mul_ps(n[1], centre[1]),
+            ),
+            _mm256_mul_ps(n[2], centre[2]),
+        );
         let mid = _mm256_add_ps(
             _mm256_add_ps(
-                _mm256_add_ps(splat(base), _mm256_mul_ps(sign[0], splat(t[0]))),
-                _mm256_mul_ps(sign[1], splat(t[1])),
+                _mm256_add_ps(base, _mm256_mul_ps(sign[0], t[0])),
+                _mm256_mul_ps(sign[1], t[1]),
             ),
-            _mm256_mul_ps(sign[2], splat(t[2])),
+            _mm256_mul_ps(sign[2], t[2]),
         );
-        (mid, t[0].abs() + t[1].abs() + t[2].abs())
+        let rad = _mm256_add_ps(_mm256_add_ps(abs8(t[0]), abs8(t[1])), abs8(t[2]));
+        (mid, rad)
     };
     let all = _mm256_cmp_ps::<_CMP_EQ_OQ>(_mm256_setzero_ps(), _mm256_setzero_ps());
     let mut keep = 0xFF;
     if silhouette {
-        let margin = splat(octants.margin);
-        let minus_margin = splat(-octants.margin);
-        let one = splat(1.0);
+        let margin = splat(&octants.margin);
+        let minus = -octants.margin;
+        let minus_margin = splat(&minus);
+        let one = _mm256_set1_ps(1.0);
         let mut weight = _mm256_setzero_ps();
         let mut open = _mm256_setzero_ps();
         for plane in record[PLANES..PLANES + 8].chunks_exact(4) {
-            let (mid, rad) = project(&[plane[0], plane[1], plane[2]]);
-            let m = _mm256_sub_ps(mid, splat(plane[3]));
-            let above = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(m, splat(rad)), margin);
-            let below = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(m, splat(rad)), minus_margin);
+            let (mid, rad) = project(&plane[..3]);
+            let m = _mm256_sub_ps(mid, splat(&plane[3]));
+            let above = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(m, rad), margin);
+            let below = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(m, rad), minus_margin);
             weight = _mm256_add_ps(
                 weight,
                 _mm256_sub_ps(_mm256_and_ps(above, one), _mm256_and_ps(below, one)),
@@ -287,32 +306,83 @@ pub(crate) fn edge_octants8(
         let inverse = record[INVERSE];
         let side = record[SIDE];
         let reach = if side > 0.0 {
-            _mm256_mul_ps(load(&octants.above), splat(inverse))
+            _mm256_mul_ps(load(&octants.above), splat(&inverse))
         } else if side < 0.0 {
-            _mm256_mul_ps(load(&octants.below), splat(inverse))
+            _mm256_mul_ps(load(&octants.below), splat(&inverse))
         } else {
-            splat(f32::MAX)
+            _mm256_set1_ps(f32::MAX)
         };
-        let margin = octants.margin;
-        let separate = |bounds: &[f32], mid: __m256, rad: f32| {
-            let (top, bottom) = (bounds[1] + margin, bounds[0] - margin);
-            let hi = _mm256_add_ps(splat(top), _mm256_mul_ps(reach, splat(bounds[2])));
-            let lo = _mm256_sub_ps(splat(bottom), _mm256_mul_ps(reach, splat(bounds[3])));
-            let over = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(mid, splat(rad)), hi);
-            let under = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(mid, splat(rad)), lo);
+        let margin = splat(&octants.margin);
+        let separate = |bounds: &[f32], mid: __m256, rad: __m256| {
+            let top = _mm256_add_ps(splat(&bounds[1]), margin);
+            let bottom = _mm256_sub_ps(splat(&bounds[0]), margin);
+            let hi = _mm256_add_ps(top, _mm256_mul_ps(reach, splat(&bounds[2])));
+            let lo = _mm256_sub_ps(bottom, _mm256_mul_ps(reach, splat(&bounds[3])));
+            let over = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(mid, rad), hi);
+            let under = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(mid, rad), lo);
             _mm256_or_ps(over, under)
         };
         let mut separated = _mm256_setzero_ps();
         for (axis, bounds) in record[AXES..AXES + 12].chunks_exact(4).enumerate() {
             let mid = load(&octants.axis_mid[axis]);
-            separated = _mm256_or_ps(separated, separate(bounds, mid, octants.quarter[axis]));
-        }
-        let count = record[COUNT] as usize;
-        for slot in record[DIRECTIONS..].chunks_exact(DIRECTION).take(count) {
-            let (mid, rad) = project(&[slot[0], slot[1], slot[2]]);
-            separated = _mm256_or_ps(separated, separate(&slot[3..7], mid, rad));
+            separated = _mm256_or_ps(separated, separate(bounds, mid, quarter[axis]));
         }
         keep &= !(_mm256_movemask_ps(separated) as u8);
+        // The directions eight at a time, lanes over directions, octant after
+        // octant: per lane the operations above on the same operands.
+        let mut reach_lanes = [0.0f32; 8];
+        // SAFETY: `reach_lanes` is eight writable, contiguous `f32`.
+        unsafe { _mm256_storeu_ps(reach_lanes.as_mut_ptr(), reach) };
+        let count = record[COUNT] as usize;
+        for group in record[DIRECTIONS..]
+            .chunks_exact(GROUP)
+            .take(count.div_ceil(GROUP_LANES))
+        {
+            if keep == 0 {
+                break;
+            }
+            let field = |f: usize| -> __m256 {
+                load(
+                    group[f * GROUP_LANES..][..GROUP_LANES]
+                        .try_into()
+                        .expect("eight lanes"),
+                )
+            };
+            let n = [field(0), field(1), field(2)];
+            let t = [
+                _mm256_mul_ps(n[0], quarter[0]),
+                _mm256_mul_ps(n[1], quarter[1]),
+                _mm256_mul_ps(n[2], quarter[2]),
+            ];
+            let base = _mm256_add_ps(
+                _mm256_add_ps(
+                    _mm256_mul_ps(n[0], centre[0]),
+                    _mm256_mul_ps(n[1], centre[1]),
+                ),
+                _mm256_mul_ps(n[2], centre[2]),
+            );
+            let rad = _mm256_add_ps(_mm256_add_ps(abs8(t[0]), abs8(t[1])), abs8(t[2]));
+            let top = _mm256_add_ps(field(4), margin);
+            let bottom = _mm256_sub_ps(field(3), margin);
+            let (climb, fall) = (field(5), field(6));
+            // `base + s t` is `base - t` for the sign -1 (IEEE subtraction
+            // is the addition of the negation), so octants sharing their
+            // lower axes share those sums.
+            let step = |m: __m256, t: __m256| [_mm256_sub_ps(m, t), _mm256_add_ps(m, t)];
+            let x = step(base, t[0]);
+            let xy = [step(x[0], t[1]), step(x[1], t[1])];
+            let mut far = 0u8;
+            for o in 0..8 {
+                let mid = step(xy[o & 1][o >> 1 & 1], t[2])[o >> 2 & 1];
+                let reach = _mm256_broadcast_ss(&reach_lanes[o]);
+                let hi = _mm256_add_ps(top, _mm256_mul_ps(reach, climb));
+                let lo = _mm256_sub_ps(bottom, _mm256_mul_ps(reach, fall));
+                let over = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(mid, rad), hi);
+                let under = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(mid, rad), lo);
+                far |= u8::from(_mm256_movemask_ps(_mm256_or_ps(over, under)) != 0) << o;
+            }
+            keep &= !far;
+        }
     }
     keep
 }

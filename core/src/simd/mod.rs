@@ -380,8 +380,12 @@ pub(crate) const OCTANT_SIGN: [[f32; 8]; 3] = {
 /// Layout of one edge record of `ssv::edge_bounds`, in `f32`s: the side of the
 /// light's plane the edge is on (`±1`, 0 across it), the inverse of its
 /// smallest height, the number of directions; per axis `[min, max, climb,
-/// fall]`; the two adjacent triangles' planes `[nx, ny, nz, d]`; then per
-/// direction `[nx, ny, nz, min, max, climb, fall]`.
+/// fall]`; the two adjacent triangles' planes `[nx, ny, nz, d]`; then the
+/// directions `[nx, ny, nz, min, max, climb, fall]` in groups of
+/// [`GROUP_LANES`](edge_record::GROUP_LANES), each field of a group's
+/// directions contiguous (lanes over directions: the octant tests take eight
+/// directions per operation). Lanes past the directions used hold a zero
+/// normal and NaN bounds, which separate nothing.
 pub(crate) mod edge_record {
     /// `±1` or 0.
     pub const SIDE: usize = 0;
@@ -393,10 +397,15 @@ pub(crate) mod edge_record {
     pub const AXES: usize = 3;
     /// Triangle planes, four each.
     pub const PLANES: usize = AXES + 12;
-    /// First direction.
+    /// First group of directions.
     pub const DIRECTIONS: usize = PLANES + 8;
-    /// `f32`s per direction.
+    /// Fields per direction.
     pub const DIRECTION: usize = 7;
+    /// Directions per group.
+    pub const GROUP_LANES: usize = 8;
+    /// `f32`s per group: field `f` of the group's direction `l` at
+    /// `f * GROUP_LANES + l`.
+    pub const GROUP: usize = DIRECTION * GROUP_LANES;
 }
 
 #[cfg(all(test, feature = "std"))]

@@ -44,7 +44,9 @@ use super::wedge::{Aabb, LightShape, octants_meeting_wedge, octants_seeing_silho
 use crate::fallible::{self, OutOfMemory};
 use crate::geom::{f32_down as down, f32_up as up};
 use crate::prefetch::prefetch;
-use crate::simd::edge_record::{AXES, COUNT, DIRECTION, DIRECTIONS, INVERSE, PLANES, SIDE};
+use crate::simd::edge_record::{
+    AXES, COUNT, DIRECTION, DIRECTIONS, GROUP, GROUP_LANES, INVERSE, PLANES, SIDE,
+};
 use crate::simd::{OCTANT_SIGN as SIGN, Octants8};
 
 /// Octants tested at once.
@@ -68,7 +70,7 @@ const LANE_FLOOR: f64 = 1e-30;
 
 /// The box-independent bounds of every potential edge (module docs).
 pub(crate) struct EdgeBounds {
-    /// `f32`s per edge: [`DIRECTIONS`] + [`DIRECTION`] per direction.
+    /// `f32`s per edge: [`DIRECTIONS`] + [`GROUP`] per group of directions.
     stride: usize,
     /// The edges kept (those that may be a silhouette from the light), by
     /// slot: lists of the hierarchy hold slots.
@@ -112,7 +114,7 @@ impl EdgeBounds {
         let k = shape.vertices.len();
         // A piece of the light has at most two more vertices than the light.
         let directions = 2 + k + 2;
-        let stride = DIRECTIONS + DIRECTION * directions;
+        let stride = DIRECTIONS + GROUP * directions.div_ceil(GROUP_LANES);
         let scale = graph
             .positions
             .iter()
@@ -222,6 +224,25 @@ impl EdgeBounds {
             out[3] = up((lmax - emin + slack).max(0.0) * grow);
             out[..4].iter().all(|x| x.is_finite())
         };
+        // Every direction lane padding until written (the buffer is reused).
+        for group in out[DIRECTIONS..].chunks_exact_mut(GROUP) {
+            let (normal, rest) = group.split_at_mut(3 * GROUP_LANES);
+            let (bounds, reach) = rest.split_at_mut(2 * GROUP_LANES);
+            normal.fill(0.0);
+            bounds.fill(f32::NAN);
+            reach.fill(0.0);
+        }
+        // Direction `found`'s seven fields: the normal, then `put`'s four.
+        let direction = |out: &mut [f32], found: usize, n: DVec3| -> bool {
+            let mut fields = [0.0f32; DIRECTION];
+            fields[..3].copy_from_slice(&n.as_vec3().to_array());
+            let finite = put(&mut fields[3..], n);
+            let group = &mut out[DIRECTIONS + GROUP * (found / GROUP_LANES)..][..GROUP];
+            for (f, &value) in fields.iter().enumerate() {
+                group[f * GROUP_LANES + found % GROUP_LANES] = value;
+            }
+            finite
+        };
         let mut finite = true;
         for axis in 0..3 {
             let n = DVec3::AXES[axis];
@@ -269,9 +290,7 @@ impl EdgeBounds {
                 && !(below && above)
                 && let Some(n) = unit_f32(n)
             {
-                let slot = &mut out[DIRECTIONS + DIRECTION * found..][..DIRECTION];
-                slot[..3].copy_from_slice(&n.as_vec3().to_array());
-                finite &= put(&mut slot[3..], n);
+                finite &= direction(out, found, n);
                 found += 1;
             }
         }
@@ -289,9 +308,7 @@ impl EdgeBounds {
                 plane(b)
             };
             if let Some(n) = unit_f32(n) {
-                let slot = &mut out[DIRECTIONS + DIRECTION * found..][..DIRECTION];
-                slot[..3].copy_from_slice(&n.as_vec3().to_array());
-                finite &= put(&mut slot[3..], n);
+                finite &= direction(out, found, n);
                 found += 1;
             }
         }
@@ -503,9 +520,12 @@ fn wedge_lanes(record: &[f32], octants: &Octants8) -> u8 {
         separate(bounds, &octants.axis_mid[axis], octants.quarter[axis]);
     }
     let count = record[COUNT] as usize;
-    for slot in record[DIRECTIONS..].chunks_exact(DIRECTION).take(count) {
-        let (mid, rad) = project(&slot[..3], octants);
-        separate(&slot[3..7], &mid, rad);
+    for d in 0..count {
+        let group = &record[DIRECTIONS + GROUP * (d / GROUP_LANES)..][..GROUP];
+        let field: [f32; DIRECTION] =
+            core::array::from_fn(|f| group[f * GROUP_LANES + d % GROUP_LANES]);
+        let (mid, rad) = project(&field[..3], octants);
+        separate(&field[3..], &mid, rad);
     }
     let mut mask = 0u8;
     for (i, &s) in separated.iter().enumerate() {
@@ -898,10 +918,14 @@ mod tests {
             let (a, b, c, d) = (v(), v(), v(), v());
             let graph = EdgeGraph::new([[a, b, c], [b, a, d]].into_iter());
             let (z, tilt, size) = (r(2.5, 4.0), r(-1.0, 1.0), r(0.05, 1.0));
+            // Quads, and polygons whose directions fill a second and a
+            // third group of lanes (up to `2 + k + 2` directions).
+            let k = [4, 16, 3, 7, 4][round % 5];
             let shape = LightShape {
-                vertices: [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
-                    .iter()
-                    .map(|&(x, y): &(f64, f64)| {
+                vertices: (0..k)
+                    .map(|j| {
+                        let angle = core::f64::consts::TAU * (j as f64 + 0.5) / k as f64;
+                        let (x, y) = (angle.cos(), angle.sin());
                         DVec3::new(size * x, size * y, z + size * x * tilt)
                             .as_vec3()
                             .as_dvec3()
