@@ -229,9 +229,10 @@ pub(crate) fn intersect8(
 /// comparisons and combinations of the portable `ssv::edge_bounds` tests
 /// (`silhouette_lanes`, `wedge_lanes`), in the same order with the same
 /// operands, so the bits are the same (tested there). The planes and the axes
-/// take the octants as lanes; the directions, stored eight to a group, take
-/// them as lanes instead, octant after octant, which shares each direction's
-/// projection among the octants (about a third less work per edge).
+/// take the octants as lanes; for the directions, stored eight to a group, the
+/// directions are the lanes instead, one octant after another, which shares
+/// each direction's projection among the octants (about a third less time per
+/// edge).
 #[target_feature(enable = "avx")]
 #[inline]
 pub(crate) fn edge_octants8(

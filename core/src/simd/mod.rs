@@ -385,7 +385,8 @@ pub(crate) const OCTANT_SIGN: [[f32; 8]; 3] = {
 /// [`GROUP_LANES`](edge_record::GROUP_LANES), each field of a group's
 /// directions contiguous (lanes over directions: the octant tests take eight
 /// directions per operation). Lanes past the directions used hold a zero
-/// normal and NaN bounds, which separate nothing.
+/// normal, NaN min and max, and zero climb and fall: every comparison with
+/// the NaN bounds is false, so they separate nothing.
 pub(crate) mod edge_record {
     /// `±1` or 0.
     pub const SIDE: usize = 0;

@@ -7,7 +7,8 @@
 //! outward to `f32` ([`EdgeBounds`]): the edge's extent along each direction
 //! tried, how far the wedge may climb beyond it per unit of `reach`, and the
 //! unit normals of its adjacent triangles. A split then tests one edge against
-//! its node's eight octants (lane `i` is octant `i`, [`Aabb::octant`]) with a
+//! its node's eight octants (lane `i` is octant `i`, [`Aabb::octant`], except
+//! in the AVX kernel's loop over directions, whose lanes are directions) with a
 //! few multiply-adds per direction, where the `f64` tests of [`super::wedge`]
 //! normalise every direction and project the light afresh for every box.
 //!
@@ -913,13 +914,24 @@ mod tests {
         // Fewer rounds under Miri (`make miri`), which runs this for the AVX
         // kernel's unsafe loads and stores.
         let rounds = if cfg!(miri) { 4 } else { 300 };
+        // Records whose directions reach a second and a third group of lanes.
+        let (mut second, mut third) = (0usize, 0usize);
         for round in 0..rounds {
-            let mut v = || Vec3::new(r(-1.0, 1.0) as f32, r(-1.0, 1.0) as f32, r(0.3, 2.0) as f32);
+            // Edges below the light, above it (the other reach) and across
+            // its plane (no reach).
+            let (low, high) = [(0.3, 2.0), (0.3, 2.0), (4.5, 7.0), (0.3, 7.0)][round % 4];
+            let mut v = || {
+                Vec3::new(
+                    r(-1.0, 1.0) as f32,
+                    r(-1.0, 1.0) as f32,
+                    r(low, high) as f32,
+                )
+            };
             let (a, b, c, d) = (v(), v(), v(), v());
             let graph = EdgeGraph::new([[a, b, c], [b, a, d]].into_iter());
             let (z, tilt, size) = (r(2.5, 4.0), r(-1.0, 1.0), r(0.05, 1.0));
-            // Quads, and polygons whose directions fill a second and a
-            // third group of lanes (up to `2 + k + 2` directions).
+            // Triangles and quads (one group of lanes, some padded), 7- and
+            // 16-gons (up to 2 + k directions, a second and a third group).
             let k = [4, 16, 3, 7, 4][round % 5];
             let shape = LightShape {
                 vertices: (0..k)
@@ -944,6 +956,8 @@ mod tests {
             let octants = bounds.lane_boxes(&shape, &parent).expect("in range");
             for slot in 0..bounds.edges().len() {
                 let record = &bounds.records[slot * bounds.stride..][..bounds.stride];
+                second += usize::from(record[COUNT] > GROUP_LANES as f32);
+                third += usize::from(record[COUNT] > 2.0 * GROUP_LANES as f32);
                 for (silhouette, wedge) in [(true, true), (true, false), (false, true)] {
                     let portable = edge_octants(record, &octants, silhouette, wedge);
                     #[allow(unsafe_code)]
@@ -958,6 +972,9 @@ mod tests {
         }
         // Up to five edges and three combinations per round.
         assert!(compared >= 10 * rounds, "{compared}");
+        if !cfg!(miri) {
+            assert!(second > 0 && third > 0, "{second} {third}");
+        }
     }
 
     /// The allocation-free pieces are those of the hemicube's function.

@@ -288,7 +288,6 @@ impl Hierarchy {
         })
     }
 
-    /// The node's children when they pay ([`SPLIT_GAIN`]).
     /// The node's children, when they pay: when their mean list is at most
     /// [`SPLIT_GAIN`] of the node's. (The mean over all eight, not weighted by
     /// where the receivers are: a floor of receivers sits in the lower
