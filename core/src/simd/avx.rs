@@ -250,11 +250,10 @@ pub(crate) fn edge_octants8(
     let sign = [load(&SIGN[0]), load(&SIGN[1]), load(&SIGN[2])];
     let centre = octants.centre.each_ref().map(splat);
     let quarter = octants.quarter.each_ref().map(splat);
-    // Projections of the octants' centres on `n`, and their common radius:
-    // `t = n * quarter`, `base = (n0 c0 + n1 c1) + n2 c2`, `mid = ((base +
-    // s0 t0) + s1 t1) + s2 t2` and `rad = (|t0| + |t1|) + |t2|`.
-    let project = |n: &[f32]| {
-        let n = [splat(&n[0]), splat(&n[1]), splat(&n[2])];
+    // A direction `n` (per lane) against the parent: `t = n * quarter`,
+    // `base = (n0 c0 + n1 c1) + n2 c2` and `rad = (|t0| + |t1|) + |t2|`;
+    // octant `s` projects to `mid = ((base + s0 t0) + s1 t1) + s2 t2`.
+    let spread = |n: [__m256; 3]| {
         let t = [
             _mm256_mul_ps(n[0], quarter[0]),
             _mm256_mul_ps(n[1], quarter[1]),
@@ -267,6 +266,12 @@ pub(crate) fn edge_octants8(
             ),
             _mm256_mul_ps(n[2], centre[2]),
         );
+        let rad = _mm256_add_ps(_mm256_add_ps(abs8(t[0]), abs8(t[1])), abs8(t[2]));
+        (t, base, rad)
+    };
+    // One direction, the octants as lanes: their mids and common radius.
+    let project = |n: &[f32]| {
+        let (t, base, rad) = spread([splat(&n[0]), splat(&n[1]), splat(&n[2])]);
         let mid = _mm256_add_ps(
             _mm256_add_ps(
                 _mm256_add_ps(base, _mm256_mul_ps(sign[0], t[0])),
@@ -274,7 +279,6 @@ pub(crate) fn edge_octants8(
             ),
             _mm256_mul_ps(sign[2], t[2]),
         );
-        let rad = _mm256_add_ps(_mm256_add_ps(abs8(t[0]), abs8(t[1])), abs8(t[2]));
         (mid, rad)
     };
     let all = _mm256_cmp_ps::<_CMP_EQ_OQ>(_mm256_setzero_ps(), _mm256_setzero_ps());
@@ -349,20 +353,7 @@ pub(crate) fn edge_octants8(
                         .expect("eight lanes"),
                 )
             };
-            let n = [field(0), field(1), field(2)];
-            let t = [
-                _mm256_mul_ps(n[0], quarter[0]),
-                _mm256_mul_ps(n[1], quarter[1]),
-                _mm256_mul_ps(n[2], quarter[2]),
-            ];
-            let base = _mm256_add_ps(
-                _mm256_add_ps(
-                    _mm256_mul_ps(n[0], centre[0]),
-                    _mm256_mul_ps(n[1], centre[1]),
-                ),
-                _mm256_mul_ps(n[2], centre[2]),
-            );
-            let rad = _mm256_add_ps(_mm256_add_ps(abs8(t[0]), abs8(t[1])), abs8(t[2]));
+            let (t, base, rad) = spread([field(0), field(1), field(2)]);
             let top = _mm256_add_ps(field(4), margin);
             let bottom = _mm256_sub_ps(field(3), margin);
             let (climb, fall) = (field(5), field(6));
