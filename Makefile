@@ -128,16 +128,31 @@ cargo-test:
 # silhouette record's uninitialised slots, fallible allocation and the calls of
 # the rasterizer's AVX2 and AVX-512 builds. Soft floats, since libm's x86 `asm!`
 # stops Miri; every feature of those builds on, so the vector paths and the
-# builds run.
+# builds run. Miri interprets on one thread, so the tests are dealt out in turn
+# to MIRI_JOBS processes run side by side (one per core), each with its log.
 MIRI_TESTS := miri_ avx_octants_equal_the_portable_ones
+MIRI_JOBS ?= 2
 AVX512 := +avx512f,+avx512vl,+avx512bw,+avx512dq,+avx512cd
+MIRI := MIRIFLAGS="-Zmiri-disable-isolation" \
+  RUSTFLAGS="-C target-feature=+avx2,+fma,+bmi1,+bmi2,+lzcnt,+popcnt,$(AVX512)" \
+  $(CARGO) +nightly miri test -p antumbra-core --features "std bvh libm/force-soft-floats"
 miri:
 	rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 	rustup component add --toolchain nightly miri rust-src >/dev/null
-	MIRIFLAGS="-Zmiri-disable-isolation" \
-	  RUSTFLAGS="-C target-feature=+avx2,+fma,+bmi1,+bmi2,+lzcnt,+popcnt,$(AVX512)" \
-	  $(CARGO) +nightly miri test -p antumbra-core --features "std bvh libm/force-soft-floats" \
-	  -- $(MIRI_TESTS)
+	$(MIRI) --no-run
+	@tests=$$($(MIRI) -- $(MIRI_TESTS) --list --format terse | sed -n 's/: test$$//p'); \
+	test -n "$$tests" || { echo "make miri: no test matches '$(MIRI_TESTS)'"; exit 1; }; \
+	rm -f $(TARGET_DIR)/miri-job-*.log; pids=""; \
+	for job in $$(seq 0 $$(( $(MIRI_JOBS) - 1 ))); do \
+	  share=$$(echo "$$tests" | awk -v n=$(MIRI_JOBS) -v j=$$job '(NR - 1) % n == j'); \
+	  if [ -z "$$share" ]; then continue; fi; \
+	  echo "make miri: job $$job:" $$share; \
+	  ( $(MIRI) -- --exact $$share > $(TARGET_DIR)/miri-job-$$job.log 2>&1 ) & pids="$$pids $$!"; \
+	done; \
+	failed=0; for pid in $$pids; do wait $$pid || failed=1; done; \
+	cat $(TARGET_DIR)/miri-job-*.log; \
+	if [ $$failed != 0 ]; then echo "make miri: a job failed (its log is above)"; fi; \
+	exit $$failed
 
 # The same package selection as `cargo-test`, so the build it made is reused
 # (`-p antumbra-ffi` alone would unify features differently and rebuild).
