@@ -55,6 +55,7 @@ mod refit;
 
 use super::{Hit, PreparedRay, Ray, RayCaster, TriangleHit, TriangleLanes};
 use crate::geom::MeshView;
+use crate::prefetch::prefetch;
 use crate::simd::{self, LaneHits8, Planes8, SlabRay};
 
 /// A bounding volume hierarchy over a copy of a mesh's triangles.
@@ -250,6 +251,20 @@ impl BvhScene {
                 let (first, count) =
                     leaf_primitives(node.primitive_base_idx, node.child_meta[slot]);
                 let leaf = &bvh.primitive_indices[first..first + count];
+                // The leaves come in the order of their primitives, whose
+                // triangles lie scattered in the input: ask for those a few
+                // leaves on while this one is set up (a triangle spans at
+                // most two lines, the second the next triangle's first).
+                for &t in bvh
+                    .primitive_indices
+                    .get(first + TRIANGLES_AHEAD..)
+                    .unwrap_or(&[])
+                    .iter()
+                    .take(count)
+                {
+                    prefetch(&triangles, t as usize);
+                    prefetch(&triangles, t as usize + 1);
+                }
                 let mut lanes = [[Vec3::ZERO; 3]; 4];
                 // From the builder's copy: one read per triangle rather than
                 // three through the mesh's indices.
@@ -445,6 +460,10 @@ struct NodePlanes {
     /// first primitive instead); 0 for every other slot.
     leaves: [u8; 8],
 }
+
+/// How far ahead, in primitives, the set-up of the leaf blocks asks for the
+/// triangles it will read.
+const TRIANGLES_AHEAD: usize = 24;
 
 /// The first vertex used by a triangle of `mesh` with a coordinate beyond
 /// ±[`MAX_COORDINATE`].
