@@ -1158,20 +1158,22 @@ impl BvhScene {
         }
     }
 
-    /// The any-hit leaf test: `t` of a hit on a triangle of `group`. The lanes
-    /// decide all but the rare triangles that leave the common `f32` path,
-    /// which the scalar test decides.
+    /// The any-hit leaf test: `t` of a hit on a triangle of `group`, and the
+    /// triangle's original index. The lanes decide all but the rare triangles
+    /// that leave the common `f32` path, which the scalar test decides.
     #[inline(always)]
     fn any_hit_leaf<const WIDE: bool>(
         &self,
         prepared: &PreparedRay,
         group: &LeafGroup,
-    ) -> Option<f32> {
+    ) -> Option<(f32, u32)> {
         let decided = self.decide::<WIDE>(prepared, group);
         let present = group.present();
         let hits = decided.hits & present;
         if hits != 0 {
-            return Some(decided.t[hits.trailing_zeros() as usize]);
+            let lane = hits.trailing_zeros() as usize;
+            let (block, block_lane) = group.locate(lane);
+            return Some((decided.t[lane], self.block_triangles[block][block_lane]));
         }
         let mut undecided = decided.undecided & present;
         while undecided != 0 {
@@ -1180,7 +1182,7 @@ impl BvhScene {
             count_scalar_lane();
             let [a, b, c] = self.blocks[block].triangle(lane);
             if let Some(hit) = prepared.intersect(a, b, c) {
-                return Some(hit.t);
+                return Some((hit.t, self.block_triangles[block][lane]));
             }
         }
         None
@@ -1234,11 +1236,11 @@ impl BvhScene {
 }
 
 impl BvhScene {
-    /// [`RayCaster::occluded`] compiled with AVX, testing eight child boxes and
-    /// two leaves at a time.
+    /// [`Self::occluding_triangle`] compiled with AVX, testing eight child
+    /// boxes and two leaves at a time.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
-    fn occluded_avx(&self, ray: &Ray) -> bool {
+    fn occluded_avx(&self, ray: &Ray) -> Option<u32> {
         self.occluded_with::<true>(ray)
     }
 
@@ -1250,26 +1252,44 @@ impl BvhScene {
         self.closest_hit_with::<true>(ray)
     }
 
+    /// The original index of a triangle the ray hits (the first the search
+    /// finds, not necessarily the nearest), or `None`.
     #[inline(always)]
-    fn occluded_with<const WIDE: bool>(&self, ray: &Ray) -> bool {
+    fn occluded_with<const WIDE: bool>(&self, ray: &Ray) -> Option<u32> {
         if self.triangle_count == 0 {
-            return false;
+            return None;
         }
-        let Some(prepared) = PreparedRay::new(ray) else {
-            return false;
-        };
+        let prepared = PreparedRay::new(ray)?;
         let mut traversal = TraversalRay::new(ray);
+        let mut found = None;
         // Two closures over one inlined body: each has a single call site, so
         // the common path's leaf test is inlined into its traversal loop.
+        let mut test = |hit: Option<(f32, u32)>| {
+            found = hit.map(|(_, triangle)| triangle);
+            hit.map(|(t, _)| t)
+        };
         if self.depth <= STACK_GROUPS {
             self.search::<true, WIDE>(0, &mut [0u64; STACK_GROUPS], &mut traversal, |group| {
-                self.any_hit_leaf::<WIDE>(&prepared, group)
-            })
+                test(self.any_hit_leaf::<WIDE>(&prepared, group))
+            });
         } else {
             self.search_deep::<true>(&mut traversal, |group| {
-                self.any_hit_leaf::<false>(&prepared, group)
-            })
+                test(self.any_hit_leaf::<false>(&prepared, group))
+            });
         }
+        found
+    }
+
+    /// [`RayCaster::occluded`] that also names a triangle the ray hits: the
+    /// first the search finds, not necessarily the nearest.
+    pub(crate) fn occluding_triangle(&self, ray: &Ray) -> Option<u32> {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide {
+            // SAFETY: `wide` is set only where run-time detection found AVX.
+            #[allow(unsafe_code)]
+            return unsafe { self.occluded_avx(ray) };
+        }
+        self.occluded_with::<false>(ray)
     }
 
     /// [`RayCaster::occluded_many`] compiled with AVX.
@@ -1309,13 +1329,7 @@ impl BvhScene {
 
 impl RayCaster for BvhScene {
     fn occluded(&self, ray: &Ray) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        if self.wide {
-            // SAFETY: `wide` is set only where run-time detection found AVX.
-            #[allow(unsafe_code)]
-            return unsafe { self.occluded_avx(ray) };
-        }
-        self.occluded_with::<false>(ray)
+        self.occluding_triangle(ray).is_some()
     }
 
     /// Traces the rays in packets of up to 64 (see the `packet` module): the

@@ -534,6 +534,15 @@ mod bvh_against_brute_force {
             let got = bvh.closest_hit(&ray);
             assert_eq!(bvh.occluded(&ray), expected.is_some(), "{ray:?}");
             assert_eq!(narrow.occluded(&ray), expected.is_some(), "{ray:?}");
+            // The triangle an occlusion names is one the ray hits on its own.
+            let prepared = PreparedRay::new(&ray);
+            for scene in [bvh, &narrow] {
+                if let Some(t) = scene.occluding_triangle(&ray) {
+                    let [a, b, c] = mesh.triangle(t as usize);
+                    let hit = prepared.as_ref().and_then(|r| r.intersect(a, b, c));
+                    assert!(hit.is_some(), "triangle {t} named for {ray:?}");
+                }
+            }
             assert_eq!(narrow.closest_hit(&ray), got, "{ray:?}");
             assert_eq!(
                 bvh.occluded_through_traverse_macro(&ray),

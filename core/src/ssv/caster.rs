@@ -36,17 +36,17 @@ impl Caster {
         SoftShadows::build_caster(graph)
     }
 
-    pub(super) fn occluded(&self, ray: &Ray) -> bool {
+    /// A triangle the ray hits in its interval (the first found, not
+    /// necessarily the nearest), by index, or `None`.
+    pub(super) fn occluding_triangle(&self, ray: &Ray) -> Option<usize> {
         match self {
             #[cfg(feature = "bvh")]
-            Caster::Bvh(scene) => crate::raycast::RayCaster::occluded(scene, ray),
+            Caster::Bvh(scene) => scene.occluding_triangle(ray).map(|t| t as usize),
             #[cfg(not(feature = "bvh"))]
             Caster::Brute(tris) => {
-                let Some(prepared) = crate::raycast::PreparedRay::new(ray) else {
-                    return false;
-                };
+                let prepared = crate::raycast::PreparedRay::new(ray)?;
                 tris.iter()
-                    .any(|&[a, b, c]| prepared.intersect(a, b, c).is_some())
+                    .position(|&[a, b, c]| prepared.intersect(a, b, c).is_some())
             }
         }
     }

@@ -214,7 +214,7 @@ impl BvhScene {
         debug_assert!(rays.len() <= PACKET_RAYS);
         let alone = |ray: &Ray, best: &mut Option<Hit>| -> bool {
             if ANY_HIT {
-                self.occluded_with::<WIDE>(ray)
+                self.occluded_with::<WIDE>(ray).is_some()
             } else {
                 *best = self.closest_hit_with::<WIDE>(ray);
                 false
@@ -328,7 +328,7 @@ impl BvhScene {
                     let stack = &mut [0u64; STACK_GROUPS];
                     let found = if ANY_HIT {
                         self.search::<true, WIDE>(index, stack, traversal, |group| {
-                            self.any_hit_leaf::<WIDE>(prepared, group)
+                            self.any_hit_leaf::<WIDE>(prepared, group).map(|(t, _)| t)
                         })
                     } else {
                         self.search::<false, WIDE>(index, stack, traversal, |group| {
