@@ -1265,8 +1265,9 @@ impl BvhScene {
         // Two closures over one inlined body: each has a single call site, so
         // the common path's leaf test is inlined into its traversal loop.
         let mut test = |hit: Option<(f32, u32)>| {
-            found = hit.map(|(_, triangle)| triangle);
-            hit.map(|(t, _)| t)
+            let (t, triangle) = hit?;
+            found = Some(triangle);
+            Some(t)
         };
         if self.depth <= STACK_GROUPS {
             self.search::<true, WIDE>(0, &mut [0u64; STACK_GROUPS], &mut traversal, |group| {
