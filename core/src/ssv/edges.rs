@@ -185,6 +185,12 @@ impl EdgeGraph {
         )
     }
 
+    /// The corners of triangle `t`.
+    #[inline]
+    pub fn corners(&self, t: usize) -> [Vec3; 3] {
+        self.triangles[t].map(|v| self.positions[v as usize])
+    }
+
     /// The third vertices adjacent to `edge`.
     #[inline]
     pub fn third_of(&self, edge: &Edge) -> &[u32] {

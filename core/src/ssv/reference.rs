@@ -233,22 +233,17 @@ impl SoftShadows {
         let Some(found) = self.caster.occluding_triangle(&ray) else {
             return Some(false);
         };
-        let meets = |triangle: usize| {
-            let [a, b, c] =
-                self.graph.triangles[triangle].map(|v| self.graph.positions[v as usize]);
-            segment_meets_triangle(p, s, a, b, c)
-        };
         // A triangle the segment meets, exactly: blocked, whatever the ray
         // may have missed nearer.
-        if meets(found) {
+        let [a, b, c] = self.graph.corners(found);
+        if segment_meets_triangle(p, s, a, b, c) {
             return Some(true);
         }
         for _ in 0..MAX_REFUTED_HITS {
             let Some((t, triangle)) = self.caster.closest_hit(&ray) else {
                 return Some(false);
             };
-            let [a, b, c] =
-                self.graph.triangles[triangle].map(|v| self.graph.positions[v as usize]);
+            let [a, b, c] = self.graph.corners(triangle);
             if segment_meets_triangle(p, s, a, b, c) || t <= ray.t_min || t.is_nan() {
                 return Some(true);
             }
@@ -270,7 +265,7 @@ impl SoftShadows {
     #[inline(never)]
     pub(super) fn exactly_blocked(&self, p: Vec3, s: Vec3) -> bool {
         let meets = |t: usize| {
-            let [a, b, c] = self.graph.triangles[t].map(|v| self.graph.positions[v as usize]);
+            let [a, b, c] = self.graph.corners(t);
             segment_meets_triangle(p, s, a, b, c)
         };
         #[cfg(feature = "bvh")]
@@ -294,7 +289,7 @@ impl SoftShadows {
         {
             let (lo, hi) = (p.min(s), p.max(s));
             (0..self.graph.triangles.len()).any(|t| {
-                let [a, b, c] = self.graph.triangles[t].map(|v| self.graph.positions[v as usize]);
+                let [a, b, c] = self.graph.corners(t);
                 let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
                 tlo.cmple(hi).all() && thi.cmpge(lo).all() && meets(t)
             })
