@@ -834,7 +834,7 @@ impl TraversalRay {
     fn entered_wide(&self, planes: &Planes8, slab: &SlabRay) -> u32 {
         #[cfg(target_arch = "x86_64")]
         {
-            // SAFETY: wide searches are entered only from `occluded_avx` and
+            // SAFETY: wide searches are entered only from `occluding_triangle_avx` and
             // `closest_hit_avx`, which are called only when `BvhScene::wide`, set
             // from run-time detection of AVX.
             #[allow(unsafe_code)]
@@ -1129,7 +1129,7 @@ impl BvhScene {
         #[cfg(target_arch = "x86_64")]
         if let (true, Some(second)) = (WIDE, group.second) {
             let second = &self.blocks[second.block];
-            // SAFETY: wide searches are entered only from `occluded_avx` and
+            // SAFETY: wide searches are entered only from `occluding_triangle_avx` and
             // `closest_hit_avx`, which run only where `BvhScene::wide` says
             // run-time detection found AVX.
             #[allow(unsafe_code)]
@@ -1240,8 +1240,8 @@ impl BvhScene {
     /// boxes and two leaves at a time.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
-    fn occluded_avx(&self, ray: &Ray) -> Option<u32> {
-        self.occluded_with::<true>(ray)
+    fn occluding_triangle_avx(&self, ray: &Ray) -> Option<u32> {
+        self.occluding_triangle_with::<true>(ray)
     }
 
     /// [`RayCaster::closest_hit`] compiled with AVX, testing eight child boxes
@@ -1255,7 +1255,7 @@ impl BvhScene {
     /// The original index of a triangle the ray hits (the first the search
     /// finds, not necessarily the nearest), or `None`.
     #[inline(always)]
-    fn occluded_with<const WIDE: bool>(&self, ray: &Ray) -> Option<u32> {
+    fn occluding_triangle_with<const WIDE: bool>(&self, ray: &Ray) -> Option<u32> {
         if self.triangle_count == 0 {
             return None;
         }
@@ -1288,9 +1288,9 @@ impl BvhScene {
         if self.wide {
             // SAFETY: `wide` is set only where run-time detection found AVX.
             #[allow(unsafe_code)]
-            return unsafe { self.occluded_avx(ray) };
+            return unsafe { self.occluding_triangle_avx(ray) };
         }
-        self.occluded_with::<false>(ray)
+        self.occluding_triangle_with::<false>(ray)
     }
 
     /// [`RayCaster::occluded_many`] compiled with AVX.

@@ -214,7 +214,7 @@ impl BvhScene {
         debug_assert!(rays.len() <= PACKET_RAYS);
         let alone = |ray: &Ray, best: &mut Option<Hit>| -> bool {
             if ANY_HIT {
-                self.occluded_with::<WIDE>(ray).is_some()
+                self.occluding_triangle_with::<WIDE>(ray).is_some()
             } else {
                 *best = self.closest_hit_with::<WIDE>(ray);
                 false
