@@ -3,18 +3,22 @@
 #![allow(unsafe_code)]
 
 use core::arch::x86_64::{
-    __m128i, __m256, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ,
-    _mm_add_epi32, _mm_loadu_si128, _mm_storeu_si128, _mm256_add_ps, _mm256_and_ps,
-    _mm256_andnot_ps, _mm256_blendv_ps, _mm256_broadcast_ss, _mm256_castps_si256,
-    _mm256_castsi256_ps, _mm256_castsi256_si128, _mm256_cmp_ps, _mm256_div_ps,
-    _mm256_extractf128_si256, _mm256_loadu_ps, _mm256_max_ps, _mm256_movemask_ps, _mm256_mul_ps,
-    _mm256_or_ps, _mm256_set1_epi32, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sqrt_ps,
-    _mm256_storeu_ps, _mm256_sub_ps, _mm256_xor_ps,
+    __m128i, __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
+    _CMP_NEQ_UQ, _mm_add_epi32, _mm_loadu_ps, _mm_loadu_si128, _mm_storeu_ps, _mm_storeu_si128,
+    _mm256_add_ps, _mm256_and_pd, _mm256_and_ps, _mm256_andnot_pd, _mm256_andnot_ps,
+    _mm256_blendv_pd, _mm256_blendv_ps, _mm256_broadcast_ss, _mm256_castps_si256,
+    _mm256_castsi256_ps, _mm256_castsi256_si128, _mm256_cmp_pd, _mm256_cmp_ps, _mm256_cvtpd_ps,
+    _mm256_cvtps_pd, _mm256_div_pd, _mm256_div_ps, _mm256_extractf128_si256, _mm256_loadu_ps,
+    _mm256_max_pd, _mm256_max_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps,
+    _mm256_set1_epi32, _mm256_set1_pd, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sqrt_ps,
+    _mm256_storeu_ps, _mm256_sub_pd, _mm256_sub_ps, _mm256_xor_ps,
 };
 
-use super::{EdgeCorners8, EdgePlanes8, SetupMasks8, SweepPlanes8, SweepReceiver8};
+#[cfg(test)]
+use super::EdgePlanes8;
+use super::{EdgeCorners8, SetupMasks8, SweepPlanes8, SweepReceiver8};
 #[cfg(feature = "bvh")]
-use core::arch::x86_64::{_mm_loadu_ps, _mm256_min_ps, _mm256_set_m128};
+use core::arch::x86_64::{_mm256_min_ps, _mm256_set_m128};
 
 #[cfg(feature = "bvh")]
 use glam::Vec4;
@@ -668,6 +672,65 @@ pub(crate) fn silhouette_setup8(receiver: &SweepReceiver8, corners: &EdgeCorners
 /// times at most this) changes a value by far less than [`FLOOR`].
 const PLANE_RANGE: f32 = 1e8;
 
+/// Per lane, the normal a soft-shadow query records for a silhouette edge
+/// (`ssv::reference`'s `scaled_normal` of `(a - p) × (b - p)`, with `a` and
+/// `b` the lane's endpoints in `corners` widened to `f64` and `p` the
+/// receiver), by axis: the same operations in the same order, so the same
+/// values bit for bit. The power of two that brings the largest component
+/// into `[0.5, 1)` is `0.5` over that component's exponent bits alone (a
+/// division by a power of two, exact), where the component is a normal
+/// `f64` below `2¹⁰²²` (`2045 << 52` as bits); elsewhere (a zero normal) the scale is 1.
+#[target_feature(enable = "avx")]
+#[inline(never)]
+pub(crate) fn recorded_normals8(p: [f64; 3], corners: &EdgeCorners8) -> [[f32; 8]; 3] {
+    let mut out = [[0.0f32; 8]; 3];
+    for half in 0..2 {
+        let widen = |lanes: &[f32; 8]| -> __m256d {
+            let four: &[f32; 4] = lanes[4 * half..4 * half + 4]
+                .try_into()
+                .expect("four lanes");
+            // SAFETY: `four` is four readable, contiguous `f32`; the load is
+            // unaligned.
+            _mm256_cvtps_pd(unsafe { _mm_loadu_ps(four.as_ptr()) })
+        };
+        let relative = |w: &[[f32; 8]; 3]| -> [__m256d; 3] {
+            core::array::from_fn(|axis| _mm256_sub_pd(widen(&w[axis]), _mm256_set1_pd(p[axis])))
+        };
+        let ([ax, ay, az], [bx, by, bz]) = (relative(&corners.a), relative(&corners.b));
+        let difference = |x: __m256d, y: __m256d, z: __m256d, w: __m256d| {
+            _mm256_sub_pd(_mm256_mul_pd(x, y), _mm256_mul_pd(z, w))
+        };
+        // glam's `cross`: `(a.y b.z - b.y a.z, a.z b.x - b.z a.x, a.x b.y - b.x a.y)`.
+        let n = [
+            difference(ay, bz, by, az),
+            difference(az, bx, bz, ax),
+            difference(ax, by, bx, ay),
+        ];
+        let magnitude = |v: __m256d| _mm256_andnot_pd(_mm256_set1_pd(-0.0), v);
+        let largest = _mm256_max_pd(
+            magnitude(n[0]),
+            _mm256_max_pd(magnitude(n[1]), magnitude(n[2])),
+        );
+        let exponent = _mm256_and_pd(largest, _mm256_set1_pd(f64::INFINITY));
+        let scalable = _mm256_and_pd(
+            _mm256_cmp_pd::<_CMP_GE_OQ>(largest, _mm256_set1_pd(f64::MIN_POSITIVE)),
+            _mm256_cmp_pd::<_CMP_LT_OQ>(largest, _mm256_set1_pd(f64::from_bits(2045 << 52))),
+        );
+        let scale = _mm256_blendv_pd(
+            _mm256_set1_pd(1.0),
+            _mm256_div_pd(_mm256_set1_pd(0.5), exponent),
+            scalable,
+        );
+        for (axis, v) in n.into_iter().enumerate() {
+            let rounded = _mm256_cvtpd_ps(_mm256_mul_pd(v, scale));
+            // SAFETY: the four `f32` of lanes `4 half..4 half + 4` are
+            // writable and contiguous; the store is unaligned.
+            unsafe { _mm_storeu_ps(out[axis][4 * half..].as_mut_ptr(), rounded) };
+        }
+    }
+    out
+}
+
 /// Relative bound, against the computed `|det| + |vs| + |va| + |vb|`, on the
 /// rounding of [`crossings8`]'s three-term sum (about `3u`).
 const SUM_BOUND: f32 = 8.0 * U;
@@ -944,6 +1007,8 @@ impl CrossingTest8 {
 /// it is crossed; nothing for the others. Each sign is taken only beyond `edge`'s bound on its distance from
 /// the exact value ([`silhouette_planes8`]), the sum's with [`SUM_BOUND`]
 /// more, so a sample said crossed is crossed exactly and one said not is not.
+/// The one-edge twin of [`crossings_lanes8`] that the tests compare it with.
+#[cfg(test)]
 #[target_feature(enable = "avx")]
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
@@ -955,7 +1020,7 @@ pub(crate) fn crossings8(
     hi: usize,
     counters: &mut [i32],
     contribution: i32,
-    mut unsure: impl FnMut(usize) -> bool,
+    unsure: impl FnMut(usize) -> bool,
 ) {
     let splat = |x: f32| _mm256_set1_ps(x);
     let test = CrossingTest8::new(
@@ -964,10 +1029,84 @@ pub(crate) fn crossings8(
         edge.errs.map(splat),
         splat(flip_unless(edge.want)),
     );
+    crossing_blocks(
+        &test,
+        p.map(splat),
+        soa,
+        lo..hi,
+        counters,
+        contribution,
+        unsure,
+    );
+}
+
+/// [`crossings8`] for the eight silhouette edges of `planes`, each over its
+/// own samples: lane `i` tests the samples of its `ranges[i]` (`(start,
+/// end)` each, empty where `start >= end`) with its planes and bounds as
+/// [`SweepPlanes8::lane`] gives them, adds `contributions[i]` to the counter
+/// of each it crosses, and asks `unsure(i, sample)` for the `f32` pass's
+/// unsure ones: the same counts as [`crossings8`] lane by lane and range by
+/// range. Each edge's planes are broadcast from the lanes and its samples
+/// read eight contiguous ones at a time, so a batch's sample pass is one
+/// call however long its arcs (a large light's hold about three samples, a
+/// small light's more). `soa` holds at least seven readable entries past
+/// each range's end; it panics otherwise.
+#[target_feature(enable = "avx")]
+#[inline(never)]
+pub(crate) fn crossings_lanes8(
+    planes: &SweepPlanes8,
+    p: [f32; 3],
+    soa: [&[f32]; 3],
+    ranges: &[[(u32, u32); 3]; 8],
+    contributions: &[i32; 8],
+    counters: &mut [i32],
+    mut unsure: impl FnMut(usize, usize) -> bool,
+) {
+    let splat = |x: f32| _mm256_set1_ps(x);
     let p = p.map(splat);
+    for (lane, lane_ranges) in ranges.iter().enumerate() {
+        if lane_ranges.iter().all(|&(lo, hi)| lo >= hi) {
+            continue;
+        }
+        // Broadcast from the lanes where they lie (a copy of an axis's
+        // eight on the stack first would stall each broadcast on the copy's
+        // store).
+        let lane_of = |x: &f32| _mm256_broadcast_ss(x);
+        let at = |w: &[[f32; 8]; 3]| [0, 1, 2].map(|axis| lane_of(&w[axis][lane]));
+        let test = CrossingTest8::new(
+            [at(&planes.nrm), at(&planes.amat), at(&planes.bmat)],
+            lane_of(&planes.det[lane]),
+            [0, 1, 2, 3].map(|k| lane_of(&planes.errs[k][lane])),
+            splat(flip_unless(planes.want(lane))),
+        );
+        let contribution = contributions[lane];
+        for &(lo, hi) in lane_ranges {
+            let range = lo as usize..hi as usize;
+            crossing_blocks(&test, p, soa, range, counters, contribution, |i| {
+                unsure(lane, i)
+            });
+        }
+    }
+}
+
+/// The block loop of [`crossings8`] and [`crossings_lanes8`]: `test` (one
+/// edge's planes in every lane) over the samples of `range`, eight at a
+/// time, `p` splat per axis.
+#[target_feature(enable = "avx")]
+#[inline]
+fn crossing_blocks(
+    test: &CrossingTest8,
+    p: [__m256; 3],
+    soa: [&[f32]; 3],
+    range: core::ops::Range<usize>,
+    counters: &mut [i32],
+    contribution: i32,
+    mut unsure: impl FnMut(usize) -> bool,
+) {
+    let splat = |x: f32| _mm256_set1_ps(x);
     let lane_index = load(&[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
     let contribution8 = _mm256_castsi256_ps(_mm256_set1_epi32(contribution));
-    let mut base = lo;
+    let (mut base, hi) = (range.start, range.end);
     while base < hi {
         let at = |axis: usize| -> __m256 {
             let eight: &[f32; 8] = soa[axis][base..base + 8]
@@ -976,7 +1115,7 @@ pub(crate) fn crossings8(
             _mm256_sub_ps(load(eight), p[axis])
         };
         let (hit, reject) = test.classify([at(0), at(1), at(2)]);
-        // Lanes of `lo..hi` only.
+        // Lanes of the range only.
         let past = (hi - base).min(8);
         let inside = 0xFFu32 >> (8 - past);
         match counters.get_mut(base..base + 8) {
@@ -1004,86 +1143,5 @@ pub(crate) fn crossings8(
             open &= open - 1;
         }
         base += 8;
-    }
-}
-
-/// [`crossings8`] for the eight silhouette edges of `planes` at once, one
-/// sample per lane and step: lane `i` tests the `lens[i]` samples from
-/// `starts[i]` on (none where `lens[i]` is 0) and adds `contributions[i]` to
-/// the counter of each it crosses, the `f32` pass's unsure ones where
-/// `unsure(i, sample)` says so. The same test as [`crossings8`] (each lane's
-/// planes and bounds as [`SweepPlanes8::lane`] gives them), so the same
-/// counts; for short arcs, the common case under a large light, it takes one
-/// step per sample of the longest arc instead of a call and a block per edge.
-/// In every lane `starts[i]`, and `starts[i] + lens[i] - 1` where `lens[i]`
-/// is not 0, index `counters` and each of `soa` (a lane past its samples reads
-/// and adds zero to its last one); it panics otherwise.
-#[target_feature(enable = "avx")]
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn crossings_lanes8(
-    planes: &SweepPlanes8,
-    p: [f32; 3],
-    soa: [&[f32]; 3],
-    starts: &[u32; 8],
-    lens: &[u32; 8],
-    contributions: &[i32; 8],
-    counters: &mut [i32],
-    mut unsure: impl FnMut(usize, usize) -> bool,
-) {
-    let splat = |x: f32| _mm256_set1_ps(x);
-    let lanes = |w: &[[f32; 8]; 3]| -> [__m256; 3] { core::array::from_fn(|i| load(&w[i])) };
-    let flip: [f32; 8] = core::array::from_fn(|i| flip_unless(planes.want(i)));
-    let test = CrossingTest8::new(
-        [lanes(&planes.nrm), lanes(&planes.amat), lanes(&planes.bmat)],
-        load(&planes.det),
-        planes.errs.map(|e| load(&e)),
-        load(&flip),
-    );
-    let p = p.map(splat);
-    let steps = lens.iter().copied().max().unwrap_or(0);
-    let lens8 = load(&lens.map(|n| n as f32));
-    let contribution8 = load(&contributions.map(|c| f32::from_bits(c as u32)));
-    // Each lane's last sample; one check that every index read is in range,
-    // instead of one per access.
-    let last: [usize; 8] =
-        core::array::from_fn(|i| starts[i] as usize + lens[i].saturating_sub(1) as usize);
-    let reach = last.iter().copied().max().unwrap_or(0);
-    assert!(
-        reach < counters.len() && soa.iter().all(|axis| reach < axis.len()),
-        "a lane's samples run past the samples"
-    );
-    for step in 0..steps {
-        // A lane past its arc reads and adds to its last sample (with a
-        // contribution of zero): no branch.
-        let active = _mm256_cmp_ps::<_CMP_LT_OQ>(splat(step as f32), lens8);
-        let index: [usize; 8] =
-            core::array::from_fn(|i| (starts[i] as usize + step as usize).min(last[i]));
-        let at = |axis: usize| -> __m256 {
-            let coordinates = soa[axis];
-            // SAFETY: every index is at most its lane's last, checked above.
-            let eight: [f32; 8] =
-                core::array::from_fn(|i| unsafe { *coordinates.get_unchecked(index[i]) });
-            _mm256_sub_ps(load(&eight), p[axis])
-        };
-        let (hit, reject) = test.classify([at(0), at(1), at(2)]);
-        let add = _mm256_and_ps(_mm256_and_ps(hit, active), contribution8);
-        let mut added = [0.0f32; 8];
-        // SAFETY: `added` is eight writable, contiguous `f32`; the store is
-        // unaligned.
-        unsafe { _mm256_storeu_ps(added.as_mut_ptr(), add) };
-        for (&i, a) in index.iter().zip(added) {
-            // SAFETY: as the loads above.
-            unsafe { *counters.get_unchecked_mut(i) += a.to_bits() as i32 };
-        }
-        let mut open = !(_mm256_movemask_ps(_mm256_or_ps(hit, reject)) as u32)
-            & _mm256_movemask_ps(active) as u32;
-        while open != 0 {
-            let lane = open.trailing_zeros() as usize;
-            if unsure(lane, index[lane]) {
-                counters[index[lane]] += contributions[lane];
-            }
-            open &= open - 1;
-        }
     }
 }

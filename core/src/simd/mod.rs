@@ -283,9 +283,9 @@ pub(crate) struct SweepPlanes8 {
     pub arc: u32,
 }
 
-#[cfg(all(target_arch = "x86_64", feature = "std"))]
-/// One silhouette edge's planes from [`SweepPlanes8`], as the per-sample pass
-/// [`avx::crossings8`] takes them.
+#[cfg(all(test, target_arch = "x86_64", feature = "std"))]
+/// One silhouette edge's planes from [`SweepPlanes8`], as the one-edge
+/// sample pass `avx::crossings8` (the tests' twin) takes them.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct EdgePlanes8 {
     pub nrm: [f32; 3],
@@ -302,7 +302,7 @@ pub(crate) struct EdgePlanes8 {
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
 impl SweepPlanes8 {
     /// Lane `i`'s planes.
-    #[inline]
+    #[cfg(test)]
     pub(crate) fn lane(&self, i: usize) -> EdgePlanes8 {
         EdgePlanes8 {
             nrm: self.nrm.map(|v| v[i]),

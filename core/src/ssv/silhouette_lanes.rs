@@ -17,16 +17,15 @@
 //! test, the centroid's side and the arc, each with a bound on its rounding),
 //! to [`Kernel::lane_silhouette_ranges`] (the record and the arc), then an
 //! `f32` sample pass that counts exactly the samples [`Kernel::crosses`]
-//! would. Edges whose arc is one range of at most [`ShortArcs::MAX_LEN`]
-//! samples are held and swept together once the batch is set up
-//! ([`Kernel::sweep_short_arcs`]: one sample of each per lane and step); the
-//! others one at a time ([`Kernel::sweep_lane_ranges`]). So the counters, the
+//! would. Those edges are held with their sample ranges and swept together
+//! once the batch is set up ([`Kernel::sweep_held_arcs`]: one call per batch,
+//! each edge's samples eight contiguous ones at a time). So the counters, the
 //! statistics and the recorded silhouettes are the scalar sweep's, candidate
 //! by candidate (the order of a batch's additions aside, which integer sums
 //! do not see).
 
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
-use super::sweep::{DecidedSilhouette, EdgeAt, ShortArcs};
+use super::sweep::{DecidedSilhouette, EdgeAt, HeldArcs};
 use super::*;
 #[cfg(any(test, all(target_arch = "x86_64", feature = "std")))]
 use crate::simd::SetupMasks8;
@@ -64,8 +63,19 @@ impl SoftShadows {
             // ([`SoftShadows::sweep_receiver`]).
             let planes = (swept != 0)
                 .then(|| unsafe { crate::simd::avx::silhouette_planes8(receiver, &corners) });
+            // The normals the swept ones are recorded with where near.
+            let pw = kernel.pw.to_array();
+            let normals = if masks.near & swept != 0 {
+                #[allow(unsafe_code)]
+                // SAFETY: as above.
+                unsafe {
+                    crate::simd::avx::recorded_normals8(pw, &corners)
+                }
+            } else {
+                Default::default()
+            };
             let mut silhouettes = 0;
-            let mut short = ShortArcs::default();
+            let mut held = HeldArcs::default();
             // The lanes in order, idle ones skipped without a branch each.
             let mut todo = (masks.undecided | !masks.idle) & ((1 << LANES) - 1);
             while todo != 0 {
@@ -85,11 +95,9 @@ impl SoftShadows {
                 if let Some(planes) = &planes
                     && planes.decided & swept & bit != 0
                 {
-                    let arc = kernel.lane_silhouette_ranges(self, e, silhouette, planes, i);
-                    let weight = silhouette.weight;
-                    if !short.hold(i, e, weight, arc) {
-                        kernel.sweep_lane_ranges(self, e, weight, planes, i, arc, counters);
-                    }
+                    let arc =
+                        kernel.lane_silhouette_ranges(self, e, silhouette, planes, &normals, i);
+                    held.hold(i, e, silhouette.weight, arc);
                     continue;
                 }
                 let (a, b) = self.graph.endpoints(e);
@@ -97,9 +105,9 @@ impl SoftShadows {
                 kernel.add_silhouette(self, e, &at, silhouette, counters);
             }
             if let Some(planes) = &planes
-                && short.held != 0
+                && held.held != 0
             {
-                kernel.sweep_short_arcs(self, planes, &short, counters);
+                kernel.sweep_held_arcs(self, planes, &held, counters);
             }
             return silhouettes;
         }

@@ -46,10 +46,10 @@ pub(super) struct Kernel<'a> {
     pub(super) lane_swept: u32,
     #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
     pub(super) lane_arcs: u32,
-    /// Tests only: silhouettes whose short arcs were swept together
-    /// ([`Kernel::sweep_short_arcs`]).
+    /// Tests only: silhouettes with samples to sweep that the lanes swept
+    /// together ([`Kernel::sweep_held_arcs`]).
     #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
-    pub(super) short_swept: u32,
+    pub(super) held_swept: u32,
     /// Where the silhouette edges met are recorded (for the choice of the
     /// reference sample).
     pub(super) silhouettes: &'a mut Silhouettes,
@@ -68,15 +68,15 @@ pub(super) struct DecidedSilhouette {
     pub(super) sweep: bool,
 }
 
-/// Up to eight silhouette edges of one lane batch whose arcs hold at most
-/// [`ShortArcs::MAX_LEN`] samples in one range, gathered for
-/// [`Kernel::sweep_short_arcs`] (lane `i` of the batch in entry `i`; a
-/// length of 0 where lane `i` is not one of them).
+/// The lane-decided silhouette edges of one lane batch with their sample
+/// ranges, gathered for [`Kernel::sweep_held_arcs`] (lane `i` of the batch in
+/// entry `i`; empty ranges where lane `i` is not one of them).
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
 #[derive(Clone, Copy, Default)]
-pub(super) struct ShortArcs {
-    pub(super) starts: [u32; 8],
-    pub(super) lens: [u32; 8],
+pub(super) struct HeldArcs {
+    /// Per lane, the ranges of samples (angular order) its arc may cross:
+    /// `(start, end)`, empty where `start >= end`.
+    pub(super) ranges: [[(u32, u32); 3]; 8],
     pub(super) contributions: [i32; 8],
     pub(super) edges: [u32; 8],
     pub(super) weights: [i32; 8],
@@ -85,14 +85,9 @@ pub(super) struct ShortArcs {
 }
 
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
-impl ShortArcs {
-    /// The longest arc taken together with others: the lanes step through
-    /// the longest arc among them, so a long one would hold the others up.
-    pub(super) const MAX_LEN: usize = 8;
-
-    /// Holds lane `lane`'s edge `e` (weight `weight`) if its `ranges` are one
-    /// range of at most [`ShortArcs::MAX_LEN`] samples (or none: nothing to
-    /// sweep), with its `contribution`; says whether it did.
+impl HeldArcs {
+    /// Holds lane `lane`'s edge `e` (weight `weight`) with its sample
+    /// `ranges` and its `contribution`.
     #[inline]
     pub(super) fn hold(
         &mut self,
@@ -100,23 +95,14 @@ impl ShortArcs {
         e: u32,
         weight: i32,
         (ranges, contribution): ([(usize, usize); 3], i32),
-    ) -> bool {
-        let [(lo, hi), (lo1, hi1), (lo2, hi2)] = ranges;
-        let len = hi.saturating_sub(lo);
-        // One test for the three conditions (`&` evaluates them all: the
-        // ranges' lengths vary from edge to edge, the outcome rarely).
-        if !((lo1 >= hi1) & (lo2 >= hi2) & (len <= Self::MAX_LEN)) {
-            return false;
-        }
-        // An empty arc is held with nothing to sweep (at sample 0: the lanes
-        // read a lane's start whatever its length).
-        self.starts[lane] = if len > 0 { lo as u32 } else { 0 };
-        self.lens[lane] = len as u32;
+    ) {
+        // Sample indices are below `MAX_SAMPLES`: they fit in `u32`.
+        self.ranges[lane] = ranges.map(|(lo, hi)| (lo as u32, hi as u32));
         self.contributions[lane] = contribution;
         self.edges[lane] = e;
         self.weights[lane] = weight;
-        self.held |= u32::from(len > 0) << lane;
-        true
+        let any = ranges.iter().any(|&(lo, hi)| lo < hi);
+        self.held |= u32::from(any) << lane;
     }
 }
 
@@ -194,7 +180,7 @@ impl<'a> Kernel<'a> {
             unsure: 0,
             lane_swept: 0,
             lane_arcs: 0,
-            short_swept: 0,
+            held_swept: 0,
             silhouettes,
         };
         k.hc = k.cp.dot(k.toward);
@@ -313,23 +299,24 @@ impl<'a> Kernel<'a> {
 
     /// The first part of [`Kernel::add_silhouette`] for a silhouette edge
     /// whose planes, centroid side and (where `planes.arc` says so) arc the
-    /// lanes decided (lane `lane` of `planes`): records it where it is near,
+    /// lanes decided (lane `lane` of `planes`): records it where it is near
+    /// (with its normal from `normals`, [`recorded_normals8`](crate::simd::avx::recorded_normals8)),
     /// and returns the ranges of samples (angular order) its arc may cross
-    /// and its contribution, for [`Kernel::sweep_lane_ranges`] or
-    /// [`Kernel::sweep_short_arcs`].
+    /// and its contribution, for [`Kernel::sweep_held_arcs`].
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn lane_silhouette_ranges(
         &mut self,
         ss: &SoftShadows,
         e: u32,
         silhouette: DecidedSilhouette,
         planes: &crate::simd::SweepPlanes8,
+        normals: &[[f32; 8]; 3],
         lane: usize,
     ) -> ([(usize, usize); 3], i32) {
-        let (a, b) = ss.graph.endpoints(e);
         if silhouette.near {
-            let normal = (a.as_dvec3() - self.pw).cross(b.as_dvec3() - self.pw);
-            self.silhouettes.record(e, normal);
+            let normal = [0, 1, 2].map(|axis| normals[axis][lane]);
+            self.silhouettes.record_scaled(e, normal);
         }
         let lane_arc = planes.arc >> lane & 1;
         self.lane_swept += 1;
@@ -337,6 +324,7 @@ impl<'a> Kernel<'a> {
         let arc = if lane_arc == 1 {
             Some((f64::from(planes.lo[lane]), f64::from(planes.hi[lane])))
         } else {
+            let (a, b) = ss.graph.endpoints(e);
             self.arc(ss, a.as_dvec3() - self.pw, b.as_dvec3() - self.pw)
         };
         let weight = silhouette.weight;
@@ -346,70 +334,17 @@ impl<'a> Kernel<'a> {
         )
     }
 
-    /// The sample pass of one lane-decided silhouette edge over the ranges
-    /// and with the contribution [`Kernel::lane_silhouette_ranges`] gave, one
-    /// edge at a time:
-    /// those the `f32` pass leaves unsure go through [`Kernel::crosses`] with
-    /// the `f64` planes.
+    /// The sample pass of a batch's lane-decided silhouette edges, all at
+    /// once ([`crossings_lanes8`](crate::simd::avx::crossings_lanes8)): each
+    /// edge's `f32` pass over the ranges [`Kernel::lane_silhouette_ranges`]
+    /// gave, and the samples it leaves unsure through [`Kernel::crosses`]
+    /// with the `f64` planes, so the counts are that test's.
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn sweep_lane_ranges(
-        &mut self,
-        ss: &SoftShadows,
-        e: u32,
-        weight: i32,
-        planes: &crate::simd::SweepPlanes8,
-        lane: usize,
-        (ranges, contribution): ([(usize, usize); 3], i32),
-        counters: &mut [i32],
-    ) {
-        let (a, b) = ss.graph.endpoints(e);
-        let edge_planes = planes.lane(lane);
-        let soa = ss.samples32();
-        // The `f64` planes, made for the first unsure sample only.
-        let mut exact: Option<EdgePlanes> = None;
-        let mut unsure = 0;
-        let this = &*self;
-        for (lo, hi) in ranges {
-            if lo >= hi {
-                continue;
-            }
-            let exact_test = |i: usize| {
-                unsure += 1;
-                let exact = exact.get_or_insert_with(|| {
-                    this.edge_planes(ss, &EdgeAt::new(a, b, this.pw), weight)
-                });
-                this.crosses(ss, exact, i)
-            };
-            let p = this.p.to_array();
-            #[allow(unsafe_code)]
-            // SAFETY: lanes' planes are only made where the processor runs
-            // AVX ([`SoftShadows::sweep_receiver`]).
-            unsafe {
-                crate::simd::avx::crossings8(
-                    &edge_planes,
-                    p,
-                    soa,
-                    lo,
-                    hi,
-                    counters,
-                    contribution,
-                    exact_test,
-                )
-            };
-        }
-        self.unsure += unsure;
-    }
-
-    /// The sample pass of up to eight lane-decided silhouette edges whose
-    /// arcs are short, all at once ([`crossings_lanes8`](crate::simd::avx::crossings_lanes8)):
-    /// the same counts as [`Kernel::sweep_lane_ranges`] for each.
-    #[cfg(all(target_arch = "x86_64", feature = "std"))]
-    pub(super) fn sweep_short_arcs(
+    pub(super) fn sweep_held_arcs(
         &mut self,
         ss: &SoftShadows,
         planes: &crate::simd::SweepPlanes8,
-        arcs: &ShortArcs,
+        arcs: &HeldArcs,
         counters: &mut [i32],
     ) {
         let soa = ss.samples32();
@@ -429,15 +364,14 @@ impl<'a> Kernel<'a> {
                 planes,
                 this.p.to_array(),
                 soa,
-                &arcs.starts,
-                &arcs.lens,
+                &arcs.ranges,
                 &arcs.contributions,
                 counters,
                 exact_test,
             )
         };
         self.unsure += unsure;
-        self.short_swept += arcs.held.count_ones();
+        self.held_swept += arcs.held.count_ones();
     }
 
     /// The `f64` planes of silhouette edge `at` (weight `weight`) for the

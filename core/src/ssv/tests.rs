@@ -1158,7 +1158,7 @@ fn samples_on_projected_edges() -> (SoftShadows, Vec<Vec3>) {
 fn lane_sample_pass_equals_the_per_sample_test() {
     let (ss, probes) = samples_on_projected_edges();
     let n = ss.sample_count();
-    let (mut unsure, mut swept, mut arcs, mut short) = (0, 0, 0, 0);
+    let (mut unsure, mut swept, mut arcs, mut held) = (0, 0, 0, 0);
     for p in probes.into_iter().chain(receivers_under_edges_along_x()) {
         let mut lanes = vec![0i32; n];
         let mut silhouettes = Silhouettes::new();
@@ -1173,7 +1173,7 @@ fn lane_sample_pass_equals_the_per_sample_test() {
             k.add_edge(&ss, e, &mut lanes);
         }
         (unsure, swept, arcs) = (unsure + k.unsure, swept + k.lane_swept, arcs + k.lane_arcs);
-        short += k.short_swept;
+        held += k.held_swept;
         assert_eq!(lanes, slow_counters(&ss, p), "receiver {p:?}");
     }
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
@@ -1185,27 +1185,31 @@ fn lane_sample_pass_equals_the_per_sample_test() {
             "{arcs} arcs of {swept}"
         );
         assert!(unsure >= 20, "{unsure} unsure samples");
-        // Many short arcs swept together, and many arcs one at a time.
+        // The held arcs' pass swept them.
+        // Nearly every silhouette the lanes swept had samples to test, all
+        // of them in the held arcs' pass.
         assert!(
-            short > 100 && short * 4 < arcs * 3,
-            "{short} short arcs of {arcs}"
+            held > 500 && held * 4 > swept * 3,
+            "{held} held arcs of {swept}"
         );
     }
-    let _ = (unsure, swept, arcs, short);
+    let _ = (unsure, swept, arcs, held);
 }
 
-/// The sample pass of up to eight edges at once, one sample per lane and
-/// step (for short arcs), against the pass of one edge at a time over the
-/// same ranges: the same counters, and the same samples left to the exact
-/// test. Every decided lane of every batch of edges, at every probe, over
-/// ranges of up to eight samples that cover every sample, with random
-/// starts, lengths and contributions; a fixed
-/// rule stands in for the exact test, so that any unsure sample one pass
-/// leaves and the other does not shows.
+/// The sample pass of eight edges at once, each over its own ranges,
+/// against the pass of one edge at a time with the planes
+/// [`SweepPlanes8::lane`](crate::simd::SweepPlanes8) gives: the same
+/// counters, and the same samples left to the exact test. Every decided lane
+/// of every batch of edges, at every probe, over up to three ranges per lane
+/// (of up to 20 samples each, some empty, one often in the last eight
+/// samples, where the counters are added one by one) that together cover
+/// every sample, with random starts, lengths and contributions; a fixed rule
+/// stands in for the exact test, so that any unsure sample one pass leaves
+/// and the other does not shows.
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
 #[test]
 #[allow(unsafe_code)]
-fn short_arcs_at_once_equal_one_edge_at_a_time() {
+fn held_arcs_at_once_equal_one_edge_at_a_time() {
     use crate::simd::avx::{crossings_lanes8, crossings8, silhouette_planes8};
     if !crate::simd::avx_available() {
         return;
@@ -1227,37 +1231,47 @@ fn short_arcs_at_once_equal_one_edge_at_a_time() {
             ss.lane_corners(&edges, &mut corners);
             // SAFETY: AVX runs (checked above).
             let planes = unsafe { silhouette_planes8(&receiver, &corners) };
-            // Each lane's ranges, of up to eight samples, together cover
-            // every sample.
-            for base in (0..n).step_by(6) {
-                let (mut starts, mut lens, mut contributions) = ([0u32; 8], [0u32; 8], [0i32; 8]);
+            // Each lane's first ranges together cover every sample; the
+            // second and third ones fall anywhere, the third often at the
+            // end.
+            for base in (0..n).step_by(12) {
+                let mut ranges = [[(0u32, 0u32); 3]; 8];
+                let mut contributions = [0i32; 8];
                 for lane in (0..8).filter(|&lane| planes.decided >> lane & 1 == 1) {
                     let start = base.saturating_sub(below(3));
-                    starts[lane] = start as u32;
-                    lens[lane] = (base + 6 - start + below(3)).min(8).min(n - start) as u32;
+                    let end = (base + 12 + below(9)).min(n);
+                    let other = below(n);
+                    let last = n - below(12).min(n);
+                    ranges[lane] = [
+                        (start, end),
+                        (other, (other + below(21)).min(n)),
+                        (last, (last + below(4) * below(4)).min(n)),
+                    ]
+                    .map(|(lo, hi)| (lo as u32, hi as u32));
                     contributions[lane] = [-2, -1, 1, 2][below(4)];
                 }
                 let mut one = vec![0i32; n];
                 let mut asked_one = Vec::new();
-                for lane in 0..8 {
-                    let (lo, len) = (starts[lane] as usize, lens[lane] as usize);
-                    let test = |i: usize| {
-                        asked_one.push((lane, i));
-                        rule(lane, i)
-                    };
-                    // SAFETY: AVX runs.
-                    unsafe {
-                        crossings8(
-                            &planes.lane(lane),
-                            p.to_array(),
-                            soa,
-                            lo,
-                            lo + len,
-                            &mut one,
-                            contributions[lane],
-                            test,
-                        )
-                    };
+                for (lane, lane_ranges) in ranges.iter().enumerate() {
+                    for &(lo, hi) in lane_ranges.iter().filter(|(lo, hi)| lo < hi) {
+                        let test = |i: usize| {
+                            asked_one.push((lane, i));
+                            rule(lane, i)
+                        };
+                        // SAFETY: AVX runs.
+                        unsafe {
+                            crossings8(
+                                &planes.lane(lane),
+                                p.to_array(),
+                                soa,
+                                lo as usize,
+                                hi as usize,
+                                &mut one,
+                                contributions[lane],
+                                test,
+                            )
+                        };
+                    }
                 }
                 let mut all = vec![0i32; n];
                 let mut asked_all = Vec::new();
@@ -1271,8 +1285,7 @@ fn short_arcs_at_once_equal_one_edge_at_a_time() {
                         &planes,
                         p.to_array(),
                         soa,
-                        &starts,
-                        &lens,
+                        &ranges,
                         &contributions,
                         &mut all,
                         test,
@@ -1283,14 +1296,82 @@ fn short_arcs_at_once_equal_one_edge_at_a_time() {
                 assert_eq!(one, all, "receiver {p:?}, edges {edges:?}");
                 assert_eq!(asked_one, asked_all, "receiver {p:?}, edges {edges:?}");
                 asked += asked_one.len();
-                lanes_tested += lens.iter().filter(|&&len| len > 0).count();
+                lanes_tested += ranges
+                    .iter()
+                    .filter(|r| r.iter().any(|(lo, hi)| lo < hi))
+                    .count();
                 counted += one.iter().filter(|&&c| c != 0).count();
             }
         }
     }
     assert!(
-        asked >= 200 && lanes_tested >= 100_000 && counted >= 10_000,
+        asked >= 1_000 && lanes_tested >= 1_000_000 && counted >= 200_000,
         "{asked} unsure samples, {lanes_tested} lanes, {counted} counters changed"
+    );
+}
+
+/// The normals the lanes record (eight at once, in AVX) against the scalar
+/// record's, bit for bit: random edges and receivers over many scales, and
+/// edges whose normal is zero (an endpoint repeated, endpoints in line with
+/// the receiver), where the scale is 1.
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+#[test]
+#[allow(unsafe_code)]
+fn lane_recorded_normals_equal_the_scalar_ones() {
+    use super::reference::scaled_normal;
+    use crate::simd::avx::recorded_normals8;
+    if !crate::simd::avx_available() {
+        return;
+    }
+    let mut rng = SplitMix64::new(97);
+    let mut point = |scale: f32| {
+        Vec3::new(
+            rng.next_f64() as f32 - 0.5,
+            rng.next_f64() as f32 - 0.5,
+            rng.next_f64() as f32 - 0.5,
+        ) * scale
+    };
+    let (mut zero, mut tested) = (0, 0);
+    for round in 0..2000 {
+        let scale = [1e-30, 1e-6, 1.0, 1e6, 1e30][round % 5];
+        let p = point(scale);
+        let mut corners = crate::simd::EdgeCorners8::default();
+        let mut edges = [(Vec3::ZERO, Vec3::ZERO); 8];
+        for (lane, edge) in edges.iter_mut().enumerate() {
+            let a = point(scale);
+            *edge = match (round + lane) % 8 {
+                // The same endpoint twice.
+                0 => (a, a),
+                // In line with the receiver: `b - p` twice `a - p`, exactly
+                // (a receiver at the origin, coordinates with few bits).
+                1 => {
+                    let a = Vec3::new(1.5, -2.25, 3.0) * scale;
+                    (a, 2.0 * a)
+                }
+                _ => (a, point(scale)),
+            };
+            for axis in 0..3 {
+                corners.a[axis][lane] = edge.0[axis];
+                corners.b[axis][lane] = edge.1[axis];
+            }
+        }
+        // The in-line lanes need the receiver at the origin.
+        let p = if round % 3 == 0 { Vec3::ZERO } else { p };
+        let pw = p.as_dvec3();
+        // SAFETY: AVX runs (checked above).
+        let lanes = unsafe { recorded_normals8(pw.to_array(), &corners) };
+        for (lane, &(a, b)) in edges.iter().enumerate() {
+            let normal = (a.as_dvec3() - pw).cross(b.as_dvec3() - pw);
+            let expected = scaled_normal(normal).map(f32::to_bits);
+            let got = [0, 1, 2].map(|axis| lanes[axis][lane].to_bits());
+            assert_eq!(got, expected, "lane {lane}: {a:?} {b:?} from {p:?}");
+            zero += usize::from(normal == DVec3::ZERO);
+            tested += 1;
+        }
+    }
+    assert!(
+        zero >= 2_000 && tested == 16_000,
+        "{zero} zero normals of {tested}"
     );
 }
 
