@@ -732,7 +732,7 @@ pub(crate) fn recorded_normals8(p: [f64; 3], corners: &EdgeCorners8) -> [[f32; 8
 }
 
 /// Relative bound, against the computed `|det| + |vs| + |va| + |vb|`, on the
-/// rounding of [`crossings8`]'s three-term sum (about `3u`).
+/// rounding of [`CrossingTest8::classify`]'s three-term sum (about `3u`).
 const SUM_BOUND: f32 = 8.0 * U;
 
 /// The rest of the sweep's set-up ([`Kernel::add_silhouette`](crate::ssv))
@@ -926,10 +926,10 @@ fn flip_unless(want: bool) -> f32 {
     f32::from_bits(u32::from(!want) << 31)
 }
 
-/// One silhouette edge's per-sample crossing test per lane (the same edge in
-/// every lane for [`crossings8`], eight edges for [`crossings_lanes8`]): the
-/// `f32` planes, their bounds and the sign flip that makes the wanted side
-/// positive, as [`SweepPlanes8`] holds them.
+/// One silhouette edge's per-sample crossing test, the same edge in every
+/// lane (eight samples at a time, [`crossing_blocks`]): the `f32` planes,
+/// their bounds and the sign flip that makes the wanted side positive, as
+/// [`SweepPlanes8`] holds them for each edge.
 #[derive(Clone, Copy)]
 struct CrossingTest8 {
     planes: [[__m256; 3]; 3],
@@ -994,20 +994,10 @@ impl CrossingTest8 {
     }
 }
 
-/// The per-sample pass of the sweep ([`Kernel::run`](crate::ssv)'s
-/// classification) for one edge over the samples `lo..hi` of `soa` (their
-/// coordinates by axis, with at least seven readable entries past `hi`),
-/// eight samples at a time in `f32` from `lo` on (an arc of at most eight
-/// samples, the common one, is one block wherever it starts):
-/// `contribution` is added to `counters[i]` for every sample `i` the edge
-/// certainly crosses (eight counters at once where eight exist from the
-/// block's first), and for
-/// every one the `f32` signs leave unsure (none is certainly not crossed and
-/// some sign is within its bound) where `unsure(i)`, the exact test, says
-/// it is crossed; nothing for the others. Each sign is taken only beyond `edge`'s bound on its distance from
-/// the exact value ([`silhouette_planes8`]), the sum's with [`SUM_BOUND`]
-/// more, so a sample said crossed is crossed exactly and one said not is not.
-/// The one-edge twin of [`crossings_lanes8`] that the tests compare it with.
+/// The one-edge twin of [`crossings_lanes8`] that the tests compare it with:
+/// `edge`'s planes (one lane of [`SweepPlanes8`]) over the samples `lo..hi`
+/// of `soa`, `contribution` added to the counter of each sample it certainly
+/// crosses and of each unsure one `unsure(i)` says it crosses.
 #[cfg(test)]
 #[target_feature(enable = "avx")]
 #[inline(never)]
@@ -1040,13 +1030,16 @@ pub(crate) fn crossings8(
     );
 }
 
-/// [`crossings8`] for the eight silhouette edges of `planes`, each over its
-/// own samples: lane `i` tests the samples of its `ranges[i]` (`(start,
-/// end)` each, empty where `start >= end`) with its planes and bounds as
-/// [`SweepPlanes8::lane`] gives them, adds `contributions[i]` to the counter
-/// of each it crosses, and asks `unsure(i, sample)` for the `f32` pass's
-/// unsure ones: the same counts as [`crossings8`] lane by lane and range by
-/// range. Each edge's planes are broadcast from the lanes and its samples
+/// The per-sample pass of the sweep for the eight silhouette edges of
+/// `planes`, each over its own samples: edge `i` tests the samples of its
+/// `ranges[i]` (`(start, end)` each, empty where `start >= end`) with its
+/// planes and bounds from lane `i`, adds `contributions[i]` to the counter
+/// of each it certainly crosses, and asks `unsure(i, sample)`, the exact
+/// test, for each the `f32` signs leave unsure (none is certainly not
+/// crossed and some sign is within its bound), adding the contribution
+/// where it says crossed. Each sign is taken only beyond the lane's bound on
+/// its distance from the exact value ([`silhouette_planes8`]), so a sample
+/// said crossed is crossed exactly and one said not is not. Each edge's planes are broadcast from the lanes and its samples
 /// read eight contiguous ones at a time, so a batch's sample pass is one
 /// call however long its arcs (a large light's hold about three samples, a
 /// small light's more). `soa` holds at least seven readable entries past
@@ -1089,9 +1082,9 @@ pub(crate) fn crossings_lanes8(
     }
 }
 
-/// The block loop of [`crossings8`] and [`crossings_lanes8`]: `test` (one
-/// edge's planes in every lane) over the samples of `range`, eight at a
-/// time, `p` splat per axis.
+/// The block loop of [`crossings_lanes8`] (and of its one-edge twin in the
+/// tests, `crossings8`): `test` (one edge's planes in every lane) over the
+/// samples of `range`, eight at a time from its first, `p` splat per axis.
 #[target_feature(enable = "avx")]
 #[inline]
 fn crossing_blocks(

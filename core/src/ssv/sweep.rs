@@ -350,11 +350,21 @@ impl<'a> Kernel<'a> {
         let soa = ss.samples32();
         let mut unsure = 0;
         let this = &*self;
+        // The `f64` planes of the lane asked last: the pass asks about one
+        // edge's unsure samples before the next edge's.
+        let mut exact: Option<(usize, EdgePlanes)> = None;
         let exact_test = |lane: usize, i: usize| {
             unsure += 1;
-            let (a, b) = ss.graph.endpoints(arcs.edges[lane]);
-            let exact = this.edge_planes(ss, &EdgeAt::new(a, b, this.pw), arcs.weights[lane]);
-            this.crosses(ss, &exact, i)
+            let planes = match &exact {
+                Some((asked, planes)) if *asked == lane => planes,
+                _ => {
+                    let (a, b) = ss.graph.endpoints(arcs.edges[lane]);
+                    let at = EdgeAt::new(a, b, this.pw);
+                    let planes = this.edge_planes(ss, &at, arcs.weights[lane]);
+                    &exact.insert((lane, planes)).1
+                }
+            };
+            this.crosses(ss, planes, i)
         };
         #[allow(unsafe_code)]
         // SAFETY: lanes' planes are only made where the processor runs AVX

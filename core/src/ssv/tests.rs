@@ -1185,7 +1185,6 @@ fn lane_sample_pass_equals_the_per_sample_test() {
             "{arcs} arcs of {swept}"
         );
         assert!(unsure >= 20, "{unsure} unsure samples");
-        // The held arcs' pass swept them.
         // Nearly every silhouette the lanes swept had samples to test, all
         // of them in the held arcs' pass.
         assert!(
