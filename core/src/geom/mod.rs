@@ -1,7 +1,7 @@
 //! Geometry shared by every algorithm: validated mesh views and receiver frames.
 //!
 //! Everything here borrows caller data and allocates nothing, except
-//! [`uv_sphere`], which builds a procedural mesh.
+//! [`uv_sphere()`], which builds a procedural mesh.
 
 mod frame;
 mod mesh;

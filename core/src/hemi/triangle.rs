@@ -441,8 +441,9 @@ impl TriangleCone {
         );
     }
 
-    /// [`TriangleCone::mask_exact_general`] ORed into `mask`, its box
-    /// evaluated four cells at a time: the path of wide cones.
+    /// `TriangleCone::mask_exact_general` (the tests' twin) ORed into
+    /// `mask`, its box evaluated four cells at a time: the path of wide
+    /// cones.
     #[inline(never)]
     fn or_general_into(&self, mask: &mut HemiMask) {
         if let Some(CellBox { i0, i1, j0, j1 }) = self.cell_box() {

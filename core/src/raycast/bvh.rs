@@ -612,7 +612,7 @@ struct TraversalRay {
     /// The same as a lane mask.
     #[cfg(test)]
     negative_lanes: BVec3A,
-    /// Whether [`Self::entered_fast`] applies (see [`FAST_MIN_DIRECTION`]).
+    /// Whether the fast box test applies (see [`FAST_MIN_DIRECTION`]).
     fast: bool,
     /// Query `t` to box-test distance (1 for the fast test).
     length: f32,

@@ -83,8 +83,9 @@ impl EdgeGraph {
         Self::from_indexed(&positions, &indexed).expect("memory for a test graph")
     }
 
-    /// [`EdgeGraph::new`] for triangles given as indices into `positions`,
-    /// none of them degenerate (the caller has checked).
+    /// `EdgeGraph::new` (the tests' constructor from corners) for triangles
+    /// given as indices into `positions`, none of them degenerate (the caller
+    /// has checked).
     ///
     /// Both steps are sorts of integer keys, not map insertions: the used
     /// vertices by position (fewer than the corners), the half-edges by their

@@ -191,11 +191,12 @@ pub(crate) fn box_may_see_silhouette(graph: &EdgeGraph, edge: &Edge, bx: &Aabb) 
     weight != 0
 }
 
-/// [`box_meets_wedge`] for the eight octants of `parent` at once (bit `i`:
-/// octant `i`, [`Aabb::octant`]), sharing each direction's wedge extent among
-/// them. Each octant's own reach bounds its rays; the slack uses the parent's
-/// scale (at least the octant's), so a bit is clear only where the single-box
-/// test would also say no, up to that larger slack.
+/// `box_meets_wedge` (the tests' one-box twin) for the eight octants of
+/// `parent` at once (bit `i`: octant `i`, [`Aabb::octant`]), sharing each
+/// direction's wedge extent among them. Each octant's own reach bounds its
+/// rays; the slack uses the parent's scale (at least the octant's), so a bit
+/// is clear only where the single-box test would also say no, up to that
+/// larger slack.
 pub(crate) fn octants_meeting_wedge(light: &LightShape, a: DVec3, b: DVec3, parent: &Aabb) -> u8 {
     let (pc, ph) = (parent.center(), parent.half());
     let scale = a.abs().max(b.abs()).max(pc.abs() + ph).max_element().max(
@@ -280,8 +281,8 @@ pub(crate) fn octants_meeting_wedge(light: &LightShape, a: DVec3, b: DVec3, pare
     mask
 }
 
-/// [`box_may_see_silhouette`] for the eight octants of `parent` at once (bit
-/// `i`: octant `i`), the same test per octant.
+/// `box_may_see_silhouette` (the tests' one-box twin) for the eight octants
+/// of `parent` at once (bit `i`: octant `i`), the same test per octant.
 pub(crate) fn octants_seeing_silhouette(graph: &EdgeGraph, edge: &Edge, parent: &Aabb) -> u8 {
     let p = |i: u32| graph.positions[i as usize].as_dvec3();
     let (a, b) = (p(edge.a), p(edge.b));

@@ -7,9 +7,10 @@
 //! costs (the stack, the loads of its planes and links, the branches of the
 //! loop) once per ray; a packet search pays them once per node and tests only
 //! the rays that entered the node's box, each with exactly the box test of
-//! [`BvhScene::occluded`]. So every ray enters the same nodes as alone. Deep
-//! in the tree, where a node is reached by only a few of the packet's rays,
-//! each of them finishes that subtree with the single-ray search.
+//! [`BvhScene`]'s [`occluded`](crate::RayCaster::occluded). So every ray
+//! enters the same nodes as alone. Deep in the tree, where a node is reached
+//! by only a few of the packet's rays, each of them finishes that subtree
+//! with the single-ray search.
 //!
 //! The leaves: where every ray of the packet starts at the same point and
 //! covers `(0, ∞)`, a leaf's triangles are first tested against all its rays
@@ -18,14 +19,16 @@
 //! and an edge, which is one dot product per plane and ray, the planes shared.
 //! Only a miss certain beyond the rounding of both this test and the
 //! watertight one is taken; every other ray (a hit, or a direction within
-//! rounding of an edge plane) gets the watertight test of
-//! [`BvhScene::occluded`] on that leaf. Other packets test each ray's leaves
-//! with the watertight test directly. Either way each ray's answer (whether
-//! some triangle is hit) is the bit [`BvhScene::occluded`] gives; only the
-//! order of the work differs. A closest-hit search shortens each ray at its
-//! hits as alone (a certain miss is a miss for any interval), so its hit has
-//! the `t` of [`BvhScene::closest_hit`]; where two triangles are hit at exactly
-//! that `t`, the order of the work decides which is reported.
+//! rounding of an edge plane) gets the watertight test of [`BvhScene`]'s
+//! [`occluded`](crate::RayCaster::occluded) on that leaf. Other packets test
+//! each ray's leaves with the watertight test directly. Either way each ray's
+//! answer (whether some triangle is hit) is the bit [`BvhScene`]'s
+//! [`occluded`](crate::RayCaster::occluded) gives; only the order of the work
+//! differs. A closest-hit search shortens each ray at its hits as alone (a
+//! certain miss is a miss for any interval), so its hit has the `t` of
+//! [`BvhScene`]'s [`closest_hit`](crate::RayCaster::closest_hit); where two
+//! triangles are hit at exactly that `t`, the order of the work decides which
+//! is reported.
 
 use glam::{BVec4A, Vec3, Vec4};
 
