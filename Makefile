@@ -94,7 +94,10 @@ clippy:
 # header (whose comments come from the ffi crate's docs) into target/doc/c/html.
 docs: doc c-docs
 
+# Core's private items first (their links are checked too), then the public
+# documentation, which overwrites it.
 doc:
+	RUSTDOCFLAGS="-D warnings" $(CARGO) doc -p antumbra-core --all-features --no-deps --document-private-items
 	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --workspace --no-deps --exclude antumbra-cli
 
 c-docs:
