@@ -679,7 +679,8 @@ const PLANE_RANGE: f32 = 1e8;
 /// values bit for bit. The power of two that brings the largest component
 /// into `[0.5, 1)` is `0.5` over that component's exponent bits alone (a
 /// division by a power of two, exact), where the component is a normal
-/// `f64` below `2¹⁰²²` (`2045 << 52` as bits); elsewhere (a zero normal) the scale is 1.
+/// `f64` below `2¹⁰²²` (`2045 << 52` as bits); elsewhere (a zero normal)
+/// the scale is 1.
 #[target_feature(enable = "avx")]
 #[inline(never)]
 pub(crate) fn recorded_normals8(p: [f64; 3], corners: &EdgeCorners8) -> [[f32; 8]; 3] {
@@ -1030,26 +1031,30 @@ pub(crate) fn crossings8(
     );
 }
 
-/// The per-sample pass of the sweep for the eight silhouette edges of
-/// `planes`, each over its own samples: edge `i` tests the samples of its
-/// `ranges[i]` (`(start, end)` each, empty where `start >= end`) with its
+/// The per-sample pass of the sweep for the silhouette edges of `planes` in
+/// the lanes of `held` (bit `i` for lane `i`), each over its own samples:
+/// edge `i` tests the samples of its `ranges[i]` (`(start, end)` each, empty
+/// where `start >= end`) with its
 /// planes and bounds from lane `i`, adds `contributions[i]` to the counter
 /// of each it certainly crosses, and asks `unsure(i, sample)`, the exact
 /// test, for each the `f32` signs leave unsure (none is certainly not
 /// crossed and some sign is within its bound), adding the contribution
 /// where it says crossed. Each sign is taken only beyond the lane's bound on
 /// its distance from the exact value ([`silhouette_planes8`]), so a sample
-/// said crossed is crossed exactly and one said not is not. Each edge's planes are broadcast from the lanes and its samples
-/// read eight contiguous ones at a time, so a batch's sample pass is one
-/// call however long its arcs (a large light's hold about three samples, a
-/// small light's more). `soa` holds at least seven readable entries past
-/// each range's end; it panics otherwise.
+/// said crossed is crossed exactly and one said not is not. Each edge's
+/// planes are broadcast from the lanes and its samples read eight contiguous
+/// ones at a time, so a batch's sample pass is one call however long its
+/// arcs (a large light's hold about three samples, a small light's more).
+/// `soa` holds at least seven readable entries past each range's end; it
+/// panics otherwise.
 #[target_feature(enable = "avx")]
 #[inline(never)]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn crossings_lanes8(
     planes: &SweepPlanes8,
     p: [f32; 3],
     soa: [&[f32]; 3],
+    held: u32,
     ranges: &[[(u32, u32); 3]; 8],
     contributions: &[i32; 8],
     counters: &mut [i32],
@@ -1057,10 +1062,10 @@ pub(crate) fn crossings_lanes8(
 ) {
     let splat = |x: f32| _mm256_set1_ps(x);
     let p = p.map(splat);
-    for (lane, lane_ranges) in ranges.iter().enumerate() {
-        if lane_ranges.iter().all(|&(lo, hi)| lo >= hi) {
-            continue;
-        }
+    let mut todo = held & 0xFF;
+    while todo != 0 {
+        let lane = todo.trailing_zeros() as usize;
+        todo &= todo - 1;
         // Broadcast from the lanes where they lie (a copy of an axis's
         // eight on the stack first would stall each broadcast on the copy's
         // store).
@@ -1073,7 +1078,7 @@ pub(crate) fn crossings_lanes8(
             splat(flip_unless(planes.want(lane))),
         );
         let contribution = contributions[lane];
-        for &(lo, hi) in lane_ranges {
+        for &(lo, hi) in &ranges[lane] {
             let range = lo as usize..hi as usize;
             crossing_blocks(&test, p, soa, range, counters, contribution, |i| {
                 unsure(lane, i)

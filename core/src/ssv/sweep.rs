@@ -374,6 +374,7 @@ impl<'a> Kernel<'a> {
                 planes,
                 this.p.to_array(),
                 soa,
+                arcs.held,
                 &arcs.ranges,
                 &arcs.contributions,
                 counters,

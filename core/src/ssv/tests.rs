@@ -1272,6 +1272,10 @@ fn held_arcs_at_once_equal_one_edge_at_a_time() {
                         };
                     }
                 }
+                // The lanes with samples, as `HeldArcs::hold` marks them.
+                let held = (0..8)
+                    .filter(|&lane| ranges[lane].iter().any(|(lo, hi)| lo < hi))
+                    .fold(0u32, |mask, lane| mask | 1 << lane);
                 let mut all = vec![0i32; n];
                 let mut asked_all = Vec::new();
                 let test = |lane: usize, i: usize| {
@@ -1284,6 +1288,7 @@ fn held_arcs_at_once_equal_one_edge_at_a_time() {
                         &planes,
                         p.to_array(),
                         soa,
+                        held,
                         &ranges,
                         &contributions,
                         &mut all,
