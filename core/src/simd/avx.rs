@@ -3,22 +3,23 @@
 #![allow(unsafe_code)]
 
 use core::arch::x86_64::{
-    __m128i, __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
-    _CMP_NEQ_UQ, _mm_add_epi32, _mm_loadu_ps, _mm_loadu_si128, _mm_storeu_ps, _mm_storeu_si128,
-    _mm256_add_ps, _mm256_and_pd, _mm256_and_ps, _mm256_andnot_pd, _mm256_andnot_ps,
-    _mm256_blendv_pd, _mm256_blendv_ps, _mm256_broadcast_ss, _mm256_castps_si256,
+    __m128, __m128i, __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
+    _CMP_NEQ_UQ, _CMP_UNORD_Q, _mm_add_epi32, _mm_loadu_ps, _mm_loadu_si128, _mm_storeu_ps,
+    _mm_storeu_si128, _mm256_add_ps, _mm256_and_pd, _mm256_and_ps, _mm256_andnot_pd,
+    _mm256_andnot_ps, _mm256_blendv_pd, _mm256_blendv_ps, _mm256_broadcast_ss, _mm256_castps_si256,
     _mm256_castsi256_ps, _mm256_castsi256_si128, _mm256_cmp_pd, _mm256_cmp_ps, _mm256_cvtpd_ps,
     _mm256_cvtps_pd, _mm256_div_pd, _mm256_div_ps, _mm256_extractf128_si256, _mm256_loadu_ps,
     _mm256_max_pd, _mm256_max_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps,
-    _mm256_set1_epi32, _mm256_set1_pd, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sqrt_ps,
-    _mm256_storeu_ps, _mm256_sub_pd, _mm256_sub_ps, _mm256_xor_ps,
+    _mm256_set_m128, _mm256_set1_epi32, _mm256_set1_pd, _mm256_set1_ps, _mm256_setzero_ps,
+    _mm256_shuffle_ps, _mm256_sqrt_ps, _mm256_storeu_ps, _mm256_sub_pd, _mm256_sub_ps,
+    _mm256_unpackhi_ps, _mm256_unpacklo_ps, _mm256_xor_ps,
 };
 
 #[cfg(test)]
 use super::EdgePlanes8;
 use super::{EdgeCorners8, SetupMasks8, SweepPlanes8, SweepReceiver8};
 #[cfg(feature = "bvh")]
-use core::arch::x86_64::{_mm256_min_ps, _mm256_set_m128};
+use core::arch::x86_64::_mm256_min_ps;
 
 #[cfg(feature = "bvh")]
 use glam::Vec4;
@@ -925,6 +926,47 @@ pub(crate) fn silhouette_planes8(
 #[inline]
 fn flip_unless(want: bool) -> f32 {
     f32::from_bits(u32::from(!want) << 31)
+}
+
+/// The corners of eight edges by lane (lane `i` from `records[i]`: the
+/// triples `a`, `b`, `u`, `v` one after another), into `out`; returns the
+/// lanes whose `u` is NaN. Transposed in registers: each record is read in
+/// three quarters, and the quarters of lanes `i` and `i + 4` share a vector,
+/// so one 4×4 transpose in both halves gives four of the twelve rows.
+#[target_feature(enable = "avx")]
+#[inline]
+pub(crate) fn edge_corners8(records: [&[f32; 12]; 8], out: &mut EdgeCorners8) -> u32 {
+    let mut rows = [_mm256_setzero_ps(); 12];
+    for (quarter, four) in rows.chunks_exact_mut(4).enumerate() {
+        let pair = |lane: usize| {
+            let part = |lane: usize| -> __m128 {
+                let q: &[f32; 4] = records[lane][4 * quarter..4 * quarter + 4]
+                    .try_into()
+                    .expect("a quarter");
+                // SAFETY: `q` is four readable, contiguous `f32`; the load
+                // is unaligned.
+                unsafe { _mm_loadu_ps(q.as_ptr()) }
+            };
+            _mm256_set_m128(part(lane + 4), part(lane))
+        };
+        let (t0, t1) = (pair(0), pair(1));
+        let (t2, t3) = (pair(2), pair(3));
+        let (lo01, hi01) = (_mm256_unpacklo_ps(t0, t1), _mm256_unpackhi_ps(t0, t1));
+        let (lo23, hi23) = (_mm256_unpacklo_ps(t2, t3), _mm256_unpackhi_ps(t2, t3));
+        four[0] = _mm256_shuffle_ps::<0x44>(lo01, lo23);
+        four[1] = _mm256_shuffle_ps::<0xEE>(lo01, lo23);
+        four[2] = _mm256_shuffle_ps::<0x44>(hi01, hi23);
+        four[3] = _mm256_shuffle_ps::<0xEE>(hi01, hi23);
+    }
+    let corners = [&mut out.a, &mut out.b, &mut out.u, &mut out.v];
+    for (three, corner) in rows.chunks_exact(3).zip(corners) {
+        for (row, lanes) in three.iter().zip(corner.iter_mut()) {
+            // SAFETY: `lanes` is eight writable, contiguous `f32`; the store
+            // is unaligned.
+            unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), *row) };
+        }
+    }
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_UNORD_Q>(rows[6], rows[6])) as u32
 }
 
 /// One silhouette edge's per-sample crossing test, the same edge in every

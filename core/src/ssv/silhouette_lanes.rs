@@ -138,40 +138,22 @@ impl SoftShadows {
     }
 
     /// The corners of `edges` by lane, into `corners` (written in place: a
-    /// returned copy of its 384 bytes cost a `memcpy` per batch); returns the
-    /// lanes whose edge has not exactly two adjacent triangles (their third
-    /// vertices are the edge's own endpoints).
+    /// returned copy of its 384 bytes cost a `memcpy` per batch), from
+    /// [`SoftShadows::lane_edges`]; returns the lanes whose edge has not
+    /// exactly two adjacent triangles (their third vertices are NaN).
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
     pub(super) fn lane_corners(
         &self,
         edges: &[u32; LANES],
         corners: &mut crate::simd::EdgeCorners8,
     ) -> u32 {
-        let g = &self.graph;
-        let mut irregular = 0u32;
-        let at = |v: u32| g.positions[v as usize].to_array();
-        for (i, &e) in edges.iter().enumerate() {
-            let edge = &g.edges[e as usize];
-            let (u, v) = match g.third_of(edge) {
-                &[u, v] => (u, v),
-                _ => {
-                    irregular |= 1 << i;
-                    (edge.a, edge.b)
-                }
-            };
-            for (lanes, w) in [
-                (&mut corners.a, edge.a),
-                (&mut corners.b, edge.b),
-                (&mut corners.u, u),
-                (&mut corners.v, v),
-            ] {
-                let q = at(w);
-                for axis in 0..3 {
-                    lanes[axis][i] = q[axis];
-                }
-            }
+        let records = edges.map(|e| &self.lane_edges[e as usize]);
+        #[allow(unsafe_code)]
+        // SAFETY: lanes run only where the processor runs AVX
+        // ([`SoftShadows::sweep_receiver`]).
+        unsafe {
+            crate::simd::avx::edge_corners8(records, corners)
         }
-        irregular
     }
 
     /// `kernel`'s receiver for the lanes, or `None` where they do not run (no

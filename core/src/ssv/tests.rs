@@ -2015,6 +2015,59 @@ fn updated_structures_answer_as_new_ones() {
     }
 }
 
+/// The corners the lanes read for a batch of edges (the edge records
+/// transposed in registers, [`crate::simd::avx::edge_corners8`]) against the
+/// graph's: each lane's endpoints and third vertices, and the lanes marked
+/// irregular exactly where the edge has not two adjacent triangles (a
+/// grid's border, a fin shared by three triangles), for batches of edges in
+/// scattered order. Under Miri (`make miri`, for the records' loads) on a
+/// few batches only.
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+#[test]
+fn miri_lane_corners_are_the_graphs() {
+    if !crate::simd::avx_available() {
+        return;
+    }
+    let mut soup = sphere(Vec3::new(0.0, 0.0, 1.2), 0.5, 3);
+    soup.append(&grid(3, 2, |u, v| Vec3::new(2.0 * u - 1.0, v - 0.5, 0.0)));
+    // A third triangle on one of the grid's edges.
+    let fin = soup.triangles()[soup.triangles().len() - 1];
+    soup.push([fin[0], fin[1], Vec3::new(0.1, 0.2, 0.7)]);
+    let light = quad_light(Vec3::new(0.1, 0.2, 3.0), 0.6);
+    let samples = light.samples(16, SamplePattern::Jittered, 3);
+    let ss = build(&soup, &light, &samples, Structure::BruteForce);
+    let g = &ss.graph;
+    let count = g.edges.len() as u32;
+    let mut rng = SplitMix64::new(17);
+    let batches = if cfg!(miri) { 3 } else { 400 };
+    let mut irregular_seen = 0;
+    for _ in 0..batches {
+        let edges: [u32; 8] =
+            core::array::from_fn(|_| ((rng.next_f64() * f64::from(count)) as u32).min(count - 1));
+        let mut corners = crate::simd::EdgeCorners8::default();
+        let irregular = ss.lane_corners(&edges, &mut corners);
+        for (lane, &e) in edges.iter().enumerate() {
+            let edge = &g.edges[e as usize];
+            let at = |v: u32| g.positions[v as usize].to_array();
+            let lane_of = |w: &[[f32; 8]; 3]| [0, 1, 2].map(|axis| w[axis][lane]);
+            assert_eq!(lane_of(&corners.a), at(edge.a), "edge {e}");
+            assert_eq!(lane_of(&corners.b), at(edge.b), "edge {e}");
+            match g.third_of(edge) {
+                &[u, v] => {
+                    assert_eq!(irregular >> lane & 1, 0, "edge {e}");
+                    assert_eq!(lane_of(&corners.u), at(u), "edge {e}");
+                    assert_eq!(lane_of(&corners.v), at(v), "edge {e}");
+                }
+                _ => {
+                    assert_eq!(irregular >> lane & 1, 1, "edge {e}");
+                    irregular_seen += 1;
+                }
+            }
+        }
+    }
+    assert!(irregular_seen > 0 || cfg!(miri), "no irregular edge drawn");
+}
+
 /// The set-up in `f32` lanes against the scalar set-up, candidate by
 /// candidate: the same counters, silhouette count and recorded silhouettes at
 /// every receiver, on an ordinary scene and on one built so that decisions
