@@ -928,35 +928,45 @@ fn flip_unless(want: bool) -> f32 {
     f32::from_bits(u32::from(!want) << 31)
 }
 
+/// Eight rows of four `f32` (row `i` from `rows[i]`) as four vectors, one
+/// per column, lane `i` from row `i`: the rows of lanes `i` and `i + 4`
+/// share a vector, so one 4×4 transpose in both halves does it.
+#[target_feature(enable = "avx")]
+#[inline]
+fn columns4(rows: [&[f32; 4]; 8]) -> [__m256; 4] {
+    let pair = |lane: usize| {
+        // SAFETY: each row is four readable, contiguous `f32`; the loads
+        // are unaligned.
+        let part = |lane: usize| -> __m128 { unsafe { _mm_loadu_ps(rows[lane].as_ptr()) } };
+        _mm256_set_m128(part(lane + 4), part(lane))
+    };
+    let (t0, t1) = (pair(0), pair(1));
+    let (t2, t3) = (pair(2), pair(3));
+    let (lo01, hi01) = (_mm256_unpacklo_ps(t0, t1), _mm256_unpackhi_ps(t0, t1));
+    let (lo23, hi23) = (_mm256_unpacklo_ps(t2, t3), _mm256_unpackhi_ps(t2, t3));
+    [
+        _mm256_shuffle_ps::<0x44>(lo01, lo23),
+        _mm256_shuffle_ps::<0xEE>(lo01, lo23),
+        _mm256_shuffle_ps::<0x44>(hi01, hi23),
+        _mm256_shuffle_ps::<0xEE>(hi01, hi23),
+    ]
+}
+
 /// The corners of eight edges by lane (lane `i` from `records[i]`: the
 /// triples `a`, `b`, `u`, `v` one after another), into `out`; returns the
-/// lanes whose `u` is NaN. Transposed in registers: each record is read in
-/// three quarters, and the quarters of lanes `i` and `i + 4` share a vector,
-/// so one 4×4 transpose in both halves gives four of the twelve rows.
+/// lanes whose `u` is NaN. Transposed in registers, each record read in
+/// three quarters ([`columns4`]).
 #[target_feature(enable = "avx")]
 #[inline]
 pub(crate) fn edge_corners8(records: [&[f32; 12]; 8], out: &mut EdgeCorners8) -> u32 {
     let mut rows = [_mm256_setzero_ps(); 12];
     for (quarter, four) in rows.chunks_exact_mut(4).enumerate() {
-        let pair = |lane: usize| {
-            let part = |lane: usize| -> __m128 {
-                let q: &[f32; 4] = records[lane][4 * quarter..4 * quarter + 4]
-                    .try_into()
-                    .expect("a quarter");
-                // SAFETY: `q` is four readable, contiguous `f32`; the load
-                // is unaligned.
-                unsafe { _mm_loadu_ps(q.as_ptr()) }
-            };
-            _mm256_set_m128(part(lane + 4), part(lane))
+        let part = |lane: usize| -> &[f32; 4] {
+            records[lane][4 * quarter..4 * quarter + 4]
+                .try_into()
+                .expect("a quarter")
         };
-        let (t0, t1) = (pair(0), pair(1));
-        let (t2, t3) = (pair(2), pair(3));
-        let (lo01, hi01) = (_mm256_unpacklo_ps(t0, t1), _mm256_unpackhi_ps(t0, t1));
-        let (lo23, hi23) = (_mm256_unpacklo_ps(t2, t3), _mm256_unpackhi_ps(t2, t3));
-        four[0] = _mm256_shuffle_ps::<0x44>(lo01, lo23);
-        four[1] = _mm256_shuffle_ps::<0xEE>(lo01, lo23);
-        four[2] = _mm256_shuffle_ps::<0x44>(hi01, hi23);
-        four[3] = _mm256_shuffle_ps::<0xEE>(hi01, hi23);
+        four.copy_from_slice(&columns4(core::array::from_fn(part)));
     }
     let corners = [&mut out.a, &mut out.b, &mut out.u, &mut out.v];
     for (three, corner) in rows.chunks_exact(3).zip(corners) {
@@ -967,6 +977,27 @@ pub(crate) fn edge_corners8(records: [&[f32; 12]; 8], out: &mut EdgeCorners8) ->
         }
     }
     _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_UNORD_Q>(rows[6], rows[6])) as u32
+}
+
+/// The lanes whose plane certainly keeps direction `s` away, for eight
+/// recorded silhouettes: lane `i` takes the normal `n` from the first three
+/// of `normals[i]` (the fourth is ignored) and is set when `n · n >= 1/4`
+/// and `(n · s)² > threshold (n · n)`, all in `f32` (the reference sample's
+/// prefilter, [`crate::ssv`]'s `reference_sample`, which picks `threshold`
+/// so that a set lane passes its exact test too).
+#[target_feature(enable = "avx")]
+#[inline(never)]
+pub(crate) fn beyond_planes8(normals: [&[f32; 4]; 8], s: [f32; 3], threshold: f32) -> u32 {
+    let [nx, ny, nz, _] = columns4(normals);
+    let n = [nx, ny, nz];
+    let along = dot3(n, s.map(|x| _mm256_set1_ps(x)));
+    let length2 = dot3(n, n);
+    let far = _mm256_cmp_ps::<_CMP_GT_OQ>(
+        _mm256_mul_ps(along, along),
+        _mm256_mul_ps(_mm256_set1_ps(threshold), length2),
+    );
+    let scaled = _mm256_cmp_ps::<_CMP_GE_OQ>(length2, _mm256_set1_ps(0.25));
+    _mm256_movemask_ps(_mm256_and_ps(far, scaled)) as u32
 }
 
 /// One silhouette edge's per-sample crossing test, the same edge in every

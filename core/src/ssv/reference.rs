@@ -39,16 +39,39 @@ pub(super) const REFERENCE_TRIES: usize = 8;
 /// these 16 KiB records on its stack, and writing it whole would cost more than
 /// the bunny's reference ray.
 pub(super) struct Silhouettes {
-    /// Edge and `a' × b'` scaled by a power of two ([`scaled_normal`]) and
-    /// rounded to `f32` (the test that reads it allows for that); the first
-    /// `len` are written.
-    pub(super) slots: [MaybeUninit<(u32, [f32; 3])>; RECORDED_SILHOUETTES],
+    /// The first `len` are written.
+    pub(super) slots: [MaybeUninit<Recorded>; RECORDED_SILHOUETTES],
     pub(super) len: usize,
     /// More edges were met than fit.
     pub(super) overflow: bool,
     /// The first edge that did not fit (with `overflow`): the edges met
     /// before it that are not recorded are not near.
     pub(super) first_unrecorded: u32,
+}
+
+/// A recorded silhouette edge: `a' × b'` scaled by a power of two
+/// ([`scaled_normal`]) and rounded to `f32` (the test that reads it allows
+/// for that), then the edge; sixteen bytes, so that the lanes read eight of
+/// them as rows of four ([`crate::simd::avx::beyond_planes8`]).
+#[repr(C)]
+#[derive(Clone, Copy)]
+pub(super) struct Recorded {
+    pub(super) normal: [f32; 3],
+    pub(super) edge: u32,
+}
+
+impl Recorded {
+    /// The normal and the edge's bits as four `f32` (the lanes' rows).
+    #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    fn as_row(&self) -> &[f32; 4] {
+        #[allow(unsafe_code)]
+        // SAFETY: `Recorded` is `repr(C)`: three `f32` and a `u32`, sixteen
+        // bytes without padding, aligned as `f32`; every bit pattern is an
+        // `f32`.
+        unsafe {
+            &*(self as *const Recorded).cast::<[f32; 4]>()
+        }
+    }
 }
 
 impl Silhouettes {
@@ -74,7 +97,10 @@ impl Silhouettes {
     pub(super) fn record_scaled(&mut self, edge: u32, scaled: [f32; 3]) {
         match self.slots.get_mut(self.len) {
             Some(slot) => {
-                slot.write((edge, scaled));
+                slot.write(Recorded {
+                    normal: scaled,
+                    edge,
+                });
                 self.len += 1;
             }
             None => {
@@ -87,16 +113,96 @@ impl Silhouettes {
     }
 
     /// The recorded edges and normals (each of any length).
+    #[cfg(test)]
     pub(super) fn recorded(&self) -> impl Iterator<Item = (u32, Vec3)> + '_ {
-        self.slots[..self.len].iter().map(|slot| {
-            #[allow(unsafe_code)]
-            // SAFETY: `record` writes slot `len` before it increments `len`,
-            // and nothing else changes either, so every slot below `len` holds
-            // a written value (a plain `Copy` tuple).
-            let (edge, normal) = unsafe { slot.assume_init() };
-            (edge, Vec3::from_array(normal))
-        })
+        self.written()
+            .iter()
+            .map(|r| (r.edge, Vec3::from_array(r.normal)))
     }
+
+    /// The written slots.
+    fn written(&self) -> &[Recorded] {
+        #[allow(unsafe_code)]
+        // SAFETY: `record` writes slot `len` before it increments `len`,
+        // and nothing else changes either, so every slot below `len` holds
+        // a written value (a plain `Copy` struct); `MaybeUninit<Recorded>`
+        // has the layout of `Recorded`.
+        unsafe {
+            core::slice::from_raw_parts(self.slots.as_ptr().cast::<Recorded>(), self.len)
+        }
+    }
+
+    /// Whether direction `sw` (from the receiver) is clear of every recorded
+    /// silhouette's plane by the prefilter, or else of the edge itself by
+    /// `near`: for each, `(n · sw)² > bound_squared (n · n)` (in `f64`) or
+    /// `!near(sw, edge)`. Where AVX runs the prefilter first takes eight
+    /// at a time in `f32` ([`crate::simd::avx::beyond_planes8`]), with a
+    /// threshold above `bound_squared` by more than that test's rounding,
+    /// so that each edge it clears the `f64` test clears as well: the same
+    /// answer, the `f64` test (and `near`) left to the few it does not
+    /// clear.
+    pub(super) fn clear_of(
+        &self,
+        sw: DVec3,
+        bound_squared: f64,
+        near: impl Fn(DVec3, u32) -> bool,
+    ) -> bool {
+        let clear = |r: &Recorded| {
+            let n = Vec3::from_array(r.normal).as_dvec3();
+            let along = n.dot(sw);
+            along * along > bound_squared * n.length_squared() || !near(sw, r.edge)
+        };
+        let written = self.written();
+        #[cfg(all(target_arch = "x86_64", feature = "std"))]
+        if let Some(threshold) = lane_threshold(sw, bound_squared)
+            && crate::simd::avx_available()
+        {
+            let s = sw.as_vec3().to_array();
+            let mut chunks = written.chunks_exact(8);
+            for chunk in &mut chunks {
+                let rows = core::array::from_fn(|i| chunk[i].as_row());
+                #[allow(unsafe_code)]
+                // SAFETY: the processor runs AVX (checked above).
+                let beyond = unsafe { crate::simd::avx::beyond_planes8(rows, s, threshold) };
+                let mut open = !beyond & 0xFF;
+                while open != 0 {
+                    if !clear(&chunk[open.trailing_zeros() as usize]) {
+                        return false;
+                    }
+                    open &= open - 1;
+                }
+            }
+            return chunks.remainder().iter().all(clear);
+        }
+        written.iter().all(clear)
+    }
+}
+
+/// The `f32` threshold of [`Silhouettes::clear_of`]'s lanes for direction
+/// `sw` and the `f64` test's `bound_squared` (`b² |sw|²`), or `None` where
+/// `|sw|²` is outside `[10⁻²⁰, 10³⁰]` (the lanes then take no part).
+///
+/// The lanes take `s = sw` rounded to `f32` and a normal `n` whose largest
+/// component is at least `1/2` (`n · n >= 1/4`, which they check, as every
+/// scaled normal has), so `|n| |s|` is far above `f32`'s underflow. Their
+/// `n · s` is then within `5u |n| |s|` of the exact `n · sw` (`u = 2⁻²⁴`:
+/// `s`'s rounding, two products' and two sums'), and the squares and
+/// products of the test within a few `u` relative. So a lane with
+/// `(n · s)² > (1.001 b + 8u)² |sw|² (n · n)` has
+/// `|n · sw| > (1.001 b + 3u) |n| |sw| (1 - 10u)`, above `b |n| |sw|` by far
+/// more than the `f64` test's own rounding: that test clears it too.
+#[cfg(all(target_arch = "x86_64", feature = "std"))]
+fn lane_threshold(sw: DVec3, bound_squared: f64) -> Option<f32> {
+    let length2 = sw.length_squared();
+    if !(1e-20..=1e30).contains(&length2) {
+        return None;
+    }
+    let b = crate::geom::sqrt(bound_squared / length2);
+    let u = f64::from(f32::EPSILON) / 2.0;
+    let widened = 1.001 * b + 8.0 * u;
+    // Rounded up past `f32`'s rounding.
+    let threshold = (widened * widened * length2 * (1.0 + 1e-5)) as f32;
+    threshold.is_finite().then_some(threshold)
 }
 
 /// `n` times the power of two that brings its largest component into
@@ -192,11 +298,7 @@ impl SoftShadows {
             // in squares (f64, its rounding far below that allowance).
             let bound = NEAR_ANGLE + 1e-6;
             let bound_squared = bound * bound * sw.length_squared();
-            let recorded_clear = silhouettes.recorded().all(|(e, n)| {
-                let n = n.as_dvec3();
-                let along = n.dot(sw);
-                along * along > bound_squared * n.length_squared() || !near(sw, e)
-            });
+            let recorded_clear = silhouettes.clear_of(sw, bound_squared, near);
             if !recorded_clear || !silhouettes.overflow {
                 return recorded_clear;
             }

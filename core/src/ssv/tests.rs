@@ -2068,6 +2068,97 @@ fn miri_lane_corners_are_the_graphs() {
     assert!(irregular_seen > 0 || cfg!(miri), "no irregular edge drawn");
 }
 
+/// The reference sample's prefilter over the recorded silhouettes, eight at
+/// a time in `f32` lanes where AVX runs, against the `f64` test alone: the
+/// same answer for every direction, with normals at every angle to it and
+/// many within a hair of the bound (on either side), zero and unscaled
+/// normals among them, and records of every length (the lanes' remainder).
+/// Under Miri (`make miri`, for the lanes' loads) on a few directions only.
+#[test]
+fn miri_recorded_planes_clear_as_the_f64_test() {
+    use super::reference::scaled_normal;
+    let mut rng = SplitMix64::new(29);
+    let mut unit = || {
+        let v = DVec3::new(
+            rng.next_f64() - 0.5,
+            rng.next_f64() - 0.5,
+            rng.next_f64() - 0.5,
+        );
+        v / v.length()
+    };
+    let bound = NEAR_ANGLE + 1e-6;
+    let tries = if cfg!(miri) { 4 } else { 3000 };
+    let (mut cleared, mut refused) = (0, 0);
+    for t in 0..tries {
+        let sw = unit() * [1e-3, 0.7, 3.0, 250.0][t % 4];
+        let bound_squared = bound * bound * sw.length_squared();
+        let mut silhouettes = Silhouettes::new();
+        let count = 1 + (7 * t + 9) % 29;
+        for e in 0..count {
+            let other = unit();
+            let perpendicular = other - sw * (other.dot(sw) / sw.length_squared());
+            let perpendicular = perpendicular / perpendicular.length();
+            // The sine of the angle between the plane and `sw`: about the
+            // bound (either side), or anywhere.
+            let sine = match e % 4 {
+                0 => bound * (1.0 + (unit().x) * 1e-6),
+                1 => bound * (1.0 + (unit().x) * 1e-2),
+                2 => unit().x.abs(),
+                _ => bound * 2.0,
+            };
+            let n = perpendicular * (1.0 - sine * sine).sqrt() + sw / sw.length() * sine;
+            let n = match e % 11 {
+                7 => DVec3::ZERO,
+                9 => n * 1e-3,
+                _ => n * [1e-9, 1.0, 1e12][e % 3],
+            };
+            let normal = if e % 11 == 9 {
+                n.as_vec3().to_array()
+            } else {
+                scaled_normal(n)
+            };
+            silhouettes.record_scaled(e as u32, normal);
+        }
+        // `near` answers "near" for every edge: the answer is the
+        // prefilter's alone.
+        let near = |_: DVec3, _: u32| true;
+        let f64_test = silhouettes.recorded().all(|(_, n)| {
+            let n = n.as_dvec3();
+            let along = n.dot(sw);
+            along * along > bound_squared * n.length_squared()
+        });
+        assert_eq!(
+            silhouettes.clear_of(sw, bound_squared, near),
+            f64_test,
+            "direction {sw:?}, {count} recorded"
+        );
+        // Each edge alone too (the answer of a one-edge record).
+        for (e, n) in silhouettes.recorded().collect::<Vec<_>>() {
+            let mut one = Silhouettes::new();
+            for _ in 0..8 {
+                one.record_scaled(e, n.to_array());
+            }
+            let n64 = n.as_dvec3();
+            let along = n64.dot(sw);
+            let want = along * along > bound_squared * n64.length_squared();
+            assert_eq!(
+                one.clear_of(sw, bound_squared, near),
+                want,
+                "{n:?} at {sw:?}"
+            );
+            if want {
+                cleared += 1;
+            } else {
+                refused += 1;
+            }
+        }
+    }
+    assert!(
+        cleared > 100 && refused > 100 || cfg!(miri),
+        "{cleared} cleared, {refused} refused"
+    );
+}
+
 /// The set-up in `f32` lanes against the scalar set-up, candidate by
 /// candidate: the same counters, silhouette count and recorded silhouettes at
 /// every receiver, on an ordinary scene and on one built so that decisions
