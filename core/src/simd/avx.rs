@@ -3,23 +3,22 @@
 #![allow(unsafe_code)]
 
 use core::arch::x86_64::{
-    __m128, __m128i, __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
-    _CMP_NEQ_UQ, _CMP_UNORD_Q, _mm_add_epi32, _mm_loadu_ps, _mm_loadu_si128, _mm_storeu_ps,
-    _mm_storeu_si128, _mm256_add_ps, _mm256_and_pd, _mm256_and_ps, _mm256_andnot_pd,
+    __m128, __m128i, __m256, __m256d, __m256i, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ,
+    _CMP_LT_OQ, _CMP_NEQ_UQ, _CMP_UNORD_Q, _mm_add_epi32, _mm_loadu_ps, _mm_loadu_si128,
+    _mm_storeu_ps, _mm_storeu_si128, _mm256_add_ps, _mm256_and_pd, _mm256_and_ps, _mm256_andnot_pd,
     _mm256_andnot_ps, _mm256_blendv_pd, _mm256_blendv_ps, _mm256_broadcast_ss, _mm256_castps_si256,
     _mm256_castsi256_ps, _mm256_castsi256_si128, _mm256_cmp_pd, _mm256_cmp_ps, _mm256_cvtpd_ps,
-    _mm256_cvtps_pd, _mm256_div_pd, _mm256_div_ps, _mm256_extractf128_si256, _mm256_loadu_ps,
-    _mm256_max_pd, _mm256_max_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps,
-    _mm256_set_m128, _mm256_set1_epi32, _mm256_set1_pd, _mm256_set1_ps, _mm256_setzero_ps,
-    _mm256_shuffle_ps, _mm256_sqrt_ps, _mm256_storeu_ps, _mm256_sub_pd, _mm256_sub_ps,
-    _mm256_unpackhi_ps, _mm256_unpacklo_ps, _mm256_xor_ps,
+    _mm256_cvtps_pd, _mm256_cvttps_epi32, _mm256_div_pd, _mm256_div_ps, _mm256_extractf128_si256,
+    _mm256_loadu_ps, _mm256_max_pd, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
+    _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps, _mm256_set_m128, _mm256_set1_epi32, _mm256_set1_pd,
+    _mm256_set1_ps, _mm256_setzero_ps, _mm256_shuffle_ps, _mm256_sqrt_ps, _mm256_storeu_ps,
+    _mm256_storeu_si256, _mm256_sub_pd, _mm256_sub_ps, _mm256_unpackhi_ps, _mm256_unpacklo_ps,
+    _mm256_xor_ps,
 };
 
 #[cfg(test)]
 use super::EdgePlanes8;
 use super::{EdgeCorners8, SetupMasks8, SweepPlanes8, SweepReceiver8};
-#[cfg(feature = "bvh")]
-use core::arch::x86_64::_mm256_min_ps;
 
 #[cfg(feature = "bvh")]
 use glam::Vec4;
@@ -908,8 +907,22 @@ pub(crate) fn silhouette_planes8(
         let t = _mm256_blendv_ps(t, _mm256_add_ps(t, splat(4.0)), low);
         _mm256_blendv_ps(t, _mm256_sub_ps(t, splat(4.0)), high)
     };
-    store(&mut out.lo, wrap(_mm256_sub_ps(from, margin)));
-    store(&mut out.hi, wrap(_mm256_add_ps(to, margin)));
+    let (lo, hi) = (
+        wrap(_mm256_sub_ps(from, margin)),
+        wrap(_mm256_add_ps(to, margin)),
+    );
+    store(&mut out.lo, lo);
+    store(&mut out.hi, hi);
+    // The buckets: `t` times a power of two (exact) truncated, as the
+    // sweep's `f64` does with the same `t`.
+    let scale = splat(crate::ssv::ANGLE_SCALE as f32);
+    let last = splat((crate::ssv::ANGLE_BUCKETS - 1) as f32);
+    for (to, t) in out.buckets.iter_mut().zip([lo, hi]) {
+        let bucket = _mm256_cvttps_epi32(_mm256_min_ps(_mm256_mul_ps(t, scale), last));
+        // SAFETY: `to` is eight writable, contiguous `i32`; the store is
+        // unaligned.
+        unsafe { _mm256_storeu_si256(to.as_mut_ptr().cast::<__m256i>(), bucket) };
+    }
     // A margin of a quarter turn or more (or NaN) is no arc worth taking.
     let narrow = _mm256_cmp_ps::<_CMP_LT_OQ>(margin, splat(1.0));
     let arc = _mm256_and_ps(

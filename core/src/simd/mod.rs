@@ -275,6 +275,10 @@ pub(crate) struct SweepPlanes8 {
     /// The arc's pseudo-angle range `[lo, hi]` (cyclic), where `arc` says so.
     pub lo: [f32; 8],
     pub hi: [f32; 8],
+    /// The sample-table buckets of `lo` and `hi` where `arc` says so
+    /// (`min(⌊t · ANGLE_SCALE⌋, ANGLE_BUCKETS - 1)`, as the sweep buckets
+    /// a pseudo-angle `t`).
+    pub buckets: [[i32; 8]; 2],
     /// Lanes whose planes are finite and whose centroid side is certain.
     pub decided: u32,
     /// Of those, the centroid is on the positive side of the plane `(p, a, b)`.

@@ -191,9 +191,9 @@ use sweep::{Kernel, direction_near_edge, inset, pseudo_angle};
 /// Pseudo-angle buckets of the sample lookup table (the pseudo-angle runs over
 /// `[0, 4)`; `ANGLE_BUCKETS / 4` is a power of two, so bucket bounds and the
 /// bucket of a pseudo-angle are computed exactly).
-const ANGLE_BUCKETS: usize = 1024;
+pub(crate) const ANGLE_BUCKETS: usize = 1024;
 /// Buckets per pseudo-angle unit.
-const ANGLE_SCALE: f64 = (ANGLE_BUCKETS / 4) as f64;
+pub(crate) const ANGLE_SCALE: f64 = (ANGLE_BUCKETS / 4) as f64;
 
 /// Most light samples a [`SoftShadows`] may have.
 pub const MAX_SAMPLES: usize = 1024;

@@ -321,17 +321,17 @@ impl<'a> Kernel<'a> {
         let lane_arc = planes.arc >> lane & 1;
         self.lane_swept += 1;
         self.lane_arcs += lane_arc;
-        let arc = if lane_arc == 1 {
-            Some((f64::from(planes.lo[lane]), f64::from(planes.hi[lane])))
+        let ranges = if lane_arc == 1 {
+            // Sample indices are below `MAX_SAMPLES`, the buckets below
+            // `ANGLE_BUCKETS`: both fit `usize`.
+            let [first, last] = planes.buckets.map(|b| b[lane] as usize);
+            ss.bucket_ranges(planes.lo[lane] <= planes.hi[lane], first, last)
         } else {
             let (a, b) = ss.graph.endpoints(e);
-            self.arc(ss, a.as_dvec3() - self.pw, b.as_dvec3() - self.pw)
+            ss.arc_ranges(self.arc(ss, a.as_dvec3() - self.pw, b.as_dvec3() - self.pw))
         };
         let weight = silhouette.weight;
-        (
-            ss.arc_ranges(arc),
-            if planes.want(lane) { weight } else { -weight },
-        )
+        (ranges, if planes.want(lane) { weight } else { -weight })
     }
 
     /// The sample pass of a batch's lane-decided silhouette edges, all at
@@ -652,16 +652,28 @@ impl SoftShadows {
     /// ends (exact: the scale is a power of two) widen the range to whole
     /// buckets: extra samples only get tested, none is left out.
     pub(super) fn arc_ranges(&self, arc: Option<(f64, f64)>) -> [(usize, usize); 3] {
-        let n = self.samples.len();
         let Some((lo, hi)) = arc else {
-            return [(0, n), (0, 0), (0, 0)];
+            return [(0, self.samples.len()), (0, 0), (0, 0)];
         };
-        let angled = self.angles.len();
         let bucket = |t: f64| ((t * ANGLE_SCALE) as usize).min(ANGLE_BUCKETS - 1);
-        let first = self.angle_starts[bucket(lo)] as usize;
-        let last = self.angle_starts[bucket(hi) + 1] as usize;
+        self.bucket_ranges(lo <= hi, bucket(lo), bucket(hi))
+    }
+
+    /// [`SoftShadows::arc_ranges`] for an arc from bucket `first` to bucket
+    /// `last` of the sample table, `straight` when it does not wrap past the
+    /// pseudo-angle 4 (its ends in order).
+    #[inline]
+    pub(super) fn bucket_ranges(
+        &self,
+        straight: bool,
+        first: usize,
+        last: usize,
+    ) -> [(usize, usize); 3] {
+        let (n, angled) = (self.samples.len(), self.angles.len());
+        let first = self.angle_starts[first] as usize;
+        let last = self.angle_starts[last + 1] as usize;
         let central = (angled, n);
-        if lo <= hi {
+        if straight {
             [(first, last), central, (0, 0)]
         } else if first < last {
             // A wrapped range whose widened ends overlap: every sample (once).

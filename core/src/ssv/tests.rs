@@ -2288,6 +2288,13 @@ fn lane_arcs_hold_the_exact_endpoint_angles() {
                     pseudo_angle(q.dot(ss.u_axis), q.dot(ss.v_axis))
                 };
                 let (lo, hi) = (f64::from(planes.lo[i]), f64::from(planes.hi[i]));
+                // The lanes' buckets are the sweep's for the same ends.
+                let bucket = |t: f64| ((t * ANGLE_SCALE) as usize).min(ANGLE_BUCKETS - 1);
+                assert_eq!(
+                    planes.buckets.map(|b| b[i] as usize),
+                    [bucket(lo), bucket(hi)],
+                    "buckets of [{lo}, {hi}]"
+                );
                 let inside = |t: f64| {
                     if lo <= hi {
                         lo <= t && t <= hi
