@@ -94,14 +94,15 @@ impl HeldArcs {
         lane: usize,
         e: u32,
         weight: i32,
-        (ranges, contribution): ([(usize, usize); 3], i32),
+        (ranges, contribution): ([(u32, u32); 3], i32),
     ) {
-        // Sample indices are below `MAX_SAMPLES`: they fit in `u32`.
-        self.ranges[lane] = ranges.map(|(lo, hi)| (lo as u32, hi as u32));
+        self.ranges[lane] = ranges;
         self.contributions[lane] = contribution;
         self.edges[lane] = e;
         self.weights[lane] = weight;
-        let any = ranges.iter().any(|&(lo, hi)| lo < hi);
+        // No branch per range: whether each is empty varies.
+        let [first, second, third] = ranges;
+        let any = (first.0 < first.1) | (second.0 < second.1) | (third.0 < third.1);
         self.held |= u32::from(any) << lane;
     }
 }
@@ -291,7 +292,7 @@ impl<'a> Kernel<'a> {
         let mut unsure = 0;
         for (lo, hi) in ss.arc_ranges(arc) {
             if lo < hi {
-                unsure += self.run(ss, &planes, lo, hi, counters);
+                unsure += self.run(ss, &planes, lo as usize, hi as usize, counters);
             }
         }
         self.unsure += unsure;
@@ -313,7 +314,7 @@ impl<'a> Kernel<'a> {
         planes: &crate::simd::SweepPlanes8,
         normals: &[[f32; 8]; 3],
         lane: usize,
-    ) -> ([(usize, usize); 3], i32) {
+    ) -> ([(u32, u32); 3], i32) {
         if silhouette.near {
             let normal = [0, 1, 2].map(|axis| normals[axis][lane]);
             self.silhouettes.record_scaled(e, normal);
@@ -651,9 +652,10 @@ impl SoftShadows {
     /// tested); every sample without an arc. The buckets holding the arc's
     /// ends (exact: the scale is a power of two) widen the range to whole
     /// buckets: extra samples only get tested, none is left out.
-    pub(super) fn arc_ranges(&self, arc: Option<(f64, f64)>) -> [(usize, usize); 3] {
+    pub(super) fn arc_ranges(&self, arc: Option<(f64, f64)>) -> [(u32, u32); 3] {
         let Some((lo, hi)) = arc else {
-            return [(0, self.samples.len()), (0, 0), (0, 0)];
+            // At most `MAX_SAMPLES`: fits `u32`.
+            return [(0, self.samples.len() as u32), (0, 0), (0, 0)];
         };
         let bucket = |t: f64| ((t * ANGLE_SCALE) as usize).min(ANGLE_BUCKETS - 1);
         self.bucket_ranges(lo <= hi, bucket(lo), bucket(hi))
@@ -668,10 +670,11 @@ impl SoftShadows {
         straight: bool,
         first: usize,
         last: usize,
-    ) -> [(usize, usize); 3] {
-        let (n, angled) = (self.samples.len(), self.angles.len());
-        let first = self.angle_starts[first] as usize;
-        let last = self.angle_starts[last + 1] as usize;
+    ) -> [(u32, u32); 3] {
+        // At most `MAX_SAMPLES`: both fit `u32`.
+        let (n, angled) = (self.samples.len() as u32, self.angles.len() as u32);
+        let first = self.angle_starts[first];
+        let last = self.angle_starts[last + 1];
         let central = (angled, n);
         if straight {
             [(first, last), central, (0, 0)]
