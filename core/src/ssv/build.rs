@@ -321,7 +321,13 @@ impl SoftShadows {
         let sorted = SortedOccluders::new(occluders, &plane)?;
         let positions: Vec<Vec3> =
             fallible::collect((0..occluders.vertex_count()).map(|v| occluders.position(v)))?;
-        let graph = EdgeGraph::from_indexed(&positions, &sorted.regular)?;
+        #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(unused_mut))]
+        let mut graph = EdgeGraph::from_indexed(&positions, &sorted.regular)?;
+        // The set-up lanes' records, where they run.
+        #[cfg(all(target_arch = "x86_64", feature = "std"))]
+        if crate::simd::avx_available() {
+            graph.make_lane_records()?;
+        }
         let potential: Vec<u32> = fallible::collect(
             (0..graph.edges.len() as u32).filter(|&e| !graph.is_flat(&graph.edges[e as usize])),
         )?;
@@ -360,7 +366,6 @@ impl SoftShadows {
         let near_planes = fallible::collect(near_light.iter().map(AxisPlane::of))?;
         let band_planes = fallible::collect(band.iter().map(AxisPlane::of))?;
         let band_half_width = plane.band_half_width();
-        let lane_edges = lane_edges(&graph)?;
         // Nothing fails after the caster: `previous` is only taken then.
         let caster = match (caster, previous) {
             (Some(caster), _) => caster,
@@ -372,7 +377,6 @@ impl SoftShadows {
             insets: sampled.insets,
             soa: sampled.soa,
             soa32: sampled.soa32,
-            lane_edges,
             near_sides,
             band_sides,
             near_planes,
@@ -428,30 +432,6 @@ fn check(light: &LightPolygon, samples: &[Vec3], options: &SsvOptions) -> Result
         return Err(SsvError::InvalidOptions);
     }
     Ok(())
-}
-
-/// Each edge's corners for the set-up lanes ([`SoftShadows::lane_corners`]),
-/// or nothing where they do not run.
-fn lane_edges(graph: &EdgeGraph) -> Result<Vec<[f32; 12]>, OutOfMemory> {
-    #[cfg(all(target_arch = "x86_64", feature = "std"))]
-    let lanes = crate::simd::avx_available();
-    #[cfg(not(all(target_arch = "x86_64", feature = "std")))]
-    let lanes = false;
-    if !lanes {
-        return Ok(Vec::new());
-    }
-    let at = |v: u32| graph.positions[v as usize].to_array();
-    fallible::collect(graph.edges.iter().map(|edge| {
-        let (u, v) = match graph.third_of(edge) {
-            &[u, v] => (at(u), at(v)),
-            _ => ([f32::NAN; 3], [f32::NAN; 3]),
-        };
-        let mut record = [0.0; 12];
-        for (i, q) in [at(edge.a), at(edge.b), u, v].iter().enumerate() {
-            record[3 * i..3 * i + 3].copy_from_slice(q);
-        }
-        record
-    }))
 }
 
 /// The structure `options` asks for, over the potential silhouette edges.

@@ -39,6 +39,12 @@ pub(crate) struct EdgeGraph {
     pub edges: Vec<Edge>,
     /// Third vertices of the triangles adjacent to each edge.
     pub third: Vec<u32>,
+    /// Each edge's corners as the set-up lanes read them, `f32` triples of
+    /// `a`, `b` and the third vertices `u`, `v` (NaN where the edge has not
+    /// exactly two adjacent triangles): one read per candidate instead of the
+    /// edge, its third vertices and four positions. Empty unless
+    /// [`EdgeGraph::make_lane_records`] made them.
+    pub lane_records: Vec<[f32; 12]>,
 }
 
 /// A total order key for a position in which `-0.0 == 0.0`.
@@ -170,6 +176,7 @@ impl EdgeGraph {
         }
         Ok(EdgeGraph {
             positions: welded_positions,
+            lane_records: Vec::new(),
             triangles,
             edges,
             third,
@@ -190,6 +197,24 @@ impl EdgeGraph {
     #[inline]
     pub fn corners(&self, t: usize) -> [Vec3; 3] {
         self.triangles[t].map(|v| self.positions[v as usize])
+    }
+
+    /// Makes [`EdgeGraph::lane_records`].
+    #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
+    pub fn make_lane_records(&mut self) -> Result<(), OutOfMemory> {
+        let at = |v: u32| self.positions[v as usize].to_array();
+        self.lane_records = fallible::collect(self.edges.iter().map(|edge| {
+            let (u, v) = match self.third_of(edge) {
+                &[u, v] => (at(u), at(v)),
+                _ => ([f32::NAN; 3], [f32::NAN; 3]),
+            };
+            let mut record = [0.0; 12];
+            for (i, q) in [at(edge.a), at(edge.b), u, v].iter().enumerate() {
+                record[3 * i..3 * i + 3].copy_from_slice(q);
+            }
+            record
+        }))?;
+        Ok(())
     }
 
     /// The third vertices adjacent to `edge`.

@@ -664,18 +664,34 @@ impl Batch<'_> {
 }
 
 /// How far ahead of the candidate being visited its reads are requested:
-/// the edge record first, then (its record arrived by then) the endpoints'
-/// positions and the list of third vertices.
+/// the edge (or, where the set-up lanes run, its lane record) first, then
+/// (without the lanes, the edge arrived by then) the endpoints' positions
+/// and the list of third vertices.
 const EDGES_AHEAD: usize = 8;
 const POSITIONS_AHEAD: usize = 4;
 
-/// Visits the edges of `slots` (`of_slot` maps a slot to its edge) in order, asking the cache ahead of time for what each
-/// visit reads first: a leaf's candidates are scattered over the mesh, and
-/// the chain edge record → endpoint positions is two dependent misses per
-/// candidate (the largest single stall of a query). The second stage reads
-/// only records the first one requested.
+/// Visits the edges of `slots` (`of_slot` maps a slot to its edge) in
+/// order, asking the cache ahead of time for what each visit reads first: a
+/// leaf's candidates are scattered over the mesh. The set-up lanes read one
+/// record per edge ([`EdgeGraph::lane_records`]); without them the chain
+/// edge → endpoint positions is two dependent misses per candidate, so a
+/// second stage reads only edges the first one requested.
 #[inline(always)]
 fn visit_prefetched(graph: &EdgeGraph, of_slot: &[u32], slots: &[u32], mut visit: impl FnMut(u32)) {
+    if !graph.lane_records.is_empty() {
+        // The set-up lanes read an edge's record alone (both its cache
+        // lines, where it spans two).
+        let words: &[f32] = bytemuck::cast_slice(&graph.lane_records);
+        for (i, &slot) in slots.iter().enumerate() {
+            if let Some(&ahead) = slots.get(i + EDGES_AHEAD) {
+                let first = of_slot[ahead as usize] as usize * 12;
+                prefetch(words, first);
+                prefetch(words, first + 11);
+            }
+            visit(of_slot[slot as usize]);
+        }
+        return;
+    }
     for (i, &slot) in slots.iter().enumerate() {
         if let Some(&ahead) = slots.get(i + EDGES_AHEAD) {
             prefetch(&graph.edges, of_slot[ahead as usize] as usize);

@@ -274,13 +274,6 @@ pub struct SoftShadows {
     /// reads a whole block from any sample on).
     #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
     soa32: [Vec<f32>; 3],
-    /// Each edge's corners as the lanes take them, `f32` triples of `a`, `b`
-    /// and the third vertices `u`, `v` (NaN where the edge has not exactly
-    /// two adjacent triangles): one read per candidate instead of the edge,
-    /// its third vertices and four positions. Empty where the lanes do not
-    /// run.
-    #[cfg_attr(not(all(target_arch = "x86_64", feature = "std")), allow(dead_code))]
-    lane_edges: Vec<[f32; 12]>,
     /// How far inside the light's polygon each sample lies, in its plane
     /// (negative outside; angular order).
     insets: Vec<f64>,

@@ -139,7 +139,7 @@ impl SoftShadows {
 
     /// The corners of `edges` by lane, into `corners` (written in place: a
     /// returned copy of its 384 bytes cost a `memcpy` per batch), from
-    /// [`SoftShadows::lane_edges`]; returns the lanes whose edge has not
+    /// [`EdgeGraph::lane_records`]; returns the lanes whose edge has not
     /// exactly two adjacent triangles (their third vertices are NaN).
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
     pub(super) fn lane_corners(
@@ -147,7 +147,7 @@ impl SoftShadows {
         edges: &[u32; LANES],
         corners: &mut crate::simd::EdgeCorners8,
     ) -> u32 {
-        let records = edges.map(|e| &self.lane_edges[e as usize]);
+        let records = edges.map(|e| &self.graph.lane_records[e as usize]);
         #[allow(unsafe_code)]
         // SAFETY: lanes run only where the processor runs AVX
         // ([`SoftShadows::sweep_receiver`]).
