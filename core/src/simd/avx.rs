@@ -914,11 +914,13 @@ pub(crate) fn silhouette_planes8(
     store(&mut out.lo, lo);
     store(&mut out.hi, hi);
     // The buckets: `t` times a power of two (exact) truncated, as the
-    // sweep's `f64` does with the same `t`.
+    // sweep's `f64` does with the same `t` (clamped as its saturating cast
+    // is, NaN to 0, though only arc lanes, in `[0, 4]`, are read).
     let scale = splat(crate::ssv::ANGLE_SCALE as f32);
     let last = splat((crate::ssv::ANGLE_BUCKETS - 1) as f32);
     for (to, t) in out.buckets.iter_mut().zip([lo, hi]) {
-        let bucket = _mm256_cvttps_epi32(_mm256_min_ps(_mm256_mul_ps(t, scale), last));
+        let scaled = _mm256_max_ps(_mm256_mul_ps(t, scale), zero);
+        let bucket = _mm256_cvttps_epi32(_mm256_min_ps(scaled, last));
         // SAFETY: `to` is eight writable, contiguous `i32`; the store is
         // unaligned.
         unsafe { _mm256_storeu_si256(to.as_mut_ptr().cast::<__m256i>(), bucket) };
@@ -967,8 +969,8 @@ fn columns4(rows: [&[f32; 4]; 8]) -> [__m256; 4] {
 
 /// The corners of eight edges by lane (lane `i` from `records[i]`: the
 /// triples `a`, `b`, `u`, `v` one after another), into `out`; returns the
-/// lanes whose `u` is NaN. Transposed in registers, each record read in
-/// three quarters ([`columns4`]).
+/// lanes whose `u` is NaN. Transposed in registers, each record read as
+/// three rows of four ([`columns4`]).
 #[target_feature(enable = "avx")]
 #[inline]
 pub(crate) fn edge_corners8(records: [&[f32; 12]; 8], out: &mut EdgeCorners8) -> u32 {
@@ -996,8 +998,8 @@ pub(crate) fn edge_corners8(records: [&[f32; 12]; 8], out: &mut EdgeCorners8) ->
 /// recorded silhouettes: lane `i` takes the normal `n` from the first three
 /// of `normals[i]` (the fourth is ignored) and is set when `n · n >= 1/4`
 /// and `(n · s)² > threshold (n · n)`, all in `f32` (the reference sample's
-/// prefilter, [`crate::ssv`]'s `reference_sample`, which picks `threshold`
-/// so that a set lane passes its exact test too).
+/// prefilter: the soft shadows' `Silhouettes::clear_of` takes `threshold`
+/// from `lane_threshold`, so that a set lane passes its `f64` test too).
 #[target_feature(enable = "avx")]
 #[inline(never)]
 pub(crate) fn beyond_planes8(normals: [&[f32; 4]; 8], s: [f32; 3], threshold: f32) -> u32 {

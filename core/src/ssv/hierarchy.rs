@@ -664,16 +664,18 @@ impl Batch<'_> {
 }
 
 /// How far ahead of the candidate being visited its reads are requested:
-/// the edge (or, where the set-up lanes run, its lane record) first, then
-/// (without the lanes, the edge arrived by then) the endpoints' positions
-/// and the list of third vertices.
+/// the edge (or, where the lane records exist, its record) first, then
+/// (without them, the edge arrived by then) the endpoints' positions and
+/// the list of third vertices.
 const EDGES_AHEAD: usize = 8;
 const POSITIONS_AHEAD: usize = 4;
 
 /// Visits the edges of `slots` (`of_slot` maps a slot to its edge) in
 /// order, asking the cache ahead of time for what each visit reads first: a
-/// leaf's candidates are scattered over the mesh. The set-up lanes read one
-/// record per edge ([`EdgeGraph::lane_records`]); without them the chain
+/// leaf's candidates are scattered over the mesh. Where the lane records
+/// exist (the processor runs AVX) the set-up lanes read one record per edge
+/// ([`EdgeGraph::lane_records`]), and those are asked for (the rare walks
+/// that read edges instead go without); without them the chain
 /// edge → endpoint positions is two dependent misses per candidate, so a
 /// second stage reads only edges the first one requested.
 #[inline(always)]

@@ -54,23 +54,18 @@ pub(super) struct Silhouettes {
 /// for that), then the edge; sixteen bytes, so that the lanes read eight of
 /// them as rows of four ([`crate::simd::avx::beyond_planes8`]).
 #[repr(C)]
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub(super) struct Recorded {
     pub(super) normal: [f32; 3],
     pub(super) edge: u32,
 }
 
 impl Recorded {
-    /// The normal and the edge's bits as four `f32` (the lanes' rows).
+    /// The normal and the edge's bits as four `f32` (the lanes' rows; the
+    /// fourth is only moved, never computed with).
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
     fn as_row(&self) -> &[f32; 4] {
-        #[allow(unsafe_code)]
-        // SAFETY: `Recorded` is `repr(C)`: three `f32` and a `u32`, sixteen
-        // bytes without padding, aligned as `f32`; every bit pattern is an
-        // `f32`.
-        unsafe {
-            &*(self as *const Recorded).cast::<[f32; 4]>()
-        }
+        bytemuck::cast_ref(self)
     }
 }
 
@@ -123,10 +118,11 @@ impl Silhouettes {
     /// The written slots.
     fn written(&self) -> &[Recorded] {
         #[allow(unsafe_code)]
-        // SAFETY: `record` writes slot `len` before it increments `len`,
-        // and nothing else changes either, so every slot below `len` holds
-        // a written value (a plain `Copy` struct); `MaybeUninit<Recorded>`
-        // has the layout of `Recorded`.
+        // SAFETY: `record_scaled` writes slot `len` before it increments
+        // `len` (which never passes the slots' number), and nothing else
+        // changes either, so every slot below `len` holds a written value (a
+        // plain `Copy` struct); `MaybeUninit<Recorded>` has the layout of
+        // `Recorded`.
         unsafe {
             core::slice::from_raw_parts(self.slots.as_ptr().cast::<Recorded>(), self.len)
         }
@@ -182,11 +178,12 @@ impl Silhouettes {
 /// `sw` and the `f64` test's `bound_squared` (`b² |sw|²`), or `None` where
 /// `|sw|²` is outside `[10⁻²⁰, 10³⁰]` (the lanes then take no part).
 ///
-/// The lanes take `s = sw` rounded to `f32` and a normal `n` whose largest
-/// component is at least `1/2` (`n · n >= 1/4`, which they check, as every
-/// scaled normal has), so `|n| |s|` is far above `f32`'s underflow. Their
+/// The lanes take `s = sw` rounded to `f32` and only normals with
+/// `n · n >= 1/4` (every finite non-zero scaled normal: its largest
+/// component is at least `1/2`; a zero or non-finite one fails that check
+/// or compares false), so `|n| |s|` is far above `f32`'s underflow. Their
 /// `n · s` is then within `5u |n| |s|` of the exact `n · sw` (`u = 2⁻²⁴`:
-/// `s`'s rounding, two products' and two sums'), and the squares and
+/// `s`'s rounding, three products' and two sums'), and the squares and
 /// products of the test within a few `u` relative. So a lane with
 /// `(n · s)² > (1.001 b + 8u)² |sw|² (n · n)` has
 /// `|n · sw| > (1.001 b + 3u) |n| |sw| (1 - 10u)`, above `b |n| |sw|` by far

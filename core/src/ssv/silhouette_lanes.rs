@@ -149,8 +149,9 @@ impl SoftShadows {
     ) -> u32 {
         let records = edges.map(|e| &self.graph.lane_records[e as usize]);
         #[allow(unsafe_code)]
-        // SAFETY: lanes run only where the processor runs AVX
-        // ([`SoftShadows::sweep_receiver`]).
+        // SAFETY: the records are made only where the processor runs AVX
+        // (creation checks it); without them the indexing above panics
+        // before any AVX runs.
         unsafe {
             crate::simd::avx::edge_corners8(records, corners)
         }

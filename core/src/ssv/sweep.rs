@@ -323,8 +323,7 @@ impl<'a> Kernel<'a> {
         self.lane_swept += 1;
         self.lane_arcs += lane_arc;
         let ranges = if lane_arc == 1 {
-            // Sample indices are below `MAX_SAMPLES`, the buckets below
-            // `ANGLE_BUCKETS`: both fit `usize`.
+            // An arc lane's buckets are in `[0, ANGLE_BUCKETS)`.
             let [first, last] = planes.buckets.map(|b| b[lane] as usize);
             ss.bucket_ranges(planes.lo[lane] <= planes.hi[lane], first, last)
         } else {
