@@ -63,9 +63,11 @@ impl SoftShadows {
             // ([`SoftShadows::sweep_receiver`]).
             let planes = (swept != 0)
                 .then(|| unsafe { crate::simd::avx::silhouette_planes8(receiver, &corners) });
-            // The normals the swept ones are recorded with where near.
+            // The normals the decided silhouettes are recorded with where
+            // near (swept or not).
             let pw = kernel.pw.to_array();
-            let normals = if masks.near & swept != 0 {
+            let decided = !masks.undecided & !masks.idle;
+            let normals = if masks.near & decided != 0 {
                 #[allow(unsafe_code)]
                 // SAFETY: as above.
                 unsafe {
@@ -98,6 +100,14 @@ impl SoftShadows {
                     let arc =
                         kernel.lane_silhouette_ranges(self, e, silhouette, planes, &normals, i);
                     held.hold(i, e, silhouette.weight, arc);
+                    continue;
+                }
+                if !silhouette.sweep {
+                    // Only recorded, where near: the lanes' normal is the
+                    // one `add_silhouette` would record, bit for bit.
+                    if silhouette.near {
+                        kernel.record_lane_normal(e, &normals, i);
+                    }
                     continue;
                 }
                 let (a, b) = self.graph.endpoints(e);

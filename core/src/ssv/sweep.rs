@@ -316,8 +316,7 @@ impl<'a> Kernel<'a> {
         lane: usize,
     ) -> ([(u32, u32); 3], i32) {
         if silhouette.near {
-            let normal = [0, 1, 2].map(|axis| normals[axis][lane]);
-            self.silhouettes.record_scaled(e, normal);
+            self.record_lane_normal(e, normals, lane);
         }
         let lane_arc = planes.arc >> lane & 1;
         self.lane_swept += 1;
@@ -332,6 +331,16 @@ impl<'a> Kernel<'a> {
         };
         let weight = silhouette.weight;
         (ranges, if planes.want(lane) { weight } else { -weight })
+    }
+
+    /// Records silhouette edge `e` for the reference sample with lane
+    /// `lane` of `normals` ([`recorded_normals8`](crate::simd::avx::recorded_normals8)):
+    /// what [`Kernel::add_silhouette`] records for it, bit for bit.
+    #[cfg(all(target_arch = "x86_64", feature = "std"))]
+    #[inline(always)]
+    pub(super) fn record_lane_normal(&mut self, e: u32, normals: &[[f32; 8]; 3], lane: usize) {
+        let normal = [0, 1, 2].map(|axis| normals[axis][lane]);
+        self.silhouettes.record_scaled(e, normal);
     }
 
     /// The sample pass of a batch's lane-decided silhouette edges, all at
