@@ -1552,6 +1552,55 @@ proptest! {
             prop_assert_eq!(bucket(t), bucket(hi));
         }
     }
+
+    // An arc's sample ranges, straight or wrapped past the pseudo-angle 4
+    // (ends in one bucket, in each other's, far apart): each sample at most
+    // once, every sample of the cyclic arc and every one too close to the
+    // centroid for an angle, and besides those only samples of the two end
+    // buckets (or every sample, where a wrapped arc's widened ends overlap).
+    #[test]
+    fn arc_ranges_hold_the_cyclic_arc_once(
+        count in prop::sample::select(vec![16usize, 100, 256, 300]),
+        seed in 0u64..1000,
+        lo_pick in 0usize..2048, width in prop::sample::select(vec![0usize, 1, 3, 40, 900, 2040, 2047]),
+        jitter in 0.0f64..1.0,
+    ) {
+        let light = LightPolygon::new(&[
+            Vec3::new(-1.0, -1.0, 3.0),
+            Vec3::new(1.0, -1.0, 3.0),
+            Vec3::new(1.0, 1.0, 3.0),
+            Vec3::new(-1.0, 1.0, 3.0),
+        ])
+        .unwrap();
+        let samples = light.samples(count, SamplePattern::Jittered, seed);
+        let mut soup = Soup::default();
+        soup.push([Vec3::ZERO, Vec3::X, Vec3::Y]);
+        let ss = build(&soup, &light, &samples, Structure::BruteForce);
+        let (angles, n) = (&ss.angles, samples.len());
+        let lo = (lo_pick as f64 + jitter) / 512.0;
+        let hi = ((lo_pick + width) % 2048) as f64 / 512.0 + jitter / 512.0;
+        let bucket = |t: f64| ((t * ANGLE_SCALE) as usize).min(ANGLE_BUCKETS - 1);
+        let mut held = vec![0u32; n];
+        for (start, end) in ss.arc_ranges(Some((lo, hi))) {
+            for i in start..end.max(start) {
+                held[i as usize] += 1;
+            }
+        }
+        prop_assert!(held.iter().all(|&h| h <= 1), "a sample twice");
+        let in_arc = |t: f64| if lo <= hi { lo <= t && t <= hi } else { t >= lo || t <= hi };
+        let overlapping = lo > hi && bucket(lo) <= bucket(hi);
+        for (k, &h) in held.iter().enumerate() {
+            let Some(&t) = angles.get(k) else {
+                prop_assert_eq!(h, 1, "central sample {} left out", k);
+                continue;
+            };
+            if in_arc(t) {
+                prop_assert_eq!(h, 1, "sample {} at {} left out of [{}, {}]", k, t, lo, hi);
+            } else if h == 1 && !overlapping {
+                prop_assert!(bucket(t) == bucket(lo) || bucket(t) == bucket(hi));
+            }
+        }
+    }
 }
 
 /// Segments that pass within `f32` rounding of an edge (and through no edge or
