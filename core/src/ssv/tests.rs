@@ -1508,6 +1508,22 @@ fn axis_plane_side_equals_orient3d() {
     assert!(AxisPlane::of(&[Vec3::ZERO, Vec3::X, Vec3::new(0.0, 1.0, 1.0)]).is_none());
 }
 
+/// A structure whose sample table the tests below read: `count` jittered
+/// samples (seed `seed`) of a square light over one triangle.
+fn sample_table(count: usize, seed: u64) -> SoftShadows {
+    let light = LightPolygon::new(&[
+        Vec3::new(-1.0, -1.0, 3.0),
+        Vec3::new(1.0, -1.0, 3.0),
+        Vec3::new(1.0, 1.0, 3.0),
+        Vec3::new(-1.0, 1.0, 3.0),
+    ])
+    .unwrap();
+    let samples = light.samples(count, SamplePattern::Jittered, seed);
+    let mut soup = Soup::default();
+    soup.push([Vec3::ZERO, Vec3::X, Vec3::Y]);
+    build(&soup, &light, &samples, Structure::BruteForce)
+}
+
 proptest! {
     // The bucket lookup of a pseudo-angle range holds every sample the two
     // binary searches it replaced find, and adds only samples of the two end
@@ -1520,17 +1536,7 @@ proptest! {
         lo_pick in 0usize..2048, hi_pick in 0usize..2048,
         snap in 0u32..3,
     ) {
-        let light = LightPolygon::new(&[
-            Vec3::new(-1.0, -1.0, 3.0),
-            Vec3::new(1.0, -1.0, 3.0),
-            Vec3::new(1.0, 1.0, 3.0),
-            Vec3::new(-1.0, 1.0, 3.0),
-        ])
-        .unwrap();
-        let samples = light.samples(count, SamplePattern::Jittered, seed);
-        let mut soup = Soup::default();
-        soup.push([Vec3::ZERO, Vec3::X, Vec3::Y]);
-        let ss = build(&soup, &light, &samples, Structure::BruteForce);
+        let ss = sample_table(count, seed);
         let angles = &ss.angles;
         let at = |pick: usize| match snap {
             0 => pick as f64 / 512.0,
@@ -1565,18 +1571,8 @@ proptest! {
         lo_pick in 0usize..2048, width in prop::sample::select(vec![0usize, 1, 3, 40, 900, 2040, 2047]),
         jitter in 0.0f64..1.0,
     ) {
-        let light = LightPolygon::new(&[
-            Vec3::new(-1.0, -1.0, 3.0),
-            Vec3::new(1.0, -1.0, 3.0),
-            Vec3::new(1.0, 1.0, 3.0),
-            Vec3::new(-1.0, 1.0, 3.0),
-        ])
-        .unwrap();
-        let samples = light.samples(count, SamplePattern::Jittered, seed);
-        let mut soup = Soup::default();
-        soup.push([Vec3::ZERO, Vec3::X, Vec3::Y]);
-        let ss = build(&soup, &light, &samples, Structure::BruteForce);
-        let (angles, n) = (&ss.angles, samples.len());
+        let ss = sample_table(count, seed);
+        let (angles, n) = (&ss.angles, ss.sample_count());
         let lo = (lo_pick as f64 + jitter) / 512.0;
         let hi = ((lo_pick + width) % 2048) as f64 / 512.0 + jitter / 512.0;
         let bucket = |t: f64| ((t * ANGLE_SCALE) as usize).min(ANGLE_BUCKETS - 1);
