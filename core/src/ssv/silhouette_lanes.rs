@@ -11,11 +11,13 @@
 //! decision the lanes take is the one [`Kernel::add_edge`] takes. A candidate
 //! with any decision left open (a value within its bound, an edge without
 //! exactly two adjacent triangles) goes through [`Kernel::add_edge`] whole;
-//! a decided silhouette goes on to [`Kernel::add_silhouette`], the same code
-//! as the scalar path's, or, where the lanes decide its planes too
+//! a decided silhouette is recorded with the lanes' normal (the bits
+//! [`Kernel::add_silhouette`] records) and goes on to
+//! [`Kernel::sweep_silhouette`], the same code as the scalar path's, or,
+//! where the lanes decide its planes too
 //! ([`crate::simd::avx::silhouette_planes8`]: the planes of the per-sample
 //! test, the centroid's side and the arc, each with a bound on its rounding),
-//! to [`Kernel::lane_silhouette_ranges`] (the record and the arc), then an
+//! to [`Kernel::lane_silhouette_ranges`] (the arc), then an
 //! `f32` sample pass that counts exactly the samples [`Kernel::crosses`]
 //! would. Those edges are held with their sample ranges and swept together
 //! once the batch is set up ([`Kernel::sweep_held_arcs`]: one call per batch,
@@ -25,7 +27,7 @@
 //! do not see).
 
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
-use super::sweep::{DecidedSilhouette, EdgeAt, HeldArcs};
+use super::sweep::{EdgeAt, HeldArcs};
 use super::*;
 #[cfg(any(test, all(target_arch = "x86_64", feature = "std")))]
 use crate::simd::SetupMasks8;
@@ -56,22 +58,21 @@ impl SoftShadows {
             let mut corners = crate::simd::EdgeCorners8::default();
             let irregular = self.lane_corners(edges, &mut corners);
             let masks = lane_masks(receiver, &corners, irregular);
+            let decided = !masks.undecided & !masks.idle;
             // The swept silhouettes' planes and arcs in lanes too.
-            let swept = masks.sweep & !masks.undecided & !masks.idle;
+            let swept = masks.sweep & decided;
             #[allow(unsafe_code)]
             // SAFETY: a receiver is only made where the processor runs AVX
             // ([`SoftShadows::sweep_receiver`]).
             let planes = (swept != 0)
                 .then(|| unsafe { crate::simd::avx::silhouette_planes8(receiver, &corners) });
             // The normals the decided silhouettes are recorded with where
-            // near (swept or not).
-            let pw = kernel.pw.to_array();
-            let decided = !masks.undecided & !masks.idle;
+            // near.
             let normals = if masks.near & decided != 0 {
                 #[allow(unsafe_code)]
                 // SAFETY: as above.
                 unsafe {
-                    crate::simd::avx::recorded_normals8(pw, &corners)
+                    crate::simd::avx::recorded_normals8(kernel.pw.to_array(), &corners)
                 }
             } else {
                 Default::default()
@@ -89,30 +90,25 @@ impl SoftShadows {
                     continue;
                 }
                 silhouettes += 1;
-                let silhouette = DecidedSilhouette {
-                    weight: if masks.positive & bit != 0 { 2 } else { -2 },
-                    near: masks.near & bit != 0,
-                    sweep: masks.sweep & bit != 0,
-                };
+                // `add_silhouette`'s record, with the lanes' normal (the same
+                // bits), then its sweep.
+                if masks.near & bit != 0 {
+                    kernel.record_lane_normal(e, &normals, i);
+                }
+                if swept & bit == 0 {
+                    continue;
+                }
+                let weight = if masks.positive & bit != 0 { 2 } else { -2 };
                 if let Some(planes) = &planes
-                    && planes.decided & swept & bit != 0
+                    && planes.decided & bit != 0
                 {
-                    let arc =
-                        kernel.lane_silhouette_ranges(self, e, silhouette, planes, &normals, i);
-                    held.hold(i, e, silhouette.weight, arc);
-                    continue;
+                    let arc = kernel.lane_silhouette_ranges(self, e, weight, planes, i);
+                    held.hold(i, e, weight, arc);
+                } else {
+                    let (a, b) = self.graph.endpoints(e);
+                    let at = EdgeAt::new(a, b, kernel.pw);
+                    kernel.sweep_silhouette(self, &at, weight, counters);
                 }
-                if !silhouette.sweep {
-                    // Only recorded, where near: the lanes' normal is the
-                    // one `add_silhouette` would record, bit for bit.
-                    if silhouette.near {
-                        kernel.record_lane_normal(e, &normals, i);
-                    }
-                    continue;
-                }
-                let (a, b) = self.graph.endpoints(e);
-                let at = EdgeAt::new(a, b, kernel.pw);
-                kernel.add_silhouette(self, e, &at, silhouette, counters);
             }
             if let Some(planes) = &planes
                 && held.held != 0

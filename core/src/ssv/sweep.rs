@@ -278,10 +278,22 @@ impl<'a> Kernel<'a> {
         if silhouette.near {
             self.silhouettes.record(e, at.nrm);
         }
-        if !silhouette.sweep {
-            return;
+        if silhouette.sweep {
+            self.sweep_silhouette(ss, at, silhouette.weight, counters);
         }
-        let planes = self.edge_planes(ss, at, silhouette.weight);
+    }
+
+    /// The sweep of [`Kernel::add_silhouette`]: silhouette edge `at`
+    /// (weight `weight`, its plane cutting the light) over the samples.
+    #[inline(always)]
+    pub(super) fn sweep_silhouette(
+        &mut self,
+        ss: &SoftShadows,
+        at: &EdgeAt,
+        weight: i32,
+        counters: &mut [i32],
+    ) {
+        let planes = self.edge_planes(ss, at, weight);
         // The slow twin tests every sample: it checks the arc and its bucket
         // range as well as the fast pass.
         let arc = if self.slow {
@@ -298,26 +310,20 @@ impl<'a> Kernel<'a> {
         self.unsure += unsure;
     }
 
-    /// The first part of [`Kernel::add_silhouette`] for a silhouette edge
-    /// whose planes, centroid side and (where `planes.arc` says so) arc the
-    /// lanes decided (lane `lane` of `planes`): records it where it is near
-    /// (with its normal from `normals`, [`recorded_normals8`](crate::simd::avx::recorded_normals8)),
-    /// and returns the ranges of samples (angular order) its arc may cross
-    /// and its contribution, for [`Kernel::sweep_held_arcs`].
+    /// The first part of [`Kernel::sweep_silhouette`] for a silhouette edge
+    /// `e` (weight `weight`) whose planes, centroid side and (where
+    /// `planes.arc` says so) arc the lanes decided (lane `lane` of `planes`):
+    /// the ranges of samples (angular order) its arc may cross and its
+    /// contribution, for [`Kernel::sweep_held_arcs`].
     #[cfg(all(target_arch = "x86_64", feature = "std"))]
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn lane_silhouette_ranges(
         &mut self,
         ss: &SoftShadows,
         e: u32,
-        silhouette: DecidedSilhouette,
+        weight: i32,
         planes: &crate::simd::SweepPlanes8,
-        normals: &[[f32; 8]; 3],
         lane: usize,
     ) -> ([(u32, u32); 3], i32) {
-        if silhouette.near {
-            self.record_lane_normal(e, normals, lane);
-        }
         let lane_arc = planes.arc >> lane & 1;
         self.lane_swept += 1;
         self.lane_arcs += lane_arc;
@@ -329,7 +335,6 @@ impl<'a> Kernel<'a> {
             let (a, b) = ss.graph.endpoints(e);
             ss.arc_ranges(self.arc(ss, a.as_dvec3() - self.pw, b.as_dvec3() - self.pw))
         };
-        let weight = silhouette.weight;
         (ranges, if planes.want(lane) { weight } else { -weight })
     }
 
