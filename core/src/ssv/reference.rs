@@ -130,19 +130,20 @@ impl Silhouettes {
 
     /// Whether direction `sw` (from the receiver) is clear of every recorded
     /// silhouette's plane by the prefilter, or else of the edge itself by
-    /// `near`: for each, `(n · sw)² > bound_squared (n · n)` (in `f64`) or
+    /// `near`: for each, `(n · sw)² > bound² |sw|² (n · n)` (in `f64`) or
     /// `!near(sw, edge)`. Where AVX runs the prefilter first takes eight
     /// at a time in `f32` ([`crate::simd::avx::beyond_planes8`]), with a
-    /// threshold above `bound_squared` by more than that test's rounding,
+    /// threshold above `bound² |sw|²` by more than that test's rounding,
     /// so that each edge it clears the `f64` test clears as well: the same
     /// answer, the `f64` test (and `near`) left to the few it does not
     /// clear.
     pub(super) fn clear_of(
         &self,
         sw: DVec3,
-        bound_squared: f64,
+        bound: f64,
         near: impl Fn(DVec3, u32) -> bool,
     ) -> bool {
+        let bound_squared = bound * bound * sw.length_squared();
         let clear = |r: &Recorded| {
             let n = Vec3::from_array(r.normal).as_dvec3();
             let along = n.dot(sw);
@@ -150,7 +151,7 @@ impl Silhouettes {
         };
         let written = self.written();
         #[cfg(all(target_arch = "x86_64", feature = "std"))]
-        if let Some(threshold) = lane_threshold(sw, bound_squared)
+        if let Some(threshold) = lane_threshold(sw, bound)
             && crate::simd::avx_available()
         {
             let s = sw.as_vec3().to_array();
@@ -175,7 +176,7 @@ impl Silhouettes {
 }
 
 /// The `f32` threshold of [`Silhouettes::clear_of`]'s lanes for direction
-/// `sw` and the `f64` test's `bound_squared` (`b² |sw|²`), or `None` where
+/// `sw` and the `f64` test's bound `b`, or `None` where
 /// `|sw|²` is outside `[10⁻²⁰, 10³⁰]` (the lanes then take no part).
 ///
 /// The lanes take `s = sw` rounded to `f32` and only normals with
@@ -189,12 +190,11 @@ impl Silhouettes {
 /// `|n · sw| > (1.001 b + 3u) |n| |sw| (1 - 10u)`, above `b |n| |sw|` by far
 /// more than the `f64` test's own rounding: that test clears it too.
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
-fn lane_threshold(sw: DVec3, bound_squared: f64) -> Option<f32> {
+fn lane_threshold(sw: DVec3, b: f64) -> Option<f32> {
     let length2 = sw.length_squared();
     if !(1e-20..=1e30).contains(&length2) {
         return None;
     }
-    let b = crate::geom::sqrt(bound_squared / length2);
     let u = f64::from(f32::EPSILON) / 2.0;
     let widened = 1.001 * b + 8.0 * u;
     // Rounded up past `f32`'s rounding.
@@ -293,9 +293,7 @@ impl SoftShadows {
             // The recorded normals' directions are within 1e-7 of the exact
             // ones: the prefilter's bound allows for it. `|n·s| > bound |n|`
             // in squares (f64, its rounding far below that allowance).
-            let bound = NEAR_ANGLE + 1e-6;
-            let bound_squared = bound * bound * sw.length_squared();
-            let recorded_clear = silhouettes.clear_of(sw, bound_squared, near);
+            let recorded_clear = silhouettes.clear_of(sw, NEAR_ANGLE + 1e-6, near);
             if !recorded_clear || !silhouettes.overflow {
                 return recorded_clear;
             }

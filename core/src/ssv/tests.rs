@@ -2173,7 +2173,7 @@ fn miri_recorded_planes_clear_as_the_f64_test() {
             along * along > bound_squared * n.length_squared()
         });
         assert_eq!(
-            silhouettes.clear_of(sw, bound_squared, near),
+            silhouettes.clear_of(sw, bound, near),
             f64_test,
             "direction {sw:?}, {count} recorded"
         );
@@ -2186,11 +2186,7 @@ fn miri_recorded_planes_clear_as_the_f64_test() {
             let n64 = n.as_dvec3();
             let along = n64.dot(sw);
             let want = along * along > bound_squared * n64.length_squared();
-            assert_eq!(
-                one.clear_of(sw, bound_squared, near),
-                want,
-                "{n:?} at {sw:?}"
-            );
+            assert_eq!(one.clear_of(sw, bound, near), want, "{n:?} at {sw:?}");
             if want {
                 cleared += 1;
             } else {
