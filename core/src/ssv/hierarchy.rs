@@ -30,9 +30,10 @@
 //! split costs about what those queries cost). A split needs more than
 //! `leaf_edges` edges and a level left above the depth limit, and the children
 //! are kept only when they pay: their mean list must be at most
-//! [`SPLIT_GAIN`] of the node's, else the node stays a leaf for good (a sample
-//! of [`SAMPLED_EDGES`] edges refuses most such splits before the rest are
-//! tested). Children's lists are written when a query first enters them (a
+//! [`SPLIT_GAIN`] of the node's, or, in a batch, the candidates they save its
+//! receivers must be worth the split's tests ([`SPLIT_COST`]); else the node
+//! stays a leaf for good (a sample of [`SAMPLED_EDGES`] edges refuses most
+//! such splits before the rest are tested). Children's lists are written when a query first enters them (a
 //! ground of receivers enters four of every eight), from one octant mask per
 //! parent edge.
 //!
@@ -67,6 +68,13 @@ pub(crate) const SPLIT_AFTER: u32 = BATCH_SPLIT as u32;
 /// Receivers of a batch in a node for [`Hierarchy::prepare`] to split it.
 const BATCH_SPLIT: usize = 8;
 
+/// What testing one edge against a node's eight octants costs (about 90 ns
+/// in AVX lanes) over what a query pays for a candidate that a finer node
+/// would have left out (the set-up lanes' share, some 15–20 ns): a batch's
+/// split that saves its receivers more candidates than this many times the
+/// node's list pays for itself ([`Hierarchy::prepare`]).
+const SPLIT_COST: f64 = 5.0;
+
 /// Receivers under a node for [`Hierarchy::prepare`] to build its subtrees
 /// on several threads.
 #[cfg(feature = "parallel")]
@@ -76,7 +84,7 @@ const PARALLEL_RECEIVERS: usize = 2048;
 const SAMPLED_EDGES: usize = 32;
 
 /// A split is refused from its sample when the sample's children lists
-/// exceed the [`SPLIT_GAIN`] limit by this factor (room for the sample's
+/// exceed the limits of both rules by this factor (room for the sample's
 /// noise: a refused split that would have paid costs more than one made in
 /// vain).
 const REFUSE_MARGIN: f64 = 1.0;
@@ -289,23 +297,29 @@ impl Hierarchy {
     }
 
     /// The node's children, when they pay: when their mean list is at most
-    /// [`SPLIT_GAIN`] of the node's. (The mean over all eight, not weighted by
-    /// where the receivers are: a floor of receivers sits in the lower
+    /// [`SPLIT_GAIN`] of the node's, or, for a batch whose receivers fall
+    /// `receivers[i]` in octant `i`, when the candidates the split saves them
+    /// (`Σ receivers[i] (L - L_i)` for lists of `L` and `L_i` edges) are at
+    /// least [`SPLIT_COST`] times `L`. (The first rule alone is not weighted
+    /// by where the receivers are: a floor of receivers sits in the lower
     /// octants of a root whose upper ones hold the light, and those lower
-    /// octants keep nearly every edge at the first split; weighted, the split
-    /// that the levels below need was refused.)
+    /// octants keep nearly every edge at the first split; weighted by a
+    /// ratio, the split that the levels below need was refused. The second
+    /// adds the splits that pay their batch: deep under a mesh, where a
+    /// large light keeps long lists in the octants without receivers, the
+    /// first refuses them.)
     /// `None` when there is no memory for the decision (the node stays
     /// undecided, and queries use its list).
-    fn split(&self, graph: &EdgeGraph, shape: &LightShape, node: &Node) -> Option<Split> {
+    fn split(
+        &self,
+        graph: &EdgeGraph,
+        shape: &LightShape,
+        node: &Node,
+        receivers: Option<&[u32; 8]>,
+    ) -> Option<Split> {
         let edges = &node.edges;
         let mut masks = fallible::filled(0u8, edges.len()).ok()?.into_boxed_slice();
-        // Candidates the expected queries would test in the children (an
-        // edge in `m` children is tested there by `m` eighths of them), over
-        // those they test in the node (`n` edges of `masks` looked at).
-        let pays = |after: u64, n: usize, margin: f64| {
-            after as f64 <= margin * SPLIT_GAIN * (8 * n as u64) as f64
-        };
-        let ones = |m: &u8| u64::from(m.count_ones());
+        let pays = |counts, looked_at, margin| split_pays(counts, looked_at, receivers, margin);
         // A strided sample first: most splits that will not pay are refused
         // after testing it alone.
         let step = (edges.len() / SAMPLED_EDGES).max(1);
@@ -320,7 +334,7 @@ impl Hierarchy {
                 &mut masks,
             );
             if !pays(
-                masks.iter().step_by(step).map(ones).sum(),
+                octant_counts(masks.iter().step_by(step)),
                 sample.len(),
                 REFUSE_MARGIN,
             ) {
@@ -337,14 +351,9 @@ impl Hierarchy {
             self.bounds
                 .octant_masks(graph, shape, &node.bounds, edges, sample, &mut masks);
         }
-        if !pays(masks.iter().map(ones).sum(), edges.len(), 1.0) {
+        let counts = octant_counts(masks.iter());
+        if !pays(counts, edges.len(), 1.0) {
             return Some(Split::Leaf);
-        }
-        let mut counts = [0u32; 8];
-        for &m in masks.iter() {
-            for (i, count) in counts.iter_mut().enumerate() {
-                *count += u32::from(m >> i & 1);
-            }
         }
         self.bytes.fetch_add(
             core::mem::size_of::<Children>() + masks.len(),
@@ -450,9 +459,8 @@ impl Hierarchy {
     /// Builds, ahead of a batch of queries, the nodes its receivers `points`
     /// need: from each top node down, a node is split (if undecided) when
     /// [`BATCH_SPLIT`] or more of the receivers fall in it, its children kept
-    /// when they pay for the receivers in them ([`SPLIT_GAIN`], weighted by
-    /// where the receivers are), and the walk goes on in the children that
-    /// hold receivers. Unlike the split rule of single queries (which counts
+    /// when they pay ([`SPLIT_GAIN`], or [`SPLIT_COST`] for the receivers in
+    /// them), and the walk goes on in the children that hold receivers. Unlike the split rule of single queries (which counts
     /// the queries a node has served), no query pays for a coarse node that
     /// the batch will split, and a node few receivers reach is not refined for
     /// them. With `parallel` (and the `parallel` feature) the subtrees are
@@ -556,7 +564,7 @@ impl Hierarchy {
                     }
                     match node
                         .split
-                        .get_or_try_init(|| self.split(graph, shape, node))
+                        .get_or_try_init(|| self.split(graph, shape, node, None))
                     {
                         Some(split) => split,
                         None => break,
@@ -588,6 +596,48 @@ enum TopSlot {
     },
 }
 
+/// Whether a split pays ([`Hierarchy::split`]'s rules), from the children's
+/// list lengths `counts` over `looked_at` edges of the node's list: the
+/// candidates the expected queries would test in the children (an edge in
+/// `m` children is tested there by `m` eighths of them) against
+/// [`SPLIT_GAIN`] of those they test in the node, or, for a batch with
+/// `receivers[i]` in octant `i`, the candidates those receivers would test
+/// in the children against those they test in the node less [`SPLIT_COST`]
+/// node lists. `margin` scales both limits (the sample's room).
+fn split_pays(
+    counts: [u32; 8],
+    looked_at: usize,
+    receivers: Option<&[u32; 8]>,
+    margin: f64,
+) -> bool {
+    let n = looked_at as f64;
+    let after: f64 = counts.iter().map(|&c| f64::from(c)).sum();
+    if after <= margin * SPLIT_GAIN * 8.0 * n {
+        return true;
+    }
+    let Some(receivers) = receivers else {
+        return false;
+    };
+    let weighted: f64 = counts
+        .iter()
+        .zip(receivers)
+        .map(|(&c, &r)| f64::from(c) * f64::from(r))
+        .sum();
+    let receivers_in: f64 = receivers.iter().map(|&r| f64::from(r)).sum();
+    weighted <= margin * (receivers_in - SPLIT_COST) * n
+}
+
+/// How many of `masks` hold each octant: the children's list lengths.
+fn octant_counts<'a>(masks: impl Iterator<Item = &'a u8>) -> [u32; 8] {
+    let mut counts = [0u32; 8];
+    for &m in masks {
+        for (i, count) in counts.iter_mut().enumerate() {
+            *count += u32::from(m >> i & 1);
+        }
+    }
+    counts
+}
+
 /// What [`Hierarchy::prepare`]'s recursion carries.
 #[derive(Clone, Copy)]
 struct Batch<'a> {
@@ -614,7 +664,7 @@ impl Batch<'_> {
             None if indices.len() < BATCH_SPLIT => return,
             None => match node
                 .split
-                .get_or_try_init(|| h.split(self.graph, self.shape, node))
+                .get_or_try_init(|| h.split(self.graph, self.shape, node, Some(&counts)))
             {
                 Some(split) => split,
                 None => return,
@@ -705,5 +755,38 @@ fn visit_prefetched(graph: &EdgeGraph, of_slot: &[u32], slots: &[u32], mut visit
             prefetch(&graph.third, edge.first as usize);
         }
         visit(of_slot[slot as usize]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The batch rule keeps a split whose children save its receivers more
+    /// than [`SPLIT_COST`] node lists where the mean rule refuses it, and
+    /// refuses one that saves fewer; without receivers only the mean counts.
+    #[test]
+    fn a_batch_split_pays_for_the_candidates_it_saves_its_receivers() {
+        let list = 1000;
+        // Every child keeps every edge but octant 0, which keeps half: the
+        // mean (0.94 of the list) is above SPLIT_GAIN.
+        let mut counts = [list as u32; 8];
+        counts[0] = list as u32 / 2;
+        assert!(!split_pays(counts, list, None, 1.0));
+        // Receivers in octant 0 save half a list each.
+        let mut receivers = [0u32; 8];
+        receivers[0] = 2 * SPLIT_COST as u32 + 1;
+        assert!(split_pays(counts, list, Some(&receivers), 1.0));
+        receivers[0] = 2 * SPLIT_COST as u32 - 1;
+        assert!(!split_pays(counts, list, Some(&receivers), 1.0));
+        // Receivers where the children keep every edge save nothing.
+        let mut elsewhere = [0u32; 8];
+        elsewhere[3] = 1000;
+        assert!(!split_pays(counts, list, Some(&elsewhere), 1.0));
+        // The mean rule alone still keeps a split that halves every list,
+        // whoever the receivers are.
+        let halved = [list as u32 / 2; 8];
+        assert!(split_pays(halved, list, None, 1.0));
+        assert!(split_pays(halved, list, Some(&elsewhere), 1.0));
     }
 }
