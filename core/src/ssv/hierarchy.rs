@@ -21,7 +21,7 @@
 //! edge per cell that receives queries.
 //!
 //! When a node splits. Splitting a node of `L` edges tests each against the
-//! eight octants (about 90 ns per edge in AVX lanes); a query through it tests
+//! eight octants (about 60 ns per edge in AVX lanes); a query through it tests
 //! `L` candidates (a few tens of nanoseconds each that are not silhouettes).
 //! So a node is split where enough receivers are to pay for it: a batch
 //! ([`Hierarchy::prepare`]) splits it when [`BATCH_SPLIT`] of its receivers
@@ -68,11 +68,14 @@ pub(crate) const SPLIT_AFTER: u32 = BATCH_SPLIT as u32;
 /// Receivers of a batch in a node for [`Hierarchy::prepare`] to split it.
 const BATCH_SPLIT: usize = 8;
 
-/// What testing one edge against a node's eight octants costs (about 90 ns
-/// in AVX lanes) over what a query pays for a candidate that a finer node
-/// would have left out (the set-up lanes' share, some 15–20 ns): a batch's
-/// split that saves its receivers more candidates than this many times the
-/// node's list pays for itself ([`Hierarchy::prepare`]).
+/// A batch's split pays for itself when it saves its receivers more
+/// candidates than this many times the node's list ([`Hierarchy::prepare`]).
+/// Testing one edge against eight octants costs about 60 ns in AVX lanes, a
+/// candidate that a finer node would have left out 25–30 ns of a query's
+/// time under a large light: a ratio of 2–2.5. The rule does not count the
+/// splits a kept split makes possible below it, so the constant is set
+/// above that ratio: 3 and 5 gave the same frames on the Chinese dragon and
+/// the armadillo (5 with fewer nodes), 10 and 20 slower ones.
 const SPLIT_COST: f64 = 5.0;
 
 /// Receivers under a node for [`Hierarchy::prepare`] to build its subtrees
