@@ -33,9 +33,9 @@
 //! [`SPLIT_GAIN`] of the node's, or, in a batch, the candidates they save its
 //! receivers must be worth the split's tests ([`SPLIT_COST`]); else the node
 //! stays a leaf for good (a sample of [`SAMPLED_EDGES`] edges refuses most
-//! such splits before the rest are tested). Children's lists are written when a query first enters them (a
-//! ground of receivers enters four of every eight), from one octant mask per
-//! parent edge.
+//! such splits before the rest are tested). Children's lists are written when
+//! a query first enters them (a ground of receivers enters four of every
+//! eight), from one octant mask per parent edge.
 //!
 //! Threads: every lazily made part (a split decision, a child, a shell, a cell)
 //! is a once-cell. With `std` a `OnceLock`: concurrent queries that need the
@@ -463,12 +463,12 @@ impl Hierarchy {
     /// need: from each top node down, a node is split (if undecided) when
     /// [`BATCH_SPLIT`] or more of the receivers fall in it, its children kept
     /// when they pay ([`SPLIT_GAIN`], or [`SPLIT_COST`] for the receivers in
-    /// them), and the walk goes on in the children that hold receivers. Unlike the split rule of single queries (which counts
-    /// the queries a node has served), no query pays for a coarse node that
-    /// the batch will split, and a node few receivers reach is not refined for
-    /// them. With `parallel` (and the `parallel` feature) the subtrees are
-    /// built on rayon's threads. The bits of the queries are the same either
-    /// way.
+    /// them), and the walk goes on in the children that hold receivers.
+    /// Unlike the split rule of single queries (which counts the queries a
+    /// node has served), no query pays for a coarse node that the batch will
+    /// split, and a node few receivers reach is not refined for them. With
+    /// `parallel` (and the `parallel` feature) the subtrees are built on
+    /// rayon's threads. The bits of the queries are the same either way.
     ///
     /// Without memory for its bookkeeping it builds nothing: the queries then
     /// build what they need themselves (or use coarser nodes).
