@@ -1511,13 +1511,7 @@ fn axis_plane_side_equals_orient3d() {
 /// A structure whose sample table the tests below read: `count` jittered
 /// samples (seed `seed`) of a square light over one triangle.
 fn sample_table(count: usize, seed: u64) -> SoftShadows {
-    let light = LightPolygon::new(&[
-        Vec3::new(-1.0, -1.0, 3.0),
-        Vec3::new(1.0, -1.0, 3.0),
-        Vec3::new(1.0, 1.0, 3.0),
-        Vec3::new(-1.0, 1.0, 3.0),
-    ])
-    .unwrap();
+    let light = quad_light(Vec3::new(0.0, 0.0, 3.0), 1.0);
     let samples = light.samples(count, SamplePattern::Jittered, seed);
     let mut soup = Soup::default();
     soup.push([Vec3::ZERO, Vec3::X, Vec3::Y]);
