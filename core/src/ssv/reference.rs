@@ -143,7 +143,8 @@ impl Silhouettes {
         bound: f64,
         near: impl Fn(DVec3, u32) -> bool,
     ) -> bool {
-        let bound_squared = bound * bound * sw.length_squared();
+        let length2 = sw.length_squared();
+        let bound_squared = bound * bound * length2;
         let clear = |r: &Recorded| {
             let n = Vec3::from_array(r.normal).as_dvec3();
             let along = n.dot(sw);
@@ -151,7 +152,7 @@ impl Silhouettes {
         };
         let written = self.written();
         #[cfg(all(target_arch = "x86_64", feature = "std"))]
-        if let Some(threshold) = lane_threshold(sw, bound)
+        if let Some(threshold) = lane_threshold(length2, bound)
             && crate::simd::avx_available()
         {
             let s = sw.as_vec3().to_array();
@@ -175,9 +176,10 @@ impl Silhouettes {
     }
 }
 
-/// The `f32` threshold of [`Silhouettes::clear_of`]'s lanes for direction
-/// `sw` and the `f64` test's bound `b`, or `None` where
-/// `|sw|²` is outside `[10⁻²⁰, 10³⁰]` (the lanes then take no part).
+/// The `f32` threshold of [`Silhouettes::clear_of`]'s lanes for a direction
+/// `sw` of squared length `length2` and the `f64` test's bound `b`, or
+/// `None` where `|sw|²` is outside `[10⁻²⁰, 10³⁰]` (the lanes then take no
+/// part).
 ///
 /// The lanes take `s = sw` rounded to `f32` and only normals with
 /// `n · n >= 1/4` (every finite non-zero scaled normal: its largest
@@ -190,8 +192,7 @@ impl Silhouettes {
 /// `|n · sw| > (1.001 b + 3u) |n| |sw| (1 - 10u)`, above `b |n| |sw|` by far
 /// more than the `f64` test's own rounding: that test clears it too.
 #[cfg(all(target_arch = "x86_64", feature = "std"))]
-fn lane_threshold(sw: DVec3, b: f64) -> Option<f32> {
-    let length2 = sw.length_squared();
+fn lane_threshold(length2: f64, b: f64) -> Option<f32> {
     if !(1e-20..=1e30).contains(&length2) {
         return None;
     }
